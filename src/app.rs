@@ -1,0 +1,347 @@
+//! The one place that wires things together: commands, threads, channels, signals, files.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crate::cli::{
+    Cli, CollisionArgs, Command, DemoArgs, LiveArgs, RecordArgs, ReplayArgs, SceneCommand,
+    SceneKind,
+};
+use crate::collision::events::EventKind;
+use crate::collision::pipeline::CollisionConfig;
+use crate::error::{Error, Result};
+use crate::ingest::live::{self, ConnectAddress, LiveOptions};
+use crate::ingest::tlog::TlogReader;
+use crate::scene::{self, gen, Scene};
+use crate::session::{write_json_atomic, Session};
+
+/// How fast a replay runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Speed {
+    /// As fast as the machine can.
+    Max,
+    /// This factor of the recorded time (1 = as flown).
+    Factor(f64),
+}
+
+impl std::str::FromStr for Speed {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        if s == "max" {
+            return Ok(Speed::Max);
+        }
+        match s.parse::<f64>() {
+            Ok(f) if f.is_finite() && f > 0.0 => Ok(Speed::Factor(f)),
+            _ => Err(Error::Usage(format!(
+                "--speed {s:?}: give a positive factor (1 = as flown) or `max`"
+            ))),
+        }
+    }
+}
+
+/// Longest wall-clock pause a replay makes for one gap in the recording, seconds.
+const MAX_REPLAY_PAUSE_S: f64 = 10.0;
+
+/// Where bundled files live: the working directory, else the source tree savsim was built from.
+pub fn bundled(relative: &str) -> PathBuf {
+    let here = PathBuf::from(relative);
+    if here.exists() {
+        here
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+    }
+}
+
+/// The bundled demo flight.
+pub const DEMO_FLIGHT: &str = "scenes/flights/copter_square_10ms.tlog";
+/// The bundled city.
+pub const DEMO_SCENE: &str = "scenes/city.toml";
+
+fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
+    for (name, v) in [
+        ("--ray-length-m", args.ray_length_m),
+        ("--near-miss-m", args.near_miss_m),
+        ("--max-gap-s", args.max_gap_s),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(Error::Usage(format!("{name} {v}: give a number >= 0")));
+        }
+    }
+    Ok(CollisionConfig {
+        mode: args.mode,
+        ray_length_m: args.ray_length_m,
+        near_miss_m: args.near_miss_m,
+        max_gap_s: args.max_gap_s,
+        ..CollisionConfig::default()
+    })
+}
+
+fn load_scene(path: Option<&Path>) -> Result<Option<Arc<Scene>>> {
+    Ok(match path {
+        Some(p) => Some(Arc::new(scene::load(p)?)),
+        None => None,
+    })
+}
+
+/// Run a parsed command line; `shutdown` turns true on SIGINT/SIGTERM.
+pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
+    match cli.command {
+        Command::Replay(args) => replay_command(&args, &shutdown),
+        Command::Demo(args) => demo(args, &shutdown),
+        Command::Live(args) => live_command(&args, shutdown),
+        Command::Record(args) => record_command(&args, shutdown),
+        Command::Scene(SceneCommand::Gen { kind, seed, out }) => {
+            let text = match kind {
+                SceneKind::City => gen::city(seed, gen::DEFAULT_ORIGIN),
+                SceneKind::Mountain => gen::mountain(seed, gen::DEFAULT_ORIGIN),
+            };
+            match out {
+                Some(path) => std::fs::write(&path, text).map_err(|e| Error::file(path, e)),
+                None => {
+                    print!("{text}");
+                    Ok(())
+                }
+            }
+        }
+        Command::Scene(SceneCommand::Info { scene }) => {
+            let s = scene::load(&scene)?;
+            print!("{}", scene::info::describe(&s));
+            Ok(())
+        }
+    }
+}
+
+fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
+    let speed: Speed = args.speed.parse()?;
+    let scene = load_scene(args.collision.scene.as_deref())?;
+    let mut session = Session::new(
+        scene,
+        collision_config(&args.collision)?,
+        args.collision.events.as_deref(),
+    )?;
+    let result = replay(
+        &args.flight,
+        speed,
+        !args.no_progress,
+        &mut session,
+        shutdown,
+    );
+    let finished = session.finish();
+    write_summary(
+        &session,
+        "replay",
+        &args.flight,
+        args.collision.summary_json.as_deref(),
+    )?;
+    result.and(finished)?;
+    print_report(&session);
+    Ok(())
+}
+
+fn write_summary(
+    session: &Session,
+    command: &str,
+    input: &Path,
+    path: Option<&Path>,
+) -> Result<()> {
+    match path {
+        Some(path) => write_json_atomic(
+            path,
+            &session.summary(command, &input.display().to_string()),
+        ),
+        None => Ok(()),
+    }
+}
+
+/// Replay a tlog into a session, paced by its timestamps.
+pub fn replay(
+    path: &Path,
+    speed: Speed,
+    progress: bool,
+    session: &mut Session,
+    shutdown: &AtomicBool,
+) -> Result<()> {
+    let file = File::open(path).map_err(|e| Error::file(path, e))?;
+    let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let bar = (progress && len > (8 << 20) && std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .then(|| indicatif::ProgressBar::new(len));
+    let mut reader = TlogReader::new(file);
+    let wall_start = Instant::now();
+    let mut first_t_s: Option<f64> = None;
+    let mut paused_s = 0.0;
+    let mut last_t_s = f64::NEG_INFINITY;
+    let mut n: u64 = 0;
+    loop {
+        if shutdown.load(Ordering::Relaxed) {
+            session.interrupted = true;
+            break;
+        }
+        let record = reader
+            .next_record(&mut session.ingestor.stats)
+            .map_err(|e| Error::file(path, e))?;
+        let Some(record) = record else { break };
+        let t_s = record.timestamp_us as f64 * 1e-6;
+        if let Speed::Factor(factor) = speed {
+            let t0 = *first_t_s.get_or_insert(t_s);
+            if t_s - last_t_s > MAX_REPLAY_PAUSE_S && last_t_s.is_finite() {
+                paused_s += t_s - last_t_s - MAX_REPLAY_PAUSE_S;
+            }
+            let due = (t_s - t0 - paused_s) / factor;
+            let now = wall_start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64((due - now).min(MAX_REPLAY_PAUSE_S)));
+            }
+        }
+        last_t_s = last_t_s.max(t_s);
+        session.on_frame(t_s, &record.frame)?;
+        n += 1;
+        if let Some(bar) = &bar {
+            if n % 4096 == 0 {
+                bar.set_position(reader.position());
+            }
+        }
+    }
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    Ok(())
+}
+
+fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
+    if args.collision.scene.is_none() {
+        args.collision.scene = Some(bundled(DEMO_SCENE));
+    }
+    let flight = bundled(DEMO_FLIGHT);
+    println!(
+        "savsim demo: replaying {} over {} ({} mode)",
+        flight.display(),
+        args.collision
+            .scene
+            .as_ref()
+            .map_or(String::new(), |p| p.display().to_string()),
+        args.collision.mode.name()
+    );
+    replay_command(
+        &ReplayArgs {
+            flight,
+            speed: args.speed,
+            collision: args.collision,
+            no_progress: false,
+        },
+        shutdown,
+    )
+}
+
+/// Print what a run found, for a person at a terminal.
+pub fn print_report(session: &Session) {
+    let stats = &session.ingestor.stats;
+    let span = stats.time_span_s.map_or(0.0, |(a, b)| b - a);
+    println!(
+        "{} messages over {:.1} s from {} vehicle(s); {} bad frames, {} values rejected",
+        stats.messages_total(),
+        span,
+        session.world.seen.len(),
+        stats.bad_crc + stats.unknown_ids.values().sum::<u64>() + stats.bad_incompat_flags,
+        stats.rejected.values().sum::<u64>()
+    );
+    let Some(p) = &session.pipeline else { return };
+    let (median_us, p99_us) = crate::session::percentiles_us(&session.tick_cost_ns);
+    println!(
+        "{} ticks in {} mode: {} collisions, {} near misses, {} collider swaps, {} telemetry gaps",
+        p.totals.ticks,
+        p.config.mode.name(),
+        p.totals.collisions,
+        p.totals.near_misses,
+        p.totals.swaps,
+        p.totals.telemetry_gaps
+    );
+    println!(
+        "tick cost median {median_us:.1} us, p99 {p99_us:.1} us; {} meshes built ({} triangles)",
+        p.meshes.built, p.meshes.triangles
+    );
+    for e in &session.notable {
+        match &e.kind {
+            EventKind::Collision {
+                obstacle,
+                obstacle_kind,
+                point_enu_m,
+                time_of_impact,
+                ..
+            } => println!(
+                "  COLLISION  vehicle {} with {obstacle} ({obstacle_kind}) at t={time_of_impact:.2} s, \
+                 point E {:.1} N {:.1} U {:.1} m",
+                e.vehicle, point_enu_m[0], point_enu_m[1], point_enu_m[2]
+            ),
+            EventKind::NearMiss {
+                obstacle,
+                closest_m,
+                closest_t,
+            } => println!(
+                "  near miss  vehicle {} passed {obstacle} at {closest_m:.2} m (t={closest_t:.2} s)",
+                e.vehicle
+            ),
+            _ => {}
+        }
+    }
+}
+
+fn live_options(connect: &str, rate_hz: f64, duration_s: Option<f64>) -> Result<LiveOptions> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1000.0) {
+        return Err(Error::Usage(format!(
+            "--rate-hz {rate_hz}: give 0 < rate <= 1000"
+        )));
+    }
+    if let Some(d) = duration_s {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(Error::Usage(format!(
+                "--duration-s {d}: give a positive number"
+            )));
+        }
+    }
+    Ok(LiveOptions {
+        address: connect.parse::<ConnectAddress>()?,
+        rate_hz,
+        duration: duration_s.map(Duration::from_secs_f64),
+        ..LiveOptions::default()
+    })
+}
+
+fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
+    let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
+    let scene = load_scene(args.collision.scene.as_deref())?;
+    let session = Session::new(
+        scene,
+        collision_config(&args.collision)?,
+        args.collision.events.as_deref(),
+    )?;
+    let mut session = live::run_blocking(options, session, args.record.as_deref(), shutdown)?;
+    let finished = session.finish();
+    write_summary(
+        &session,
+        "live",
+        Path::new(&args.connect),
+        args.collision.summary_json.as_deref(),
+    )?;
+    finished?;
+    print_report(&session);
+    Ok(())
+}
+
+fn record_command(args: &RecordArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
+    let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
+    let session = Session::new(None, CollisionConfig::default(), None)?;
+    let mut session = live::run_blocking(options, session, Some(&args.out), shutdown)?;
+    session.finish()?;
+    write_summary(
+        &session,
+        "record",
+        Path::new(&args.connect),
+        args.summary_json.as_deref(),
+    )?;
+    print_report(&session);
+    Ok(())
+}

@@ -1,0 +1,154 @@
+//! The command line, parsed raw by clap and then validated into typed options.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::collision::pipeline::Mode;
+
+/// savsim: sense-and-avoid simulation for UAVs over MAVLink.
+#[derive(Debug, Parser)]
+#[command(name = "savsim", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// savsim's commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Replay the bundled flight over the bundled city and print what happened.
+    Demo(DemoArgs),
+    /// Replay a tlog, optionally over a scene.
+    Replay(ReplayArgs),
+    /// Connect to a vehicle or SITL and mirror it live, optionally over a scene.
+    Live(LiveArgs),
+    /// Record what a live connection receives as a standard tlog.
+    Record(RecordArgs),
+    /// Generate or inspect scenes.
+    #[command(subcommand)]
+    Scene(SceneCommand),
+}
+
+/// Options shared by everything that checks collisions.
+#[derive(Debug, Clone, Args)]
+pub struct CollisionArgs {
+    /// The scene (TOML); without one, savsim only ingests.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// How colliders are chosen (see docs/accuracy-vs-speed.md).
+    #[arg(long, value_enum, default_value = "adaptive")]
+    pub mode: Mode,
+    /// Write events as JSON lines here.
+    #[arg(long)]
+    pub events: Option<PathBuf>,
+    /// Write a JSON summary here at exit (also on Ctrl-C).
+    #[arg(long)]
+    pub summary_json: Option<PathBuf>,
+    /// Length of the six rays, metres.
+    #[arg(long, default_value_t = 300.0)]
+    pub ray_length_m: f64,
+    /// Near-miss distance, metres.
+    #[arg(long, default_value_t = 10.0)]
+    pub near_miss_m: f64,
+    /// Telemetry gaps longer than this are reported and not swept, seconds.
+    #[arg(long, default_value_t = 1.0)]
+    pub max_gap_s: f64,
+}
+
+/// `savsim demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Collision options (the scene defaults to the bundled city).
+    #[command(flatten)]
+    pub collision: CollisionArgs,
+    /// Replay speed: a factor of real time, or `max`.
+    #[arg(long, default_value = "max")]
+    pub speed: String,
+}
+
+/// `savsim replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// The tlog to replay.
+    pub flight: PathBuf,
+    /// Replay speed: a factor of real time (1 = as flown), or `max`.
+    #[arg(long, default_value = "max")]
+    pub speed: String,
+    /// Collision options.
+    #[command(flatten)]
+    pub collision: CollisionArgs,
+    /// Never draw a progress bar.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+/// `savsim live`.
+#[derive(Debug, Args)]
+pub struct LiveArgs {
+    /// udpin:HOST:PORT (listen), udpout:HOST:PORT, tcpout:HOST:PORT, or tcpin:HOST:PORT.
+    #[arg(long)]
+    pub connect: String,
+    /// Rate to ask for GLOBAL_POSITION_INT and ATTITUDE at, Hz.
+    #[arg(long, default_value_t = 20.0)]
+    pub rate_hz: f64,
+    /// Also record what is received to this tlog.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Stop after this many seconds (default: until Ctrl-C).
+    #[arg(long)]
+    pub duration_s: Option<f64>,
+    /// Collision options.
+    #[command(flatten)]
+    pub collision: CollisionArgs,
+}
+
+/// `savsim record`.
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// udpin:HOST:PORT (listen), udpout:HOST:PORT, tcpout:HOST:PORT, or tcpin:HOST:PORT.
+    #[arg(long)]
+    pub connect: String,
+    /// The tlog to write.
+    pub out: PathBuf,
+    /// Rate to ask for GLOBAL_POSITION_INT and ATTITUDE at, Hz.
+    #[arg(long, default_value_t = 20.0)]
+    pub rate_hz: f64,
+    /// Stop after this many seconds (default: until Ctrl-C).
+    #[arg(long)]
+    pub duration_s: Option<f64>,
+    /// Write a JSON summary here at exit.
+    #[arg(long)]
+    pub summary_json: Option<PathBuf>,
+}
+
+/// Which scene to generate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SceneKind {
+    /// Thousands of buildings, many concave.
+    City,
+    /// Ridged terrain with valleys and passes, and trees.
+    Mountain,
+}
+
+/// `savsim scene ...`.
+#[derive(Debug, Subcommand)]
+pub enum SceneCommand {
+    /// Generate a bundled-style scene (deterministic in the seed).
+    Gen {
+        /// city or mountain.
+        kind: SceneKind,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write the scene here (default: stdout).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Describe a scene: obstacles by kind, triangles, bounds, memory.
+    Info {
+        /// The scene file.
+        scene: PathBuf,
+    },
+}

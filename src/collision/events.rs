@@ -1,0 +1,72 @@
+//! Events: what the collision core reports, one JSON object per line (`--events PATH`).
+//! Documented field by field in docs/events.md.
+
+use serde::Serialize;
+
+use crate::collision::ColliderKind;
+
+/// Something that happened to a vehicle at one tick.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Event {
+    /// Receive/tlog clock of the tick, seconds (UNIX time for tlogs and live).
+    pub t: f64,
+    /// The vehicle's own clock at the tick, ms since boot.
+    pub time_boot_ms: u32,
+    /// The vehicle's MAVLink system id.
+    pub vehicle: u8,
+    /// What happened.
+    #[serde(flatten)]
+    pub kind: EventKind,
+}
+
+/// The kinds of event, tagged by `kind` in JSON.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum EventKind {
+    /// The vehicle touched an obstacle (the start of a contact).
+    Collision {
+        /// Obstacle id.
+        obstacle: String,
+        /// Obstacle kind.
+        obstacle_kind: &'static str,
+        /// Contact point, scene ENU metres.
+        point_enu_m: [f64; 3],
+        /// Contact normal (out of the obstacle), ENU.
+        normal_enu: [f64; 3],
+        /// When contact began, seconds on the same clock as `t`.
+        time_of_impact: f64,
+        /// True when found by sweeping between samples, false by a check at one sample.
+        swept: bool,
+    },
+    /// An obstacle's collider changed.
+    ColliderSwap {
+        /// Obstacle id.
+        obstacle: String,
+        /// Collider before.
+        from: ColliderKind,
+        /// Collider after.
+        to: ColliderKind,
+        /// Threat coefficient at the change (0 when no ray saw it).
+        beta: f64,
+        /// Distance from the vehicle to the obstacle's box, metres.
+        distance_m: f64,
+        /// Why: `node`, `look_ahead`, `threat`, `far`, `contact_check`, `proximity`, `left`.
+        reason: &'static str,
+    },
+    /// The vehicle came within the near-miss distance of an obstacle without touching it.
+    NearMiss {
+        /// Obstacle id.
+        obstacle: String,
+        /// Closest distance reached, metres.
+        closest_m: f64,
+        /// When it was closest, seconds.
+        closest_t: f64,
+    },
+    /// Telemetry stopped for longer than the gap limit: no sweep across the gap.
+    TelemetryGap {
+        /// Length of the gap, seconds.
+        gap_s: f64,
+        /// Distance the vehicle moved across it, metres.
+        moved_m: f64,
+    },
+}

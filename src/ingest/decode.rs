@@ -1,0 +1,222 @@
+//! Decode: the only place where MAVLink units appear.
+//!
+//! Turns a valid [`RawFrame`] into a typed [`Report`] in SI units (degrees and metres for
+//! positions, m/s, radians, seconds), or says why the values were rejected. Pure: no I/O, no
+//! clocks, no allocation. Counting lives in [`crate::ingest::stats`].
+
+use glam::DVec3;
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavType, ADSB_VEHICLE_DATA, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA,
+    HEARTBEAT_DATA,
+};
+use mavlink::MessageData;
+
+use crate::geo::Geodetic;
+use crate::ingest::frame::RawFrame;
+
+/// MAVLink id of HEARTBEAT.
+pub const ID_HEARTBEAT: u32 = HEARTBEAT_DATA::ID;
+/// MAVLink id of ATTITUDE.
+pub const ID_ATTITUDE: u32 = ATTITUDE_DATA::ID;
+/// MAVLink id of GLOBAL_POSITION_INT.
+pub const ID_GLOBAL_POSITION_INT: u32 = GLOBAL_POSITION_INT_DATA::ID;
+/// MAVLink id of ADSB_VEHICLE.
+pub const ID_ADSB_VEHICLE: u32 = ADSB_VEHICLE_DATA::ID;
+
+/// A vehicle's position fix (GLOBAL_POSITION_INT) in SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionReport {
+    /// Vehicle clock, milliseconds since boot (wraps at 2^32).
+    pub time_boot_ms: u32,
+    /// WGS84 position; `alt_m` is metres above mean sea level.
+    pub position: Geodetic,
+    /// Height above home, metres.
+    pub relative_alt_m: f64,
+    /// Ground velocity in the vehicle's local North-East-Down frame, m/s.
+    pub velocity_ned_mps: DVec3,
+    /// Heading, degrees clockwise from north; `None` when the vehicle says unknown (65535).
+    pub heading_deg: Option<f64>,
+}
+
+/// A vehicle's attitude (ATTITUDE) in SI units: body FRD relative to local NED.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeReport {
+    /// Vehicle clock, milliseconds since boot (wraps at 2^32).
+    pub time_boot_ms: u32,
+    /// Roll, radians.
+    pub roll_rad: f64,
+    /// Pitch, radians.
+    pub pitch_rad: f64,
+    /// Yaw, radians clockwise from north.
+    pub yaw_rad: f64,
+    /// Body rates (roll, pitch, yaw), rad/s.
+    pub body_rates_radps: DVec3,
+}
+
+/// Who a HEARTBEAT says its sender is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeartbeatReport {
+    /// MAV_TYPE, or `None` if the value is not in the dialect.
+    pub vehicle_type: Option<MavType>,
+    /// MAV_AUTOPILOT, or `None` if the value is not in the dialect.
+    pub autopilot: Option<MavAutopilot>,
+}
+
+/// An ADS-B traffic report (ADSB_VEHICLE) in SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdsbReport {
+    /// ICAO 24-bit address.
+    pub icao_address: u32,
+    /// WGS84 position; `alt_m` as reported (ADS-B altitude, metres).
+    pub position: Geodetic,
+    /// Course over ground, degrees clockwise from north.
+    pub heading_deg: f64,
+    /// Horizontal speed, m/s.
+    pub horizontal_speed_mps: f64,
+    /// Vertical speed, m/s, positive up.
+    pub vertical_speed_mps: f64,
+    /// ADSB_EMITTER_TYPE as its raw number (0 = no info).
+    pub emitter_type: u8,
+    /// Callsign, ASCII, NUL padded.
+    pub callsign: [u8; 9],
+}
+
+/// A decoded message that savsim uses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Report {
+    /// GLOBAL_POSITION_INT.
+    Position(PositionReport),
+    /// ATTITUDE.
+    Attitude(AttitudeReport),
+    /// HEARTBEAT.
+    Heartbeat(HeartbeatReport),
+    /// ADSB_VEHICLE.
+    Adsb(AdsbReport),
+}
+
+/// Why a frame with a valid checksum still gave no report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Rejection {
+    /// lat = lon = 0: the autopilot's "no fix yet" sentinel.
+    NoFix,
+    /// Latitude outside [-90, 90] or longitude outside [-180, 180].
+    LatLonOutOfRange,
+    /// An attitude angle or rate that is NaN or infinite.
+    NonFiniteAttitude,
+    /// A field the dialect constrains (an enum) holds a value it does not define.
+    InvalidField,
+}
+
+impl Rejection {
+    /// The stable snake_case name used in summaries.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Rejection::NoFix => "no_fix",
+            Rejection::LatLonOutOfRange => "lat_lon_out_of_range",
+            Rejection::NonFiniteAttitude => "non_finite_attitude",
+            Rejection::InvalidField => "invalid_field",
+        }
+    }
+}
+
+/// Decode a frame whose status is `Valid`. `Ok(None)` for messages savsim does not use.
+///
+/// ```
+/// use savsim::ingest::{decode::{decode, Report}, frame::{scan, Scan}};
+/// let bytes = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
+/// let Scan::Frame(frame) = scan(&bytes) else { panic!() };
+/// assert!(matches!(decode(&frame), Ok(Some(Report::Heartbeat(_)))));
+/// ```
+pub fn decode(frame: &RawFrame<'_>) -> Result<Option<Report>, Rejection> {
+    let version = frame.version;
+    let payload = frame.payload;
+    match frame.message_id {
+        ID_GLOBAL_POSITION_INT => {
+            let m = GLOBAL_POSITION_INT_DATA::deser(version, payload)
+                .map_err(|_| Rejection::InvalidField)?;
+            position_from(&m).map(|p| Some(Report::Position(p)))
+        }
+        ID_ATTITUDE => {
+            let m = ATTITUDE_DATA::deser(version, payload).map_err(|_| Rejection::InvalidField)?;
+            attitude_from(&m).map(|a| Some(Report::Attitude(a)))
+        }
+        ID_HEARTBEAT => Ok(Some(Report::Heartbeat(heartbeat_from(payload)))),
+        ID_ADSB_VEHICLE => {
+            let m =
+                ADSB_VEHICLE_DATA::deser(version, payload).map_err(|_| Rejection::InvalidField)?;
+            adsb_from(&m).map(|a| Some(Report::Adsb(a)))
+        }
+        _ => Ok(None),
+    }
+}
+
+fn geodetic_from_e7(lat_e7: i32, lon_e7: i32, alt_m: f64) -> Result<Geodetic, Rejection> {
+    if lat_e7 == 0 && lon_e7 == 0 {
+        return Err(Rejection::NoFix);
+    }
+    let position = Geodetic::new(f64::from(lat_e7) * 1e-7, f64::from(lon_e7) * 1e-7, alt_m);
+    if !(-90.0..=90.0).contains(&position.lat_deg) || !(-180.0..=180.0).contains(&position.lon_deg)
+    {
+        return Err(Rejection::LatLonOutOfRange);
+    }
+    Ok(position)
+}
+
+fn position_from(m: &GLOBAL_POSITION_INT_DATA) -> Result<PositionReport, Rejection> {
+    Ok(PositionReport {
+        time_boot_ms: m.time_boot_ms,
+        position: geodetic_from_e7(m.lat, m.lon, f64::from(m.alt) * 1e-3)?,
+        relative_alt_m: f64::from(m.relative_alt) * 1e-3,
+        velocity_ned_mps: DVec3::new(f64::from(m.vx), f64::from(m.vy), f64::from(m.vz)) * 0.01,
+        heading_deg: (m.hdg != u16::MAX).then(|| f64::from(m.hdg) * 0.01),
+    })
+}
+
+fn attitude_from(m: &ATTITUDE_DATA) -> Result<AttitudeReport, Rejection> {
+    let values = [
+        m.roll,
+        m.pitch,
+        m.yaw,
+        m.rollspeed,
+        m.pitchspeed,
+        m.yawspeed,
+    ];
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(Rejection::NonFiniteAttitude);
+    }
+    Ok(AttitudeReport {
+        time_boot_ms: m.time_boot_ms,
+        roll_rad: f64::from(m.roll),
+        pitch_rad: f64::from(m.pitch),
+        yaw_rad: f64::from(m.yaw),
+        body_rates_radps: DVec3::new(
+            f64::from(m.rollspeed),
+            f64::from(m.pitchspeed),
+            f64::from(m.yawspeed),
+        ),
+    })
+}
+
+/// HEARTBEAT is decoded field by field so that a vehicle type newer than the dialect still
+/// identifies a vehicle (the crate's `deser` rejects unknown enum values).
+fn heartbeat_from(payload: &[u8]) -> HeartbeatReport {
+    use num_traits::FromPrimitive;
+    let byte = |i: usize| payload.get(i).copied().unwrap_or(0);
+    HeartbeatReport {
+        vehicle_type: MavType::from_u8(byte(4)),
+        autopilot: MavAutopilot::from_u8(byte(5)),
+    }
+}
+
+fn adsb_from(m: &ADSB_VEHICLE_DATA) -> Result<AdsbReport, Rejection> {
+    Ok(AdsbReport {
+        icao_address: m.ICAO_address,
+        position: geodetic_from_e7(m.lat, m.lon, f64::from(m.altitude) * 1e-3)?,
+        heading_deg: f64::from(m.heading) * 0.01,
+        horizontal_speed_mps: f64::from(m.hor_velocity) * 0.01,
+        vertical_speed_mps: f64::from(m.ver_velocity) * 0.01,
+        emitter_type: m.emitter_type as u8,
+        callsign: m.callsign.into(),
+    })
+}

@@ -1,0 +1,356 @@
+//! Ingest accounting: every byte and every frame that reaches savsim is counted somewhere.
+//!
+//! [`IngestStats`] is what `--summary-json` reports about the input: messages per name (the
+//! same counts pymavlink gives), frames with bad CRCs, unknown ids, garbage bytes, values
+//! rejected by reason, senders, and the time span. Pure bookkeeping, no I/O.
+
+use std::collections::BTreeMap;
+
+use mavlink::MavlinkVersion;
+use serde::Serialize;
+
+use crate::ingest::decode::Rejection;
+use crate::ingest::frame::{message_info, FrameStatus, RawFrame};
+
+/// A sender's (system id, component id): how savsim keys vehicles, never by endpoint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SenderId {
+    /// MAVLink system id.
+    pub system_id: u8,
+    /// MAVLink component id.
+    pub component_id: u8,
+}
+
+impl std::fmt::Display for SenderId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.system_id, self.component_id)
+    }
+}
+
+const COUNTED_IDS: usize = 1 << 16;
+
+/// Counters for one input (a tlog, a connection).
+#[derive(Debug, Clone)]
+pub struct IngestStats {
+    /// Valid frames per message id, for ids below 2^16 (indexed by id).
+    by_id: Vec<u64>,
+    /// Valid frames with ids of 2^16 and above.
+    by_large_id: BTreeMap<u32, u64>,
+    /// Valid frames per sender.
+    pub by_sender: BTreeMap<SenderId, u64>,
+    /// Valid frames per protocol version (v1, v2).
+    pub by_version: [u64; 2],
+    /// Frames whose checksum failed.
+    pub bad_crc: u64,
+    /// Frames with an id the dialect does not define, per id.
+    pub unknown_ids: BTreeMap<u32, u64>,
+    /// v2 frames with unknown incompatibility flags.
+    pub bad_incompat_flags: u64,
+    /// Bytes skipped because no frame could start there.
+    pub garbage_bytes: u64,
+    /// Times savsim had to search for the next frame after garbage.
+    pub resyncs: u64,
+    /// Decoded messages whose values were rejected, per reason.
+    pub rejected: BTreeMap<Rejection, u64>,
+    /// tlog records read (timestamp + frame).
+    pub tlog_records: u64,
+    /// Byte offset where an input ended inside a record, with the bytes left there.
+    pub truncated_at: Option<(u64, u64)>,
+    /// Receive or tlog timestamps that went backwards.
+    pub clock_backwards: u64,
+    /// First and last receive/tlog time seen, seconds (UNIX time for tlogs and live).
+    pub time_span_s: Option<(f64, f64)>,
+    /// Live: datagrams or reads dropped because the session thread was behind.
+    pub dropped_chunks: u64,
+    /// Live: bytes in those.
+    pub dropped_bytes: u64,
+    /// Live: MAV_CMD_SET_MESSAGE_INTERVAL rounds sent.
+    pub interval_requests: u64,
+    /// Live: REQUEST_DATA_STREAM fallbacks sent.
+    pub stream_requests: u64,
+}
+
+impl Default for IngestStats {
+    fn default() -> Self {
+        Self {
+            by_id: vec![0; COUNTED_IDS],
+            by_large_id: BTreeMap::new(),
+            by_sender: BTreeMap::new(),
+            by_version: [0; 2],
+            bad_crc: 0,
+            unknown_ids: BTreeMap::new(),
+            bad_incompat_flags: 0,
+            garbage_bytes: 0,
+            resyncs: 0,
+            rejected: BTreeMap::new(),
+            tlog_records: 0,
+            truncated_at: None,
+            clock_backwards: 0,
+            time_span_s: None,
+            dropped_chunks: 0,
+            dropped_bytes: 0,
+            interval_requests: 0,
+            stream_requests: 0,
+        }
+    }
+}
+
+impl IngestStats {
+    /// Count a complete frame by its status. Returns true when it is valid (to be decoded).
+    pub fn count_frame(&mut self, frame: &RawFrame<'_>) -> bool {
+        match frame.status {
+            FrameStatus::Valid => {
+                match usize::try_from(frame.message_id) {
+                    Ok(i) if i < COUNTED_IDS => self.by_id[i] += 1,
+                    _ => *self.by_large_id.entry(frame.message_id).or_default() += 1,
+                }
+                let sender = SenderId {
+                    system_id: frame.system_id,
+                    component_id: frame.component_id,
+                };
+                *self.by_sender.entry(sender).or_default() += 1;
+                self.by_version[usize::from(frame.version == MavlinkVersion::V2)] += 1;
+                true
+            }
+            FrameStatus::BadCrc => {
+                self.bad_crc += 1;
+                false
+            }
+            FrameStatus::UnknownMessage => {
+                *self.unknown_ids.entry(frame.message_id).or_default() += 1;
+                false
+            }
+            FrameStatus::BadIncompatFlags => {
+                self.bad_incompat_flags += 1;
+                false
+            }
+        }
+    }
+
+    /// Count a rejected value.
+    pub fn count_rejection(&mut self, reason: Rejection) {
+        *self.rejected.entry(reason).or_default() += 1;
+    }
+
+    /// Note a receive/tlog time; returns the time to use, never earlier than the last one.
+    pub fn observe_time(&mut self, t_s: f64) -> f64 {
+        match &mut self.time_span_s {
+            None => {
+                self.time_span_s = Some((t_s, t_s));
+                t_s
+            }
+            Some((_, last)) if t_s < *last => {
+                self.clock_backwards += 1;
+                *last
+            }
+            Some((_, last)) => {
+                *last = t_s;
+                t_s
+            }
+        }
+    }
+
+    /// Valid messages per name, as pymavlink names them.
+    pub fn messages_by_name(&self) -> BTreeMap<&'static str, u64> {
+        let small = self
+            .by_id
+            .iter()
+            .enumerate()
+            .filter(|(_, &n)| n > 0)
+            .map(|(id, &n)| (id as u32, n));
+        let large = self.by_large_id.iter().map(|(&id, &n)| (id, n));
+        let mut names = BTreeMap::new();
+        for (id, n) in small.chain(large) {
+            let name = message_info(id).map_or("UNKNOWN", |info| info.name);
+            *names.entry(name).or_default() += n;
+        }
+        names
+    }
+
+    /// Count of valid messages with this id.
+    pub fn count_of(&self, message_id: u32) -> u64 {
+        match usize::try_from(message_id) {
+            Ok(i) if i < COUNTED_IDS => self.by_id[i],
+            _ => self.by_large_id.get(&message_id).copied().unwrap_or(0),
+        }
+    }
+
+    /// All valid messages.
+    pub fn messages_total(&self) -> u64 {
+        self.by_version.iter().sum()
+    }
+
+    /// Fold another input's counts into these.
+    pub fn merge(&mut self, other: &IngestStats) {
+        for (a, b) in self.by_id.iter_mut().zip(&other.by_id) {
+            *a += b;
+        }
+        for (k, v) in &other.by_large_id {
+            *self.by_large_id.entry(*k).or_default() += v;
+        }
+        for (k, v) in &other.by_sender {
+            *self.by_sender.entry(*k).or_default() += v;
+        }
+        for i in 0..2 {
+            self.by_version[i] += other.by_version[i];
+        }
+        self.bad_crc += other.bad_crc;
+        for (k, v) in &other.unknown_ids {
+            *self.unknown_ids.entry(*k).or_default() += v;
+        }
+        self.bad_incompat_flags += other.bad_incompat_flags;
+        self.garbage_bytes += other.garbage_bytes;
+        self.resyncs += other.resyncs;
+        for (k, v) in &other.rejected {
+            *self.rejected.entry(*k).or_default() += v;
+        }
+        self.tlog_records += other.tlog_records;
+        self.truncated_at = self.truncated_at.or(other.truncated_at);
+        self.clock_backwards += other.clock_backwards;
+        self.dropped_chunks += other.dropped_chunks;
+        self.dropped_bytes += other.dropped_bytes;
+        self.interval_requests += other.interval_requests;
+        self.stream_requests += other.stream_requests;
+        self.time_span_s = match (self.time_span_s, other.time_span_s) {
+            (Some((a0, a1)), Some((b0, b1))) => Some((a0.min(b0), a1.max(b1))),
+            (a, b) => a.or(b),
+        };
+    }
+
+    /// The JSON object `--summary-json` writes under `"ingest"`.
+    pub fn to_summary(&self) -> IngestSummary {
+        IngestSummary {
+            messages: self.messages_by_name(),
+            messages_total: self.messages_total(),
+            mavlink_version: VersionCounts {
+                v1: self.by_version[0],
+                v2: self.by_version[1],
+            },
+            tlog_records: self.tlog_records,
+            bad_frames: BadFrames {
+                bad_crc: self.bad_crc,
+                unknown_message_id: self.unknown_ids.values().sum(),
+                unknown_message_ids: self
+                    .unknown_ids
+                    .iter()
+                    .map(|(id, n)| (id.to_string(), *n))
+                    .collect(),
+                bad_incompat_flags: self.bad_incompat_flags,
+                garbage_bytes: self.garbage_bytes,
+                resyncs: self.resyncs,
+            },
+            truncated: self.truncated_at.map(|(offset, bytes)| Truncated {
+                at_byte: offset,
+                bytes_left: bytes,
+            }),
+            rejected: self
+                .rejected
+                .iter()
+                .map(|(k, v)| (k.as_str(), *v))
+                .collect(),
+            clock_backwards: self.clock_backwards,
+            live: Live {
+                dropped_chunks: self.dropped_chunks,
+                dropped_bytes: self.dropped_bytes,
+                interval_requests: self.interval_requests,
+                stream_requests: self.stream_requests,
+            },
+            senders: self
+                .by_sender
+                .iter()
+                .map(|(s, n)| (s.to_string(), *n))
+                .collect(),
+            time_span: self.time_span_s.map(|(first_s, last_s)| TimeSpan {
+                first_s,
+                last_s,
+                span_s: last_s - first_s,
+            }),
+        }
+    }
+}
+
+/// Serialized form of [`IngestStats`].
+#[derive(Debug, Clone, Serialize)]
+pub struct IngestSummary {
+    /// Valid messages per MAVLink message name.
+    pub messages: BTreeMap<&'static str, u64>,
+    /// Sum of `messages`.
+    pub messages_total: u64,
+    /// Valid messages per protocol version.
+    pub mavlink_version: VersionCounts,
+    /// tlog records read.
+    pub tlog_records: u64,
+    /// Frames and bytes that were not valid messages.
+    pub bad_frames: BadFrames,
+    /// Where the input ended inside a record, if it did.
+    pub truncated: Option<Truncated>,
+    /// Values rejected after decoding, per reason.
+    pub rejected: BTreeMap<&'static str, u64>,
+    /// Receive/tlog timestamps that went backwards (clamped to the last one).
+    pub clock_backwards: u64,
+    /// Live link counters (zero for replays).
+    pub live: Live,
+    /// Valid messages per "sysid/compid".
+    pub senders: BTreeMap<String, u64>,
+    /// First and last receive/tlog time, seconds.
+    pub time_span: Option<TimeSpan>,
+}
+
+/// Valid messages per protocol version.
+#[derive(Debug, Clone, Serialize)]
+pub struct VersionCounts {
+    /// MAVLink 1 frames.
+    pub v1: u64,
+    /// MAVLink 2 frames.
+    pub v2: u64,
+}
+
+/// Frames and bytes that were not valid messages.
+#[derive(Debug, Clone, Serialize)]
+pub struct BadFrames {
+    /// Frames whose checksum failed.
+    pub bad_crc: u64,
+    /// Frames with ids the dialect does not define.
+    pub unknown_message_id: u64,
+    /// The same, per id.
+    pub unknown_message_ids: BTreeMap<String, u64>,
+    /// v2 frames with unknown incompatibility flags.
+    pub bad_incompat_flags: u64,
+    /// Bytes skipped because no frame could start there.
+    pub garbage_bytes: u64,
+    /// Searches for the next frame after garbage.
+    pub resyncs: u64,
+}
+
+/// Where an input ended inside a record.
+#[derive(Debug, Clone, Serialize)]
+pub struct Truncated {
+    /// Byte offset of the incomplete record.
+    pub at_byte: u64,
+    /// Bytes from there to the end of the input.
+    pub bytes_left: u64,
+}
+
+/// First and last receive/tlog time.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeSpan {
+    /// First time, seconds.
+    pub first_s: f64,
+    /// Last time, seconds.
+    pub last_s: f64,
+    /// last - first, seconds.
+    pub span_s: f64,
+}
+
+/// Live link counters.
+#[derive(Debug, Clone, Serialize)]
+pub struct Live {
+    /// Datagrams or reads dropped because the session thread was behind.
+    pub dropped_chunks: u64,
+    /// Bytes in those.
+    pub dropped_bytes: u64,
+    /// MAV_CMD_SET_MESSAGE_INTERVAL rounds sent.
+    pub interval_requests: u64,
+    /// REQUEST_DATA_STREAM fallbacks sent.
+    pub stream_requests: u64,
+}

@@ -1,0 +1,17 @@
+//! savsim: sense-and-avoid simulation for UAVs.
+//!
+//! A MAVLink flight (live SITL or a recorded tlog) is mirrored into a scene of buildings,
+//! terrain and traffic; the collision core tells what the vehicle is about to hit and what it
+//! did hit, choosing per obstacle between a cheap box and an exact mesh collider (Li et al.
+//! 2019, see docs/ARCHITECTURE.md).
+
+pub mod app;
+pub mod cli;
+pub mod collision;
+pub mod error;
+pub mod geo;
+pub mod ingest;
+pub mod scene;
+pub mod session;
+pub mod signals;
+pub mod world;

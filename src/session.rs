@@ -1,0 +1,406 @@
+//! A run: decoded messages in, world state and collision ticks through, events and a summary
+//! out. Synchronous; replay drives it directly, live from its own named thread.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::{DQuat, DVec3};
+use serde::Serialize;
+use serde_json::json;
+
+use crate::collision::events::{Event, EventKind};
+use crate::collision::pipeline::{BodyPose, CollisionConfig, DynamicBody, Pipeline};
+use crate::error::{Error, Result};
+use crate::ingest::frame::{FrameStatus, RawFrame};
+use crate::ingest::stats::SenderId;
+use crate::ingest::Ingestor;
+use crate::scene::{DynamicSource, Kind, Scene};
+use crate::world::{TrackSample, WorldConfig, WorldStore, WorldUpdate};
+
+/// Extrapolate traffic at most this far past its last report, seconds.
+const TRAFFIC_PREDICT_MAX_S: f64 = 5.0;
+
+/// Most collision and near-miss events kept in memory for the run's printed report.
+const NOTABLE_KEPT: usize = 1000;
+
+/// A run's state.
+pub struct Session {
+    /// Decoding and its counters.
+    pub ingestor: Ingestor,
+    /// Every track.
+    pub world: WorldStore,
+    /// The scene, when collisions are checked.
+    pub scene: Option<Arc<Scene>>,
+    /// The collision pipeline, when collisions are checked.
+    pub pipeline: Option<Pipeline>,
+    events_out: Option<(PathBuf, BufWriter<File>)>,
+    events: Vec<Event>,
+    /// Collisions and near misses (the first [`NOTABLE_KEPT`]), for the printed report.
+    pub notable: Vec<Event>,
+    /// Per-tick collision cost, nanoseconds.
+    pub tick_cost_ns: Vec<u64>,
+    dynamic: Vec<DynamicBody>,
+    flight_start_t_s: Option<f64>,
+    last_expire_t_s: f64,
+    started: Instant,
+    /// Set when the run was stopped by a signal.
+    pub interrupted: bool,
+}
+
+impl Session {
+    /// A session; with a scene, collisions are checked with `collision`.
+    pub fn new(
+        scene: Option<Arc<Scene>>,
+        collision: CollisionConfig,
+        events_path: Option<&Path>,
+    ) -> Result<Self> {
+        let origin = scene
+            .as_ref()
+            .map_or(crate::scene::gen::DEFAULT_ORIGIN, |s| s.origin);
+        let pipeline = scene.as_ref().map(|s| Pipeline::new(s, collision));
+        let events_out = events_path
+            .map(|p| {
+                File::create(p)
+                    .map(|f| (p.to_path_buf(), BufWriter::new(f)))
+                    .map_err(|e| Error::file(p, e))
+            })
+            .transpose()?;
+        Ok(Self {
+            ingestor: Ingestor::default(),
+            world: WorldStore::new(origin, WorldConfig::default()),
+            scene,
+            pipeline,
+            events_out,
+            events: Vec::new(),
+            notable: Vec::new(),
+            tick_cost_ns: Vec::new(),
+            dynamic: Vec::new(),
+            flight_start_t_s: None,
+            last_expire_t_s: f64::NEG_INFINITY,
+            started: Instant::now(),
+            interrupted: false,
+        })
+    }
+
+    /// Take one complete frame received (or recorded) at `t_s` (UNIX seconds).
+    pub fn on_frame(&mut self, t_s: f64, frame: &RawFrame<'_>) -> Result<()> {
+        let t_s = if frame.status == FrameStatus::Valid {
+            self.ingestor.stats.observe_time(t_s)
+        } else {
+            t_s
+        };
+        let Some(decoded) = self.ingestor.frame(frame) else {
+            return Ok(());
+        };
+        if let WorldUpdate::VehicleMoved(sender) =
+            self.world.apply(t_s, decoded.sender, &decoded.report)
+        {
+            self.tick(sender)?;
+        }
+        if t_s - self.last_expire_t_s >= 1.0 {
+            self.world.expire(t_s);
+            self.last_expire_t_s = t_s;
+        }
+        Ok(())
+    }
+
+    fn tick(&mut self, sender: SenderId) -> Result<()> {
+        let (Some(scene), Some(pipeline)) = (self.scene.clone(), self.pipeline.as_mut()) else {
+            return Ok(());
+        };
+        let Some(track) = self.world.vehicles.get(&sender) else {
+            return Ok(());
+        };
+        let Some(current) = track.history.latest().copied() else {
+            return Ok(());
+        };
+        let previous = track.history.previous().copied();
+        let start = *self.flight_start_t_s.get_or_insert(current.t_s);
+        let t_before = previous.map_or(current.t_s, |p| p.t_s);
+        fill_dynamic(
+            &mut self.dynamic,
+            &scene,
+            &self.world,
+            sender,
+            start,
+            t_before,
+            current.t_s,
+        );
+        let first = self.events.len();
+        let started = Instant::now();
+        pipeline.step(
+            &scene,
+            sender.system_id,
+            previous.as_ref(),
+            &current,
+            &self.dynamic,
+            &mut self.events,
+        );
+        self.tick_cost_ns
+            .push(started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64);
+        debug_assert!(first <= self.events.len());
+        self.flush_events()
+    }
+
+    fn flush_events(&mut self) -> Result<()> {
+        for e in self.events.drain(..) {
+            if matches!(
+                e.kind,
+                EventKind::Collision { .. } | EventKind::NearMiss { .. }
+            ) && self.notable.len() < NOTABLE_KEPT
+            {
+                self.notable.push(e.clone());
+            }
+            if let Some((path, out)) = &mut self.events_out {
+                serde_json::to_writer(&mut *out, &e)
+                    .map_err(|err| Error::file(path.clone(), err.into()))?;
+                out.write_all(b"\n")
+                    .map_err(|err| Error::file(path.clone(), err))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// End the run: close open near misses and flush the events file.
+    pub fn finish(&mut self) -> Result<()> {
+        if let (Some(scene), Some(pipeline)) = (self.scene.clone(), self.pipeline.as_mut()) {
+            pipeline.finish(&mut self.events, &scene, &self.dynamic);
+        }
+        self.flush_events()?;
+        if let Some((path, out)) = &mut self.events_out {
+            out.flush().map_err(|e| Error::file(path.clone(), e))?;
+        }
+        Ok(())
+    }
+
+    /// The summary object `--summary-json` writes.
+    pub fn summary(&self, command: &str, input: &str) -> serde_json::Value {
+        let stats = &self.ingestor.stats;
+        let vehicles: Vec<_> = self
+            .world
+            .seen
+            .iter()
+            .map(|(id, seen)| {
+                json!({
+                    "sysid": id.system_id,
+                    "compid": id.component_id,
+                    "messages": stats.by_sender.get(id).copied().unwrap_or(0),
+                    "positions": seen.positions,
+                    "boot_resets": seen.boot_resets,
+                    "returns": seen.returns,
+                })
+            })
+            .collect();
+        let collision = self.pipeline.as_ref().map(|p| {
+            let totals = &p.totals;
+            let ticks = totals.ticks.max(1) as f64;
+            let (median_us, p99_us) = percentiles_us(&self.tick_cost_ns);
+            json!({
+                "mode": p.config.mode.name(),
+                "ticks": totals.ticks,
+                "collisions": totals.collisions,
+                "collider_swaps": totals.swaps,
+                "near_misses": totals.near_misses,
+                "telemetry_gaps": totals.telemetry_gaps,
+                "per_tick": {
+                    "active_box_mean": totals.active_box_sum as f64 / ticks,
+                    "active_box_max": totals.active_box_max,
+                    "active_mesh_mean": totals.active_mesh_sum as f64 / ticks,
+                    "active_mesh_max": totals.active_mesh_max,
+                    "active_triangles_mean": totals.active_triangles_sum as f64 / ticks,
+                    "active_triangles_max": totals.active_triangles_max,
+                    "narrow_tests_mean": totals.narrow_tests as f64 / ticks,
+                    "cost_us_median": median_us,
+                    "cost_us_p99": p99_us,
+                },
+                "meshes_built": p.meshes.built,
+                "mesh_triangles_built": p.meshes.triangles,
+                "mesh_bytes_built": p.meshes.bytes,
+                "mesh_build_s": p.meshes.build_time.as_secs_f64(),
+                "octree": { "nodes": p.octree.node_count(), "depth": p.octree.depth() },
+                "ahp": p.config.ahp,
+            })
+        });
+        json!({
+            "savsim": env!("CARGO_PKG_VERSION"),
+            "command": command,
+            "input": input,
+            "scene": self.scene.as_ref().map(|s| s.name.clone()),
+            "ingest": stats.to_summary(),
+            "vehicles": vehicles,
+            "traffic_aircraft": self.world.traffic.len(),
+            "tracks_expired": self.world.expired,
+            "collision": collision,
+            "interrupted": self.interrupted,
+            "wall_time_s": self.started.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// Median and 99th percentile of tick costs, microseconds.
+pub fn percentiles_us(costs_ns: &[u64]) -> (f64, f64) {
+    if costs_ns.is_empty() {
+        return (0.0, 0.0);
+    }
+    let mut sorted = costs_ns.to_vec();
+    sorted.sort_unstable();
+    let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize] as f64 / 1e3;
+    (at(0.5), at(0.99))
+}
+
+/// Write a JSON value to `path` atomically (a temporary file renamed into place), so a reader
+/// never sees half a file, even when savsim is stopped by a signal.
+pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
+    let tmp = path.with_extension("json.tmp");
+    let text = serde_json::to_vec_pretty(value).map_err(|e| Error::file(path, e.into()))?;
+    std::fs::write(&tmp, text).map_err(|e| Error::file(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
+}
+
+fn body_from(sample: &TrackSample) -> BodyPose {
+    BodyPose::of(sample)
+}
+
+/// The moving obstacles seen by vehicle `own` between `t_before` and `t_now`.
+fn fill_dynamic(
+    out: &mut Vec<DynamicBody>,
+    scene: &Scene,
+    world: &WorldStore,
+    own: SenderId,
+    flight_start_t_s: f64,
+    t_before: f64,
+    t_now: f64,
+) {
+    out.clear();
+    let mut claimed_sysids = [false; 256];
+    let mut claimed_icao = Vec::new();
+    for d in &scene.dynamic {
+        let poses = match &d.source {
+            DynamicSource::Waypoints(w) => {
+                let at = |t: f64| waypoint_pose(w, t - flight_start_t_s);
+                Some((at(t_before), at(t_now)))
+            }
+            DynamicSource::SystemId(id) => {
+                claimed_sysids[usize::from(*id)] = true;
+                if *id == own.system_id {
+                    None
+                } else {
+                    world
+                        .vehicles
+                        .values()
+                        .find(|v| v.id.system_id == *id)
+                        .and_then(|v| {
+                            Some((
+                                body_speed(&v.history.predict(t_before, TRAFFIC_PREDICT_MAX_S)?),
+                                body_speed(&v.history.predict(t_now, TRAFFIC_PREDICT_MAX_S)?),
+                            ))
+                        })
+                }
+            }
+            DynamicSource::Icao(icao) => {
+                claimed_icao.push(*icao);
+                world.traffic.get(icao).and_then(|tr| {
+                    Some((
+                        body_speed(&tr.history.predict(t_before, TRAFFIC_PREDICT_MAX_S)?),
+                        body_speed(&tr.history.predict(t_now, TRAFFIC_PREDICT_MAX_S)?),
+                    ))
+                })
+            }
+        };
+        if let Some(((previous, _), (current, speed_mps))) = poses {
+            out.push(DynamicBody {
+                id: d.id.clone(),
+                kind: d.kind,
+                threat: d.threat,
+                geometry_index: d.geometry_index,
+                previous,
+                current,
+                speed_mps,
+            });
+        }
+    }
+    // Other MAVLink vehicles are traffic to this one.
+    for v in world.vehicles.values() {
+        if v.id.system_id == own.system_id || claimed_sysids[usize::from(v.id.system_id)] {
+            continue;
+        }
+        let (Some(before), Some(now)) = (
+            v.history.predict(t_before, TRAFFIC_PREDICT_MAX_S),
+            v.history.predict(t_now, TRAFFIC_PREDICT_MAX_S),
+        ) else {
+            continue;
+        };
+        out.push(DynamicBody {
+            id: format!("vehicle:{}", v.id.system_id),
+            kind: Kind::Dji,
+            threat: scene.threat_of(Kind::Dji),
+            geometry_index: scene.vehicle_model(v.id.system_id),
+            previous: body_from(&before),
+            current: body_from(&now),
+            speed_mps: now.velocity_enu_mps.length(),
+        });
+    }
+    for tr in world.traffic.values() {
+        if claimed_icao.contains(&tr.icao_address) {
+            continue;
+        }
+        let (Some(before), Some(now)) = (
+            tr.history.predict(t_before, TRAFFIC_PREDICT_MAX_S),
+            tr.history.predict(t_now, TRAFFIC_PREDICT_MAX_S),
+        ) else {
+            continue;
+        };
+        let kind = Kind::from_adsb_emitter(tr.emitter_type);
+        out.push(DynamicBody {
+            id: format!("icao:{:06X}", tr.icao_address),
+            kind,
+            threat: scene.threat_of(kind),
+            geometry_index: scene.kind_model(kind),
+            previous: body_from(&before),
+            current: body_from(&now),
+            speed_mps: now.velocity_enu_mps.length(),
+        });
+    }
+}
+
+fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {
+    (body_from(sample), sample.velocity_enu_mps.length())
+}
+
+/// Pose and speed on a scripted track at `t` seconds after the flight's start: linear between
+/// waypoints, held at the ends, nose along the direction of travel.
+fn waypoint_pose(w: &[crate::scene::Waypoint], t: f64) -> (BodyPose, f64) {
+    let i = w.partition_point(|p| p.t_s <= t);
+    let (a, b) = match i {
+        0 => (&w[0], w.get(1).unwrap_or(&w[0])),
+        i if i >= w.len() => (&w[w.len().saturating_sub(2)], &w[w.len() - 1]),
+        i => (&w[i - 1], &w[i]),
+    };
+    let (pa, pb) = (DVec3::from(a.position_enu_m), DVec3::from(b.position_enu_m));
+    let span = b.t_s - a.t_s;
+    let velocity = if span > 0.0 {
+        (pb - pa) / span
+    } else {
+        DVec3::ZERO
+    };
+    let u = if span > 0.0 {
+        ((t - a.t_s) / span).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let moving = t > w[0].t_s && t < w[w.len() - 1].t_s;
+    // FRD body: forward along the track, down towards -z (ENU).
+    let heading = velocity.y.atan2(velocity.x);
+    let enu_from_body =
+        DQuat::from_rotation_z(heading) * DQuat::from_rotation_x(std::f64::consts::PI);
+    (
+        BodyPose {
+            position_enu_m: pa.lerp(pb, u),
+            enu_from_body,
+        },
+        if moving { velocity.length() } else { 0.0 },
+    )
+}
