@@ -192,7 +192,8 @@ pub struct VehicleCollision {
     node: Option<NodeId>,
     active: Vec<Active>,
     touching: Vec<ObstacleRef>,
-    near: Vec<(ObstacleRef, f64, f64)>,
+    /// Obstacles within the near-miss band: closest distance, when, and whether touched.
+    near: Vec<(ObstacleRef, f64, f64, bool)>,
     /// The six rays' nearest hits at the last tick (FRD order of [`RAY_AXES_FRD`]).
     pub rays: [Option<RayHit>; 6],
 }
@@ -464,7 +465,10 @@ impl Pipeline {
     /// Report near misses still open (call at the end of a run).
     pub fn finish(&mut self, events: &mut Vec<Event>, scene: &Scene, dynamic: &[DynamicBody]) {
         for (system_id, state) in self.vehicles.iter_mut().enumerate() {
-            for (o, closest_m, closest_t) in state.near.drain(..) {
+            for (o, closest_m, closest_t, touched) in state.near.drain(..) {
+                if touched {
+                    continue;
+                }
                 let id = match o {
                     ObstacleRef::Static(i) => scene.obstacles[i as usize].id.clone(),
                     ObstacleRef::Dynamic(i) => dynamic
@@ -923,7 +927,7 @@ impl Pipeline {
                     }
                 };
                 if touch.is_none() && act.collider == ColliderKind::Mesh {
-                    touch = below_terrain(v.geometry, &v.current, position).then_some(Touch {
+                    touch = inside_solid(v.geometry, &v.current, position).then_some(Touch {
                         point_enu_m: position,
                         normal_enu: DVec3::Z,
                         fraction: 1.0,
@@ -943,7 +947,7 @@ impl Pipeline {
                                 n.2 = t;
                             }
                             Some(_) => {}
-                            None => state.near.push((act.obstacle, d, t)),
+                            None => state.near.push((act.obstacle, d, t, false)),
                         }
                     }
                 }
@@ -969,24 +973,29 @@ impl Pipeline {
         state
             .touching
             .extend(self.touching_now.iter().map(|(o, _)| *o));
-        // Near misses end when the obstacle is out of the band (or touched).
+        // A near miss ends when the obstacle leaves the band; one that was touched meanwhile is
+        // a collision, not a near miss.
+        for (o, _) in &self.touching_now {
+            match state.near.iter_mut().find(|n| n.0 == *o) {
+                Some(n) => n.3 = true,
+                None => state.near.push((*o, 0.0, t, true)),
+            }
+        }
         let mut i = 0;
         while i < state.near.len() {
-            let (o, closest_m, closest_t) = state.near[i];
-            let touched = state.touching.contains(&o);
+            let (o, closest_m, closest_t, touched) = state.near[i];
             let v = view(scene, dynamic, o);
-            let still_near = v.aabb_enu_m.distance_to(position) < band + radius_m;
-            if touched || !still_near {
-                state.near.swap_remove(i);
-                if !touched {
-                    events.push(event(EventKind::NearMiss {
-                        obstacle: v.id.to_owned(),
-                        closest_m,
-                        closest_t,
-                    }));
-                }
-            } else {
+            if v.aabb_enu_m.distance_to(position) < band + radius_m {
                 i += 1;
+                continue;
+            }
+            state.near.swap_remove(i);
+            if !touched {
+                events.push(event(EventKind::NearMiss {
+                    obstacle: v.id.to_owned(),
+                    closest_m,
+                    closest_t,
+                }));
             }
         }
         report
@@ -1036,13 +1045,11 @@ fn sweep_bodies(
     )
 }
 
-/// True when `point` is under a terrain patch's surface (a vehicle below ground that never
-/// crossed the surface in view: the start of a log, a gap).
-fn below_terrain(geometry: &Geometry, pose: &BodyPose, point: DVec3) -> bool {
+/// True when `point` is inside the obstacle's solid (see [`Geometry::contains_local_point`]):
+/// a vehicle inside a building or under terrain is in contact even where no surface touches it.
+fn inside_solid(geometry: &Geometry, pose: &BodyPose, point: DVec3) -> bool {
     let local = pose.enu_from_body.inverse() * (point - pose.position_enu_m);
-    geometry
-        .terrain_height_at(local.x as f32, local.y as f32)
-        .is_some_and(|h| local.z < f64::from(h))
+    geometry.contains_local_point(local.as_vec3())
 }
 
 /// Slab test: does the ray from `origin` along `dir` meet `aabb` within `max_m`?

@@ -221,9 +221,10 @@ fn building(rng: &mut ChaCha8Rng, lot_m: f64, height_m: f64) -> Vec<[f64; 6]> {
     }
 }
 
-/// The `city` scene: a 4 km square grid of 100 m blocks with 24 m streets (street centrelines
-/// on multiples of 100 m from the origin), 1 to 4 buildings per block, heights 8-220 m (taller
-/// downtown), some skybridges across streets.
+/// The `city` scene: a 4 km square grid of 100 m blocks (street centrelines on multiples of
+/// 100 m from the origin), streets 16 m wide downtown (within 600 m of the origin) and 24 m
+/// elsewhere, 1 to 4 buildings per block, heights 8-220 m (taller downtown), skybridges across
+/// some streets (more downtown).
 pub fn city(seed: u64, origin: Geodetic) -> String {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut out = String::new();
@@ -235,11 +236,12 @@ pub fn city(seed: u64, origin: Geodetic) -> String {
          {{ t_s = 60.0, position_enu_m = [1800.0, 1500.0, 420.0] }}]\n"
     );
     let pitch = 100.0;
-    let street = 24.0;
     let half_blocks = 20i32;
     let mut count = 0;
     for by in -half_blocks..half_blocks {
         for bx in -half_blocks..half_blocks {
+            let downtown = (bx as f64 + 0.5).abs().max((by as f64 + 0.5).abs()) * pitch < 600.0;
+            let street = if downtown { 16.0 } else { 24.0 };
             let (x0, y0) = (
                 bx as f64 * pitch + street / 2.0,
                 by as f64 * pitch + street / 2.0,
@@ -277,22 +279,22 @@ pub fn city(seed: u64, origin: Geodetic) -> String {
                     );
                 }
             }
-            // Occasionally a skybridge over the street east of this block.
-            if rng.random_range(0..100) < 4 && bx + 1 < half_blocks {
+            // Occasionally a skybridge over the street east of, or north of, this block.
+            for north in [false, true] {
+                let chance = if downtown { 12 } else { 4 };
+                if rng.random_range(0..100) >= chance || (if north { by } else { bx }) + 1 >= half_blocks {
+                    continue;
+                }
                 let deck = rng.random_range(20.0..70.0);
-                let y = y0 + rng.random_range(10.0..lot - 10.0);
+                let along = rng.random_range(10.0..lot - 10.0);
+                let half_span = street / 2.0 + 2.0;
+                let (x, y, block) = if north {
+                    (x0 + along, y0 + lot + street / 2.0, [-2.5, -half_span, 0.0, 2.5, half_span, 4.0])
+                } else {
+                    (x0 + lot + street / 2.0, y0 + along, [-half_span, -2.5, 0.0, half_span, 2.5, 4.0])
+                };
                 count += 1;
-                write_blocks(
-                    &mut out,
-                    &format!("b{count}"),
-                    "building",
-                    x0 + lot + street / 2.0,
-                    y,
-                    deck,
-                    0.0,
-                    &[[-street / 2.0 - 2.0, -2.5, 0.0, street / 2.0 + 2.0, 2.5, 4.0]],
-                    3.0,
-                );
+                write_blocks(&mut out, &format!("b{count}"), "building", x, y, deck, 0.0, &[block], 3.0);
             }
         }
     }

@@ -307,6 +307,27 @@ impl Geometry {
         (vertices, indices)
     }
 
+    /// True when `p` (obstacle frame) is inside the solid: inside the box, inside a block, or
+    /// under a terrain patch. Loaded meshes are surfaces only and contain nothing (a vehicle
+    /// inside one is found when it crosses the surface).
+    ///
+    /// ```
+    /// use savsim::scene::geometry::Geometry;
+    /// use glam::Vec3;
+    /// let g = Geometry::blocks(vec![(Vec3::ZERO, Vec3::splat(10.0))], 0.0).unwrap();
+    /// assert!(g.contains_local_point(Vec3::splat(5.0)));
+    /// assert!(!g.contains_local_point(Vec3::splat(11.0)));
+    /// ```
+    pub fn contains_local_point(&self, p: Vec3) -> bool {
+        let inside = |min: Vec3, max: Vec3| min.cmple(p).all() && p.cmple(max).all();
+        match &self.source {
+            GeometrySource::Cuboid { min, max } => inside(*min, *max),
+            GeometrySource::Blocks { blocks, .. } => blocks.iter().any(|(a, b)| inside(*a, *b)),
+            GeometrySource::Mesh { .. } => false,
+            GeometrySource::Terrain(_) => self.terrain_height_at(p.x, p.y).is_some_and(|h| p.z < h),
+        }
+    }
+
     /// Height of a terrain patch's surface at local (x, y), if this is terrain and the point
     /// lies over it.
     pub fn terrain_height_at(&self, x_m: f32, y_m: f32) -> Option<f32> {
