@@ -56,8 +56,10 @@ pub struct IngestStats {
     pub tlog_records: u64,
     /// Byte offset where an input ended inside a record, with the bytes left there.
     pub truncated_at: Option<(u64, u64)>,
-    /// Receive or tlog timestamps that went backwards.
+    /// Times the receive or tlog clock stepped backwards.
     pub clock_backwards: u64,
+    /// The last raw time seen, seconds.
+    last_raw_t_s: f64,
     /// First and last receive/tlog time seen, seconds (UNIX time for tlogs and live).
     pub time_span_s: Option<(f64, f64)>,
     /// Live: datagrams or reads dropped because the session thread was behind.
@@ -86,6 +88,7 @@ impl Default for IngestStats {
             tlog_records: 0,
             truncated_at: None,
             clock_backwards: 0,
+            last_raw_t_s: f64::NEG_INFINITY,
             time_span_s: None,
             dropped_chunks: 0,
             dropped_bytes: 0,
@@ -133,16 +136,18 @@ impl IngestStats {
     }
 
     /// Note a receive/tlog time; returns the time to use, never earlier than the last one.
+    /// Each step back of the raw clock counts once in `clock_backwards`.
     pub fn observe_time(&mut self, t_s: f64) -> f64 {
+        if t_s < self.last_raw_t_s {
+            self.clock_backwards += 1;
+        }
+        self.last_raw_t_s = t_s;
         match &mut self.time_span_s {
             None => {
                 self.time_span_s = Some((t_s, t_s));
                 t_s
             }
-            Some((_, last)) if t_s < *last => {
-                self.clock_backwards += 1;
-                *last
-            }
+            Some((_, last)) if t_s < *last => *last,
             Some((_, last)) => {
                 *last = t_s;
                 t_s

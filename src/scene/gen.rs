@@ -282,19 +282,39 @@ pub fn city(seed: u64, origin: Geodetic) -> String {
             // Occasionally a skybridge over the street east of, or north of, this block.
             for north in [false, true] {
                 let chance = if downtown { 12 } else { 4 };
-                if rng.random_range(0..100) >= chance || (if north { by } else { bx }) + 1 >= half_blocks {
+                if rng.random_range(0..100) >= chance
+                    || (if north { by } else { bx }) + 1 >= half_blocks
+                {
                     continue;
                 }
                 let deck = rng.random_range(20.0..70.0);
                 let along = rng.random_range(10.0..lot - 10.0);
                 let half_span = street / 2.0 + 2.0;
                 let (x, y, block) = if north {
-                    (x0 + along, y0 + lot + street / 2.0, [-2.5, -half_span, 0.0, 2.5, half_span, 4.0])
+                    (
+                        x0 + along,
+                        y0 + lot + street / 2.0,
+                        [-2.5, -half_span, 0.0, 2.5, half_span, 4.0],
+                    )
                 } else {
-                    (x0 + lot + street / 2.0, y0 + along, [-half_span, -2.5, 0.0, half_span, 2.5, 4.0])
+                    (
+                        x0 + lot + street / 2.0,
+                        y0 + along,
+                        [-half_span, -2.5, 0.0, half_span, 2.5, 4.0],
+                    )
                 };
                 count += 1;
-                write_blocks(&mut out, &format!("b{count}"), "building", x, y, deck, 0.0, &[block], 3.0);
+                write_blocks(
+                    &mut out,
+                    &format!("b{count}"),
+                    "building",
+                    x,
+                    y,
+                    deck,
+                    0.0,
+                    &[block],
+                    3.0,
+                );
             }
         }
     }

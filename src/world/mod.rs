@@ -386,6 +386,8 @@ impl WorldStore {
         let capacity = self.config.history_len;
         let reset_ms = self.config.boot_reset_threshold_ms;
         let track = self.vehicle(sender, t_s);
+        // History stays in time order even if the receive clock steps back.
+        let t_s = track.history.latest().map_or(t_s, |last| t_s.max(last.t_s));
         let rebooted = track.history.latest().is_some_and(|last| {
             last.time_boot_ms > p.time_boot_ms
                 && last.time_boot_ms - p.time_boot_ms > reset_ms
