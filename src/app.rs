@@ -200,7 +200,7 @@ pub fn replay(
         session.on_frame(t_s, &record.frame)?;
         n += 1;
         if let Some(bar) = &bar {
-            if n % 4096 == 0 {
+            if n.is_multiple_of(4096) {
                 bar.set_position(reader.position());
             }
         }

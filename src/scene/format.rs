@@ -611,7 +611,7 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
         let source = match (spec.waypoints, spec.system_id, spec.icao) {
             (Some(w), None, None) => {
                 if w.is_empty()
-                    || w.windows(2).any(|p| !(p[1].t_s > p[0].t_s))
+                    || w.windows(2).any(|p| p[1].t_s <= p[0].t_s)
                     || w.iter()
                         .any(|p| !p.t_s.is_finite() || !DVec3::from(p.position_enu_m).is_finite())
                 {

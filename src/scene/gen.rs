@@ -98,21 +98,19 @@ fn header(out: &mut String, title: &str, seed: u64, origin: Geodetic) {
     );
 }
 
+/// Append one `[[obstacle]]` made of blocks (a single block centred on its base is written as
+/// the simpler `box` shape).
 fn write_blocks(
     out: &mut String,
     id: &str,
     kind: &str,
-    x: f64,
-    y: f64,
-    z: f64,
-    yaw_deg: f64,
+    base_enu_m: [f64; 3],
     blocks: &[[f64; 6]],
     tessellate_m: f64,
 ) {
     let _ = write!(out, "[[obstacle]]\nid = \"{id}\"\nkind = \"{kind}\"\n");
-    if let [b] = blocks {
-        // A single block centred on the base: write it as the simple box shape.
-        if (b[0] + b[3]).abs() < 1e-9 && (b[1] + b[4]).abs() < 1e-9 && b[2] == 0.0 {
+    match blocks {
+        [b] if (b[0] + b[3]).abs() < 1e-9 && (b[1] + b[4]).abs() < 1e-9 && b[2] == 0.0 => {
             let _ = writeln!(
                 out,
                 "shape = {{ box = [{:.1}, {:.1}, {:.1}] }}",
@@ -121,26 +119,27 @@ fn write_blocks(
                 b[5]
             );
         }
+        _ => {
+            let list: Vec<String> = blocks
+                .iter()
+                .map(|b| {
+                    format!(
+                        "[{:.1}, {:.1}, {:.1}, {:.1}, {:.1}, {:.1}]",
+                        b[0], b[1], b[2], b[3], b[4], b[5]
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                out,
+                "shape = {{ blocks = [{}], tessellate_m = {tessellate_m} }}",
+                list.join(", ")
+            );
+        }
     }
-    if !(blocks.len() == 1 && out.ends_with("] }\n")) {
-        let list: Vec<String> = blocks
-            .iter()
-            .map(|b| {
-                format!(
-                    "[{:.1}, {:.1}, {:.1}, {:.1}, {:.1}, {:.1}]",
-                    b[0], b[1], b[2], b[3], b[4], b[5]
-                )
-            })
-            .collect();
-        let _ = writeln!(
-            out,
-            "shape = {{ blocks = [{}], tessellate_m = {tessellate_m} }}",
-            list.join(", ")
-        );
-    }
+    let [x, y, z] = base_enu_m;
     let _ = writeln!(
         out,
-        "position_enu_m = [{x:.1}, {y:.1}, {z:.2}]\nyaw_deg = {yaw_deg:.1}\n"
+        "position_enu_m = [{x:.1}, {y:.1}, {z:.2}]\nyaw_deg = 0.0\n"
     );
 }
 
@@ -270,10 +269,7 @@ pub fn city(seed: u64, origin: Geodetic) -> String {
                         &mut out,
                         &format!("b{count}"),
                         "building",
-                        cx,
-                        cy,
-                        0.0,
-                        0.0,
+                        [cx, cy, 0.0],
                         &blocks,
                         3.0,
                     );
@@ -308,10 +304,7 @@ pub fn city(seed: u64, origin: Geodetic) -> String {
                     &mut out,
                     &format!("b{count}"),
                     "building",
-                    x,
-                    y,
-                    deck,
-                    0.0,
+                    [x, y, deck],
                     &[block],
                     3.0,
                 );
@@ -390,10 +383,7 @@ pub fn mountain(seed: u64, origin: Geodetic) -> String {
             &mut out,
             &format!("tree{}", i + 1),
             "tree",
-            x,
-            y,
-            z,
-            0.0,
+            [x, y, z],
             &blocks,
             0.0,
         );
