@@ -31,6 +31,10 @@ pub fn have_pymavlink() -> bool {
         .map(|o| o.status.success())
         .unwrap_or(false);
     if !ok {
+        assert!(
+            std::env::var_os("SAVSIM_REQUIRE_PYTHON").is_none(),
+            "pymavlink is required here (SAVSIM_REQUIRE_PYTHON is set) but not importable"
+        );
         eprintln!("SKIP: pymavlink is not installed (pip install pymavlink; .ci/run does)");
     }
     ok
