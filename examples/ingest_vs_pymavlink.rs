@@ -10,9 +10,11 @@ use savsim::ingest::tlog::TlogReader;
 use savsim::ingest::Ingestor;
 
 fn main() {
-    let path = std::env::args()
-        .nth(1)
-        .unwrap_or_else(|| savsim::app::bundled(savsim::app::DEMO_FLIGHT).display().to_string());
+    let path = std::env::args().nth(1).unwrap_or_else(|| {
+        savsim::app::bundled(savsim::app::DEMO_FLIGHT)
+            .display()
+            .to_string()
+    });
     let bytes = std::fs::read(&path).expect("read the tlog");
     let repeats = 20;
     let started = Instant::now();
@@ -35,7 +37,10 @@ fn main() {
         messages as f64 / ours_s
     );
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/pymavlink_decode.py");
-    let out = Command::new("python3").args([script, &path, "1"]).output().expect("python3");
+    let out = Command::new("python3")
+        .args([script, &path, "1"])
+        .output()
+        .expect("python3");
     if !out.status.success() {
         eprintln!("pymavlink failed: {}", String::from_utf8_lossy(&out.stderr));
         std::process::exit(1);
