@@ -12,6 +12,7 @@ use crate::cli::{
 };
 use crate::collision::events::EventKind;
 use crate::collision::pipeline::CollisionConfig;
+use crate::collision::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::ingest::live::{self, ConnectAddress, LiveOptions};
 use crate::ingest::tlog::TlogReader;
@@ -66,18 +67,55 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         ("--ray-length-m", args.ray_length_m),
         ("--near-miss-m", args.near_miss_m),
         ("--max-gap-s", args.max_gap_s),
+        ("--look-ahead-s", args.look_ahead_s),
+        ("--mesh-beta", args.mesh_beta),
+        ("--mesh-within-m", args.mesh_within_m),
+        ("--box-beyond-m", args.box_beyond_m),
+        ("--hold-s", args.hold_s),
     ] {
         if !(v.is_finite() && v >= 0.0) {
             return Err(Error::Usage(format!("{name} {v}: give a number >= 0")));
         }
     }
+    let defaults = CollisionConfig::default();
+    let ahp = match &args.ahp_matrix {
+        None => defaults.ahp,
+        Some(text) => parse_ahp(text)?,
+    };
     Ok(CollisionConfig {
         mode: args.mode,
         ray_length_m: args.ray_length_m,
+        look_ahead_s: args.look_ahead_s,
+        mesh_beta: args.mesh_beta,
+        mesh_within_m: args.mesh_within_m,
+        box_beyond_m: args.box_beyond_m,
+        hold_s: args.hold_s,
         near_miss_m: args.near_miss_m,
         max_gap_s: args.max_gap_s,
-        ..CollisionConfig::default()
+        ahp,
+        ..defaults
     })
+}
+
+/// Parse nine comma-separated numbers (fractions like `7/3` allowed) into AHP weights.
+fn parse_ahp(text: &str) -> Result<AhpWeights> {
+    let bad = |why: &str| Error::Usage(format!("--ahp-matrix {text:?}: {why}"));
+    let values = text
+        .split(',')
+        .map(|v| {
+            let v = v.trim();
+            match v.split_once('/') {
+                Some((a, b)) => Some(a.trim().parse::<f64>().ok()? / b.trim().parse::<f64>().ok()?),
+                None => v.parse::<f64>().ok(),
+            }
+        })
+        .collect::<Option<Vec<f64>>>()
+        .ok_or_else(|| bad("not numbers"))?;
+    let [a, b, c, d, e, f, g, h, i] = values[..] else {
+        return Err(bad("give nine numbers, row by row"));
+    };
+    AhpWeights::from_matrix([[a, b, c], [d, e, f], [g, h, i]])
+        .ok_or_else(|| bad("every entry must be positive and finite"))
 }
 
 fn load_scene(path: Option<&Path>) -> Result<Option<Arc<Scene>>> {

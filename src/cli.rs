@@ -55,6 +55,25 @@ pub struct CollisionArgs {
     /// Telemetry gaps longer than this are reported and not swept, seconds.
     #[arg(long, default_value_t = 1.0)]
     pub max_gap_s: f64,
+    /// Look-ahead time for the activation box around the vehicle, seconds.
+    #[arg(long, default_value_t = 3.0)]
+    pub look_ahead_s: f64,
+    /// Beta above which a seen obstacle gets a mesh collider (paper: 50).
+    #[arg(long, default_value_t = 50.0)]
+    pub mesh_beta: f64,
+    /// ... if it is closer than this, metres (paper: 300).
+    #[arg(long, default_value_t = 300.0)]
+    pub mesh_within_m: f64,
+    /// A mesh collider farther than this turns back into a box, metres (paper: 800).
+    #[arg(long, default_value_t = 800.0)]
+    pub box_beyond_m: f64,
+    /// Least time a collider keeps its state before it is downgraded, seconds.
+    #[arg(long, default_value_t = 2.0)]
+    pub hold_s: f64,
+    /// AHP judgment matrix for T, V, A: nine numbers row by row, fractions allowed
+    /// (default: the paper's Table 3, "1,7/3,3/2,3/7,1,5/4,2/3,4/5,1").
+    #[arg(long)]
+    pub ahp_matrix: Option<String>,
 }
 
 /// `savsim demo`.

@@ -129,3 +129,37 @@ fn scene_info_describes_the_city() {
         "{stdout}"
     );
 }
+
+#[test]
+fn thresholds_and_the_ahp_matrix_come_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let out = savsim()
+        .args([
+            "demo",
+            "--ahp-matrix",
+            "1,2,4,1/2,1,2,1/4,1/2,1",
+            "--mesh-beta",
+            "1000",
+            "--summary-json",
+        ])
+        .arg(&summary)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let w = &s["collision"]["ahp"]["w"];
+    assert!((w[0].as_f64().unwrap() - 4.0 / 7.0).abs() < 1e-9, "{w}");
+    assert!(s["collision"]["ahp"]["cr"].as_f64().unwrap().abs() < 1e-9);
+    let out = savsim()
+        .args(["demo", "--ahp-matrix", "1,2,3"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nine numbers"));
+}
