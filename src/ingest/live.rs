@@ -364,14 +364,22 @@ pub async fn pump(
             tokio::select! {
                 _ = ticker.tick() => {
                     for m in due_messages(&state, options.rate_hz) {
-                        stream.write_all(outbox.encode(&m)).await
-                            .map_err(|source| Error::Net { what: "send TCP".into(), source })?;
+                        match stream.write_all(outbox.encode(&m)).await {
+                            Ok(()) => {}
+                            Err(e) if peer_closed(&e) => return Ok(()),
+                            Err(source) => return Err(Error::Net { what: "send TCP".into(), source }),
+                        }
                     }
                 }
                 received = stream.read(&mut buf) => {
                     match received {
+                        // The peer closed the connection (SITL stopped): the run ends normally.
                         Ok(0) => return Ok(()),
                         Ok(n) => forward(&buf[..n], false, &state),
+                        Err(e) if peer_closed(&e) => {
+                            tracing::warn!("TCP peer closed the connection: {e}");
+                            return Ok(());
+                        }
                         Err(source) => return Err(Error::Net { what: "receive TCP".into(), source }),
                     }
                 }
@@ -383,6 +391,12 @@ pub async fn pump(
             }
         },
     }
+}
+
+/// True for the errors that mean the TCP peer went away.
+fn peer_closed(e: &std::io::Error) -> bool {
+    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset};
+    matches!(e.kind(), ConnectionReset | ConnectionAborted | BrokenPipe)
 }
 
 /// What the session thread does with every frame besides decoding: note vehicles to ask for

@@ -209,3 +209,107 @@ fn recording_is_a_tlog_pymavlink_reads_with_the_same_counts() {
     let ours: BTreeMap<String, u64> = ours.into_iter().map(|(k, v)| (k.to_owned(), v)).collect();
     assert_eq!(ours, theirs);
 }
+
+/// A SITL-like TCP server on 127.0.0.1:0: accepts savsim, streams frames cut into odd pieces.
+#[test]
+fn live_tcp_reassembles_frames_across_reads() {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let listener = runtime
+        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+        .unwrap();
+    let addr = listener.local_addr().unwrap();
+    let sent = 300usize;
+    runtime.spawn(async move {
+        use tokio::io::AsyncWriteExt;
+        let (mut stream, _) = listener.accept().await.unwrap();
+        let mut seq = 0u8;
+        let mut bytes = Vec::new();
+        for n in 0..sent as i32 {
+            bytes.extend(encode(
+                &mut seq,
+                &MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                    time_boot_ms: 1000 + n as u32,
+                    lat: -353_632_610 + n,
+                    lon: 1_491_652_300,
+                    alt: 600_000,
+                    relative_alt: 0,
+                    vx: 0,
+                    vy: 0,
+                    vz: 0,
+                    hdg: 0,
+                }),
+            ));
+            bytes.extend_from_slice(&[0x00, 0x42]); // line noise between frames
+        }
+        for piece in bytes.chunks(37) {
+            stream.write_all(piece).await.unwrap();
+            tokio::time::sleep(Duration::from_micros(200)).await;
+        }
+        // Closing the connection ends savsim's run.
+    });
+    let link = runtime
+        .block_on(Link::open(&ConnectAddress::TcpOut(addr.to_string())))
+        .unwrap();
+    let options = LiveOptions {
+        address: ConnectAddress::TcpOut(addr.to_string()),
+        duration: Some(Duration::from_secs(20)),
+        ..LiveOptions::default()
+    };
+    let session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    let session = run_link(
+        &runtime,
+        link,
+        options,
+        session,
+        None,
+        Arc::new(AtomicBool::new(false)),
+    )
+    .unwrap();
+    let stats = &session.ingestor.stats;
+    assert_eq!(stats.count_of(33) as usize, sent);
+    assert_eq!(stats.garbage_bytes as usize, 2 * sent);
+    assert_eq!(stats.bad_crc, 0);
+}
+
+/// SIGINT during `savsim live` leaves a complete summary and events file.
+#[test]
+fn sigint_during_live_writes_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let events = dir.path().join("e.jsonl");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .current_dir(root())
+        .args([
+            "live",
+            "--connect",
+            "udpin:127.0.0.1:0",
+            "--scene",
+            "scenes/city.toml",
+            "--duration-s",
+            "30",
+            "--summary-json",
+        ])
+        .arg(&summary)
+        .arg("--events")
+        .arg(&events)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let killed = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["interrupted"], true);
+    assert_eq!(s["command"], "live");
+    assert!(events.exists());
+}
