@@ -6,7 +6,7 @@
 
 use glam::{DQuat, DVec3, Vec3};
 use parry3d::math::Pose;
-use parry3d::query::{self, NonlinearRigidMotion, Ray};
+use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastOptions};
 use parry3d::shape::Shape;
 
 /// A shape placed in the scene.
@@ -99,8 +99,7 @@ pub fn contact_point(a: &Placed<'_>, b: &Placed<'_>) -> Option<(DVec3, DVec3)> {
 }
 
 fn motion(anchor: DVec3, from: &Placed<'_>, to: &Placed<'_>) -> NonlinearRigidMotion {
-    let delta = to.enu_from_shape * from.enu_from_shape.inverse();
-    let delta = if delta.w < 0.0 { -delta } else { delta };
+    let delta = rotation_between(from, to);
     NonlinearRigidMotion::new(
         from.pose_about(anchor),
         from.pivot_local_m,
@@ -109,9 +108,22 @@ fn motion(anchor: DVec3, from: &Placed<'_>, to: &Placed<'_>) -> NonlinearRigidMo
     )
 }
 
+/// Rotations smaller than this over one interval (radians) are swept as pure translations.
+const LINEAR_SWEEP_MAX_ROTATION_RAD: f64 = 1e-4;
+
+fn rotation_between(from: &Placed<'_>, to: &Placed<'_>) -> DQuat {
+    let delta = to.enu_from_shape * from.enu_from_shape.inverse();
+    if delta.w < 0.0 {
+        -delta
+    } else {
+        delta
+    }
+}
+
 /// First contact of body `a` moving from `a0` to `a1` with body `b` moving from `b0` to `b1`
-/// over one interval (screw motion: linear translation, constant rotation rate). Bodies that
-/// already touch at the start give a hit at fraction 0.
+/// over one interval (screw motion: linear translation, constant rotation rate; a pure
+/// translation when neither body turns). Bodies that already touch at the start give a hit at
+/// fraction 0.
 pub fn sweep(
     a0: &Placed<'_>,
     a1: &Placed<'_>,
@@ -119,6 +131,29 @@ pub fn sweep(
     b1: &Placed<'_>,
 ) -> Option<SweepHit> {
     let anchor = a0.position_enu_m;
+    let turning = |from: &Placed<'_>, to: &Placed<'_>| {
+        rotation_between(from, to).to_scaled_axis().length() > LINEAR_SWEEP_MAX_ROTATION_RAD
+    };
+    if !turning(a0, a1) && !turning(b0, b1) {
+        let (pa, pb) = (a0.pose_about(anchor), b0.pose_about(anchor));
+        let va = (a1.position_enu_m - a0.position_enu_m).as_vec3();
+        let vb = (b1.position_enu_m - b0.position_enu_m).as_vec3();
+        let options = ShapeCastOptions {
+            max_time_of_impact: 1.0,
+            stop_at_penetration: true,
+            ..ShapeCastOptions::default()
+        };
+        let hit = query::cast_shapes(&pa, va, a0.shape, &pb, vb, b0.shape, options).ok()??;
+        let toi = hit.time_of_impact;
+        let pose_b = Pose::from_parts(pb.translation + vb * toi, pb.rotation);
+        return Some(SweepHit {
+            fraction: f64::from(toi).clamp(0.0, 1.0),
+            point_enu_m: anchor + (pose_b * hit.witness2).as_dvec3(),
+            normal_enu: (pose_b.rotation * hit.normal2)
+                .as_dvec3()
+                .normalize_or_zero(),
+        });
+    }
     let ma = motion(anchor, a0, a1);
     let mb = motion(anchor, b0, b1);
     let hit = query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, 0.0, 1.0, true).ok()??;

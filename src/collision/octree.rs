@@ -248,6 +248,37 @@ impl Octree {
         }
     }
 
+    /// Call `visit` once for every object whose box the segment from `origin` along `dir`
+    /// (unit) up to `max_m` crosses: the candidates of a ray cast.
+    pub fn query_ray(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        max_m: f64,
+        ws: &mut OctreeWorkspace,
+        mut visit: impl FnMut(u32),
+    ) {
+        ws.begin(self.object_boxes.len());
+        ws.stack.push(0);
+        while let Some(id) = ws.stack.pop() {
+            if !self.node_aabb(id).ray_hits(origin, dir, max_m) {
+                continue;
+            }
+            let n = &self.nodes[id as usize];
+            if n.first_child != 0 {
+                ws.stack.extend((0..8).map(|o| n.first_child + o));
+                continue;
+            }
+            for &o in &self.items[n.items.0 as usize..n.items.1 as usize] {
+                let mark = &mut ws.marks[o as usize];
+                if *mark != ws.epoch && self.object_boxes[o as usize].ray_hits(origin, dir, max_m) {
+                    *mark = ws.epoch;
+                    visit(o);
+                }
+            }
+        }
+    }
+
     /// Number of objects indexed.
     pub fn object_count(&self) -> usize {
         self.object_boxes.len()

@@ -168,6 +168,9 @@ pub struct RayHit {
     pub point_enu_m: DVec3,
 }
 
+/// Up to this many active colliders the rays test each; beyond, the octree picks candidates.
+const RAY_SCAN_MAX_ACTIVE: usize = 48;
+
 /// The six body axes, in FRD: forward, back, right, left, down, up.
 pub const RAY_AXES_FRD: [Vec3; 6] = [
     Vec3::X,
@@ -190,6 +193,8 @@ struct Active {
 #[derive(Debug, Clone, Default)]
 pub struct VehicleCollision {
     node: Option<NodeId>,
+    /// The region the static obstacles were last queried for.
+    queried: Option<Aabb64>,
     active: Vec<Active>,
     touching: Vec<ObstacleRef>,
     /// Obstacles within the near-miss band: closest distance, when, and whether touched.
@@ -393,6 +398,8 @@ pub struct Pipeline {
     pub totals: PipelineTotals,
     ws: OctreeWorkspace,
     desired: Vec<ObstacleRef>,
+    candidates: Vec<ObstacleRef>,
+    near: Vec<ObstacleRef>,
     merged: Vec<Active>,
     touching_now: Vec<(ObstacleRef, Touch)>,
     static_triangles: usize,
@@ -410,6 +417,8 @@ impl Pipeline {
             totals: PipelineTotals::default(),
             ws: OctreeWorkspace::default(),
             desired: Vec::new(),
+            candidates: Vec::new(),
+            near: Vec::new(),
             merged: Vec::new(),
             touching_now: Vec::new(),
             static_triangles: scene
@@ -541,6 +550,9 @@ impl Pipeline {
         let start = previous.map_or(position, |p| p.position_enu_m);
         let vehicle_box_now = Aabb64::around(position, DVec3::splat(radius_m));
         let swept_box = vehicle_box_now.union(Aabb64::around(start, DVec3::splat(radius_m)));
+        // Obstacles this interval could touch or come within the near-miss band of.
+        let band = cfg.near_miss_m;
+        let near_region = swept_box.inflated(band + radius_m);
         let vehicle_collider = match cfg.mode {
             Mode::Box => ColliderKind::Box,
             _ => ColliderKind::Mesh,
@@ -566,7 +578,6 @@ impl Pipeline {
 
         // 1-2. Which obstacles have colliders.
         self.desired.clear();
-        let band = cfg.near_miss_m;
         match cfg.mode {
             Mode::Box | Mode::Mesh | Mode::Oracle => {
                 let query = if cfg.mode == Mode::Oracle {
@@ -592,6 +603,9 @@ impl Pipeline {
                         self.desired.push(o);
                     }
                 }
+                self.desired.sort_unstable();
+                self.near.clear();
+                self.near.extend_from_slice(&self.desired);
                 state.active.clear();
                 let kind = if cfg.mode == Mode::Box {
                     ColliderKind::Box
@@ -621,115 +635,166 @@ impl Pipeline {
             }
             Mode::Paper | Mode::Adaptive => {
                 let node = self.octree.leaf_at(position);
-                let desired = &mut self.desired;
-                if let Some(node) = node {
-                    desired.extend(
-                        self.octree
-                            .leaf_items(node)
-                            .iter()
-                            .map(|&i| ObstacleRef::Static(i)),
-                    );
-                }
-                let region = if cfg.mode == Mode::Adaptive {
+                // The region whose obstacles must have colliders: the node (paper), plus the
+                // look-ahead box and this interval's path (adaptive).
+                let required = if cfg.mode == Mode::Adaptive {
                     let speed = current.velocity_enu_mps.length();
                     let reach = cfg.ray_length_m.max(speed * cfg.look_ahead_s) + radius_m;
                     Aabb64::around(position, DVec3::splat(reach)).union(swept_box.inflated(band))
                 } else {
                     node.map_or(vehicle_box_now, |n| self.octree.node_aabb(n))
                 };
-                if cfg.mode == Mode::Adaptive {
-                    self.octree.query_aabb(&region, &mut self.ws, |i| {
-                        desired.push(ObstacleRef::Static(i))
-                    });
-                }
-                for (i, d) in dynamic.iter().enumerate() {
-                    let o = ObstacleRef::Dynamic(i as u32);
-                    let v = view(scene, dynamic, o);
-                    let lead = if cfg.mode == Mode::Adaptive {
-                        d.speed_mps * cfg.look_ahead_s
-                    } else {
-                        0.0
-                    };
-                    if v.aabb_enu_m.inflated(lead).intersects(&region) {
-                        desired.push(o);
-                    }
-                }
-                desired.sort_unstable();
-                desired.dedup();
-                state.node = node;
+                // Static obstacles are queried with a margin and the answer reused while the
+                // required region stays inside it (and the node is the same): most ticks skip
+                // the octree query and the merge. Moving obstacles are re-checked every tick.
+                let any_dynamic = !dynamic.is_empty()
+                    || state
+                        .active
+                        .iter()
+                        .any(|a| matches!(a.obstacle, ObstacleRef::Dynamic(_)));
                 let hold = if cfg.mode == Mode::Paper {
                     0.0
                 } else {
                     cfg.hold_s
                 };
-                let reason = if cfg.mode == Mode::Paper {
-                    "node"
-                } else {
-                    "look_ahead"
-                };
-                // Merge the active list (sorted) with the desired one.
-                self.merged.clear();
-                let (mut a, mut d) = (0, 0);
-                while a < state.active.len() || d < self.desired.len() {
-                    let next_active = state.active.get(a).map(|x| x.obstacle);
-                    let next_desired = self.desired.get(d).copied();
-                    match (next_active, next_desired) {
-                        (Some(x), Some(y)) if x == y => {
-                            self.merged.push(state.active[a]);
-                            a += 1;
-                            d += 1;
+                let reuse = !any_dynamic
+                    && state.node == node
+                    && state
+                        .queried
+                        .is_some_and(|q| q.contains(required.min) && q.contains(required.max));
+                if !reuse {
+                    let region = if cfg.mode == Mode::Adaptive {
+                        let margin = (0.25 * (required.max.x - required.min.x)).max(10.0);
+                        required.inflated(margin)
+                    } else {
+                        required
+                    };
+                    state.queried = Some(region);
+                    let desired = &mut self.desired;
+                    if let Some(node) = node {
+                        desired.extend(
+                            self.octree
+                                .leaf_items(node)
+                                .iter()
+                                .map(|&i| ObstacleRef::Static(i)),
+                        );
+                    }
+                    if cfg.mode == Mode::Adaptive {
+                        self.octree.query_aabb(&region, &mut self.ws, |i| {
+                            desired.push(ObstacleRef::Static(i))
+                        });
+                    }
+                    for (i, d) in dynamic.iter().enumerate() {
+                        let o = ObstacleRef::Dynamic(i as u32);
+                        let v = view(scene, dynamic, o);
+                        let lead = if cfg.mode == Mode::Adaptive {
+                            d.speed_mps * cfg.look_ahead_s
+                        } else {
+                            0.0
+                        };
+                        if v.aabb_enu_m.inflated(lead).intersects(&region) {
+                            desired.push(o);
                         }
-                        (Some(x), y) if y.is_none() || y.is_some_and(|y| x < y) => {
-                            let act = state.active[a];
-                            a += 1;
-                            let keep =
-                                act.collider == ColliderKind::Mesh && t - act.since_t_s < hold;
-                            if keep {
-                                self.merged.push(act);
-                            } else {
-                                let v = view(scene, dynamic, act.obstacle);
+                    }
+                    desired.sort_unstable();
+                    desired.dedup();
+                    state.node = node;
+                    let hold = if cfg.mode == Mode::Paper {
+                        0.0
+                    } else {
+                        cfg.hold_s
+                    };
+                    let reason = if cfg.mode == Mode::Paper {
+                        "node"
+                    } else {
+                        "look_ahead"
+                    };
+                    // Merge the active list (sorted) with the desired one.
+                    self.merged.clear();
+                    let (mut a, mut d) = (0, 0);
+                    while a < state.active.len() || d < self.desired.len() {
+                        let next_active = state.active.get(a).map(|x| x.obstacle);
+                        let next_desired = self.desired.get(d).copied();
+                        match (next_active, next_desired) {
+                            (Some(x), Some(y)) if x == y => {
+                                self.merged.push(state.active[a]);
+                                a += 1;
+                                d += 1;
+                            }
+                            (Some(x), y) if y.is_none() || y.is_some_and(|y| x < y) => {
+                                let act = state.active[a];
+                                a += 1;
+                                let keep =
+                                    act.collider == ColliderKind::Mesh && t - act.since_t_s < hold;
+                                if keep {
+                                    self.merged.push(act);
+                                } else {
+                                    let v = view(scene, dynamic, act.obstacle);
+                                    events.push(event(EventKind::ColliderSwap {
+                                        obstacle: v.id.to_owned(),
+                                        from: act.collider,
+                                        to: ColliderKind::None,
+                                        beta: act.beta,
+                                        distance_m: v.aabb_enu_m.distance_to(position),
+                                        reason: "left",
+                                    }));
+                                }
+                            }
+                            (_, Some(y)) => {
+                                let v = view(scene, dynamic, y);
                                 events.push(event(EventKind::ColliderSwap {
                                     obstacle: v.id.to_owned(),
-                                    from: act.collider,
-                                    to: ColliderKind::None,
-                                    beta: act.beta,
+                                    from: ColliderKind::None,
+                                    to: ColliderKind::Box,
+                                    beta: 0.0,
                                     distance_m: v.aabb_enu_m.distance_to(position),
-                                    reason: "left",
+                                    reason,
                                 }));
+                                self.merged.push(Active {
+                                    obstacle: y,
+                                    collider: ColliderKind::Box,
+                                    since_t_s: t,
+                                    beta: 0.0,
+                                });
+                                d += 1;
                             }
+                            _ => break,
                         }
-                        (_, Some(y)) => {
-                            let v = view(scene, dynamic, y);
-                            events.push(event(EventKind::ColliderSwap {
-                                obstacle: v.id.to_owned(),
-                                from: ColliderKind::None,
-                                to: ColliderKind::Box,
-                                beta: 0.0,
-                                distance_m: v.aabb_enu_m.distance_to(position),
-                                reason,
-                            }));
-                            self.merged.push(Active {
-                                obstacle: y,
-                                collider: ColliderKind::Box,
-                                since_t_s: t,
-                                beta: 0.0,
-                            });
-                            d += 1;
-                        }
-                        _ => break,
                     }
+                    std::mem::swap(&mut state.active, &mut self.merged);
                 }
-                std::mem::swap(&mut state.active, &mut self.merged);
 
                 // 3. Six rays along the body axes against the active colliders.
                 let forward = current.attitude.forward_enu();
                 for (k, axis) in RAY_AXES_FRD.iter().enumerate() {
                     let dir = current.attitude.enu_from_frd * axis.as_dvec3();
                     let mut best: Option<RayHit> = None;
-                    for act in &state.active {
-                        let v = view(scene, dynamic, act.obstacle);
+                    // Few active colliders (the paper's node): test them all. Many (the
+                    // look-ahead region): let the octree find those along the ray.
+                    self.candidates.clear();
+                    let candidates = &mut self.candidates;
+                    if state.active.len() <= RAY_SCAN_MAX_ACTIVE {
+                        candidates.extend(state.active.iter().map(|a| a.obstacle));
+                    } else {
+                        self.octree
+                            .query_ray(position, dir, cfg.ray_length_m, &mut self.ws, |i| {
+                                candidates.push(ObstacleRef::Static(i))
+                            });
+                        candidates.extend(
+                            state
+                                .active
+                                .iter()
+                                .map(|a| a.obstacle)
+                                .filter(|o| matches!(o, ObstacleRef::Dynamic(_))),
+                        );
+                    }
+                    for &o in &self.candidates {
+                        let Some(act) = find_active(&state.active, o) else {
+                            continue;
+                        };
+                        let v = view(scene, dynamic, o);
                         let limit = best.map_or(cfg.ray_length_m, |b| b.distance_m);
-                        if !ray_hits_aabb(position, dir, limit, &v.aabb_enu_m) {
+                        if !v.aabb_enu_m.ray_hits(position, dir, limit) {
                             continue;
                         }
                         let body = Body::new(
@@ -784,12 +849,12 @@ impl Pipeline {
                     }
                 }
                 for act in state.active.iter_mut() {
+                    if act.collider != ColliderKind::Mesh || t - act.since_t_s < hold {
+                        continue;
+                    }
                     let v = view(scene, dynamic, act.obstacle);
                     let distance_m = v.aabb_enu_m.distance_to(position);
-                    if act.collider == ColliderKind::Mesh
-                        && distance_m > cfg.box_beyond_m
-                        && t - act.since_t_s >= hold
-                    {
+                    if distance_m > cfg.box_beyond_m {
                         swap(
                             act,
                             ColliderKind::Box,
@@ -802,12 +867,36 @@ impl Pipeline {
                             events,
                         );
                     }
-                    // savsim: a box that the vehicle could touch in this interval, or that is
-                    // within the near-miss band, is confirmed with its mesh.
-                    if cfg.mode == Mode::Adaptive
-                        && act.collider == ColliderKind::Box
-                        && v.aabb_enu_m.intersects(&swept_box.inflated(band))
-                    {
+                }
+                // What the vehicle could touch or come near in this interval.
+                self.near.clear();
+                let near = &mut self.near;
+                let active = &state.active;
+                self.octree.query_aabb(&near_region, &mut self.ws, |i| {
+                    let o = ObstacleRef::Static(i);
+                    if find_active(active, o).is_some() {
+                        near.push(o);
+                    }
+                });
+                near.extend(active.iter().map(|a| a.obstacle).filter(|&o| {
+                    matches!(o, ObstacleRef::Dynamic(_))
+                        && view(scene, dynamic, o).aabb_enu_m.intersects(&near_region)
+                }));
+                near.sort_unstable();
+                // savsim: a box that the vehicle could touch in this interval, or that is
+                // within the near-miss band, is confirmed with its mesh.
+                if cfg.mode == Mode::Adaptive {
+                    for &o in &self.near {
+                        let Ok(index) = state.active.binary_search_by_key(&o, |a| a.obstacle)
+                        else {
+                            continue;
+                        };
+                        let act = &mut state.active[index];
+                        if act.collider != ColliderKind::Box {
+                            continue;
+                        }
+                        let v = view(scene, dynamic, o);
+                        let distance_m = v.aabb_enu_m.distance_to(position);
                         let obstacle_box = Body::new(
                             v.geometry,
                             v.geometry_index,
@@ -822,6 +911,8 @@ impl Pipeline {
                                 < band;
                         let reason = if near {
                             Some("proximity")
+                        } else if !v.aabb_enu_m.intersects(&swept_box) {
+                            None
                         } else {
                             report.narrow_tests += 1;
                             let hit = match vehicle_pose_before {
@@ -875,8 +966,11 @@ impl Pipeline {
         } else {
             vehicle_box_now
         };
-        for act in &state.active {
-            let v = view(scene, dynamic, act.obstacle);
+        for &o in &self.near {
+            let Some(act) = find_active(&state.active, o) else {
+                continue;
+            };
+            let v = view(scene, dynamic, o);
             let near_box = v.aabb_enu_m.distance_to(position) < band + radius_m;
             if !(v.aabb_enu_m.intersects(&contact_box) || near_box) {
                 continue;
@@ -1026,6 +1120,14 @@ fn swap(
     act.since_t_s = t;
 }
 
+/// The active collider of `o` (the active list is sorted by obstacle).
+fn find_active(active: &[Active], o: ObstacleRef) -> Option<Active> {
+    active
+        .binary_search_by_key(&o, |a| a.obstacle)
+        .ok()
+        .map(|i| active[i])
+}
+
 fn sweep_bodies(
     vehicle: &Body,
     vehicle_before: BodyPose,
@@ -1050,23 +1152,4 @@ fn sweep_bodies(
 fn inside_solid(geometry: &Geometry, pose: &BodyPose, point: DVec3) -> bool {
     let local = pose.enu_from_body.inverse() * (point - pose.position_enu_m);
     geometry.contains_local_point(local.as_vec3())
-}
-
-/// Slab test: does the ray from `origin` along `dir` meet `aabb` within `max_m`?
-fn ray_hits_aabb(origin: DVec3, dir: DVec3, max_m: f64, aabb: &Aabb64) -> bool {
-    let inv = dir.recip();
-    let t0 = (aabb.min - origin) * inv;
-    let t1 = (aabb.max - origin) * inv;
-    let near = t0.min(t1);
-    let far = t0.max(t1);
-    // NaN (a zero direction component exactly on a slab face) must not reject a hit.
-    let enter = [near.x, near.y, near.z]
-        .into_iter()
-        .filter(|v| !v.is_nan())
-        .fold(0.0f64, f64::max);
-    let exit = [far.x, far.y, far.z]
-        .into_iter()
-        .filter(|v| !v.is_nan())
-        .fold(max_m, f64::min);
-    enter <= exit
 }

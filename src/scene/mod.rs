@@ -214,6 +214,28 @@ impl Aabb64 {
         (self.min + self.max) * 0.5
     }
 
+    /// Slab test: does the segment from `origin` along `dir` (unit) up to `max_m` meet the box?
+    ///
+    /// ```
+    /// use savsim::scene::Aabb64;
+    /// use glam::DVec3;
+    /// let b = Aabb64::new(DVec3::new(10.0, -1.0, -1.0), DVec3::new(12.0, 1.0, 1.0));
+    /// assert!(b.ray_hits(DVec3::ZERO, DVec3::X, 10.5));
+    /// assert!(!b.ray_hits(DVec3::ZERO, DVec3::X, 9.5));
+    /// assert!(!b.ray_hits(DVec3::ZERO, DVec3::NEG_X, 100.0));
+    /// ```
+    pub fn ray_hits(&self, origin: DVec3, dir: DVec3, max_m: f64) -> bool {
+        let inv = dir.recip();
+        let t0 = (self.min - origin) * inv;
+        let t1 = (self.max - origin) * inv;
+        let (near, far) = (t0.min(t1), t0.max(t1));
+        // f64::max and min ignore NaN (a zero direction component exactly on a slab face), so
+        // such an axis does not reject the hit.
+        let enter = 0.0f64.max(near.x).max(near.y).max(near.z);
+        let exit = max_m.min(far.x).min(far.y).min(far.z);
+        enter <= exit
+    }
+
     /// Distance from `p` to the box (0 inside).
     pub fn distance_to(&self, p: DVec3) -> f64 {
         (self.min - p).max(p - self.max).max(DVec3::ZERO).length()
