@@ -161,6 +161,9 @@ fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
         collision_config(&args.collision)?,
         args.collision.events.as_deref(),
     )?;
+    if let Some(target) = &args.collision.rerun {
+        session.start_viz(&target.parse()?)?;
+    }
     let result = replay(
         &args.flight,
         speed,
@@ -351,11 +354,14 @@ fn live_options(connect: &str, rate_hz: f64, duration_s: Option<f64>) -> Result<
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
     let scene = load_scene(args.collision.scene.as_deref())?;
-    let session = Session::new(
+    let mut session = Session::new(
         scene,
         collision_config(&args.collision)?,
         args.collision.events.as_deref(),
     )?;
+    if let Some(target) = &args.collision.rerun {
+        session.start_viz(&target.parse()?)?;
+    }
     let mut session = live::run_blocking(options, session, args.record.as_deref(), shutdown)?;
     let finished = session.finish();
     write_summary(

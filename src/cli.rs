@@ -70,6 +70,9 @@ pub struct CollisionArgs {
     /// Least time a collider keeps its state before it is downgraded, seconds.
     #[arg(long, default_value_t = 2.0)]
     pub hold_s: f64,
+    /// Stream to rerun: save=OUT.rrd, connect[=URL] (a running viewer) or spawn.
+    #[arg(long)]
+    pub rerun: Option<String>,
     /// AHP judgment matrix for T, V, A: nine numbers row by row, fractions allowed
     /// (default: the paper's Table 3, "1,7/3,3/2,3/7,1,5/4,2/3,4/5,1").
     #[arg(long)]

@@ -14,4 +14,5 @@ pub mod ingest;
 pub mod scene;
 pub mod session;
 pub mod signals;
+pub mod viz;
 pub mod world;

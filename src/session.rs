@@ -48,6 +48,9 @@ pub struct Session {
     started: Instant,
     /// Set when the run was stopped by a signal.
     pub interrupted: bool,
+    /// The rerun logger, when `--rerun` is on.
+    viz: Option<crate::viz::Logger>,
+    ticks: u64,
 }
 
 impl Session {
@@ -82,7 +85,29 @@ impl Session {
             last_expire_t_s: f64::NEG_INFINITY,
             started: Instant::now(),
             interrupted: false,
+            viz: None,
+            ticks: 0,
         })
+    }
+
+    /// Stream this run to rerun. Needs a scene.
+    pub fn start_viz(&mut self, target: &crate::viz::RerunTarget) -> Result<()> {
+        let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
+            return Err(Error::Usage("--rerun needs --scene".into()));
+        };
+        let leaves = pipeline.octree.leaves().map(|(_, b, _)| b).collect();
+        self.viz = Some(crate::viz::Logger::start(target, scene.clone(), leaves)?);
+        Ok(())
+    }
+
+    /// Stream this run into an already open rerun stream (tests use a memory stream).
+    pub fn start_viz_stream(&mut self, rec: rerun::RecordingStream) -> Result<()> {
+        let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
+            return Err(Error::Usage("--rerun needs --scene".into()));
+        };
+        let leaves = pipeline.octree.leaves().map(|(_, b, _)| b).collect();
+        self.viz = Some(crate::viz::Logger::with_stream(rec, scene.clone(), leaves)?);
+        Ok(())
     }
 
     /// Take one complete frame received (or recorded) at `t_s` (UNIX seconds).
@@ -131,7 +156,7 @@ impl Session {
         );
         let first = self.events.len();
         let started = Instant::now();
-        pipeline.step(
+        let report = pipeline.step(
             &scene,
             sender.system_id,
             previous.as_ref(),
@@ -139,9 +164,41 @@ impl Session {
             &self.dynamic,
             &mut self.events,
         );
-        self.tick_cost_ns
-            .push(started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64);
-        debug_assert!(first <= self.events.len());
+        let cost_ns = started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64;
+        self.tick_cost_ns.push(cost_ns);
+        self.ticks += 1;
+        if let Some(viz) = &mut self.viz {
+            let state = pipeline.vehicle(sender.system_id);
+            viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
+                tick: self.ticks,
+                t_s: current.t_s,
+                time_boot_ms: current.time_boot_ms,
+                system_id: sender.system_id,
+                pose: BodyPose::of(&current),
+                model: scene.vehicle_model(sender.system_id),
+                rays_m: state.rays.map(|r| r.map(|h| h.distance_m)),
+                ray_length_m: pipeline.config.ray_length_m,
+                node: state.node().map(|n| pipeline.octree.node_aabb(n)),
+                colliders: state.colliders().collect(),
+                dynamic: self
+                    .dynamic
+                    .iter()
+                    .map(|d| (d.id.clone(), d.kind, d.geometry_index, d.current))
+                    .collect(),
+                events: self.events[first..]
+                    .iter()
+                    .filter(|e| {
+                        matches!(
+                            e.kind,
+                            EventKind::Collision { .. } | EventKind::NearMiss { .. }
+                        )
+                    })
+                    .cloned()
+                    .collect(),
+                report,
+                cost_us: cost_ns as f64 / 1e3,
+            })));
+        }
         self.flush_events()
     }
 
@@ -172,6 +229,9 @@ impl Session {
         self.flush_events()?;
         if let Some((path, out)) = &mut self.events_out {
             out.flush().map_err(|e| Error::file(path.clone(), e))?;
+        }
+        if let Some(viz) = &mut self.viz {
+            viz.finish()?;
         }
         Ok(())
     }
@@ -234,6 +294,7 @@ impl Session {
             "traffic_aircraft": self.world.traffic.len(),
             "tracks_expired": self.world.expired,
             "collision": collision,
+            "rerun": self.viz.as_ref().map(|v| json!({ "sent": v.sent(), "dropped": v.dropped() })),
             "interrupted": self.interrupted,
             "wall_time_s": self.started.elapsed().as_secs_f64(),
         })

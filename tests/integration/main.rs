@@ -9,6 +9,7 @@
 //! - `collision`: golden scenarios, one per step of the algorithm.
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
 //! - `cli`: the commands README.md gives.
+//! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink).
 
 mod cli;
 mod collision;
@@ -19,3 +20,4 @@ mod live;
 mod properties;
 mod scenes;
 mod shared_fixtures;
+mod viz;
