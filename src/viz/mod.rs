@@ -18,6 +18,10 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use glam::{DQuat, DVec3, Vec3};
+use rerun::blueprint::{
+    components::PlayState, Blueprint, BlueprintActivation, ContainerLike, Horizontal,
+    Spatial3DView, TimePanel, TimeSeriesView, Vertical,
+};
 use rerun::{
     Arrows3D, Boxes3D, Clear, Color, LineStrips3D, Mesh3D, Points3D, RecordingStream,
     RecordingStreamBuilder, Scalars, Transform3D, ViewCoordinates,
@@ -339,11 +343,40 @@ fn pose_of_static(scene: &Scene, i: u32) -> BodyPose {
     }
 }
 
+/// The default layout: the 3D world large, the metrics beside it.
+fn blueprint() -> Blueprint {
+    let series = |name: &str, origin: &str| -> ContainerLike {
+        TimeSeriesView::new(name)
+            .with_origin(origin)
+            .with_contents([format!("{origin}/**")])
+            .into()
+    };
+    Blueprint::new(
+        Horizontal::new([
+            Spatial3DView::new("world").with_origin("/world").into(),
+            Vertical::new([
+                series("tick cost (µs)", "/metrics/cost_us"),
+                series("active colliders", "/metrics/colliders"),
+                series("active triangles", "/metrics/triangles"),
+                series("beta", "/metrics/beta"),
+            ])
+            .into(),
+        ])
+        .with_column_shares([3.0, 1.0]),
+    )
+    .with_time_panel(
+        TimePanel::new()
+            .with_timeline("tlog_time")
+            .with_play_state(PlayState::Following),
+    )
+}
+
 fn log_scene(
     rec: &RecordingStream,
     state: &State<'_>,
     leaves: &[Aabb64],
 ) -> rerun::RecordingStreamResult<()> {
+    blueprint().send(rec, BlueprintActivation::default())?;
     rec.log_static(paths::WORLD, &ViewCoordinates::RIGHT_HAND_Z_UP())?;
     let scene = state.scene;
     for kind in Kind::ALL {
@@ -584,17 +617,17 @@ fn log_tick(
     }
 
     // Scalars.
-    rec.log(paths::metric(id, "cost_us"), &Scalars::single(f.cost_us))?;
+    rec.log(paths::cost(id), &Scalars::single(f.cost_us))?;
     rec.log(
-        paths::metric(id, "active_box"),
+        paths::colliders_count(id, "box"),
         &Scalars::single(f.report.active_box as f64),
     )?;
     rec.log(
-        paths::metric(id, "active_mesh"),
+        paths::colliders_count(id, "mesh"),
         &Scalars::single(f.report.active_mesh as f64),
     )?;
     rec.log(
-        paths::metric(id, "active_triangles"),
+        paths::triangles(id),
         &Scalars::single(f.report.active_triangles as f64),
     )?;
     Ok(())

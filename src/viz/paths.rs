@@ -41,14 +41,24 @@ pub fn traffic(id: &str) -> String {
     format!("world/traffic/{}", sanitize(id))
 }
 
-/// A per-vehicle scalar: `metrics/{sysid}/{name}`.
-pub fn metric(system_id: u8, name: &str) -> String {
-    format!("{METRICS}/{system_id}/{name}")
+/// A tick's cost, µs: `metrics/cost_us/{sysid}`.
+pub fn cost(system_id: u8) -> String {
+    format!("{METRICS}/cost_us/{system_id}")
 }
 
-/// Beta of one obstacle for one vehicle.
+/// Active colliders of one kind (`box`, `mesh`): `metrics/colliders/{sysid}/{kind}`.
+pub fn colliders_count(system_id: u8, kind: &str) -> String {
+    format!("{METRICS}/colliders/{system_id}/{kind}")
+}
+
+/// Active triangles: `metrics/triangles/{sysid}`.
+pub fn triangles(system_id: u8) -> String {
+    format!("{METRICS}/triangles/{system_id}")
+}
+
+/// Beta of one obstacle for one vehicle: `metrics/beta/{sysid}/{obstacle}`.
 pub fn beta(system_id: u8, obstacle_id: &str) -> String {
-    format!("{METRICS}/{system_id}/beta/{}", sanitize(obstacle_id))
+    format!("{METRICS}/beta/{system_id}/{}", sanitize(obstacle_id))
 }
 
 /// Keep ids to characters that need no escaping in an entity path part (`/` in terrain patch
