@@ -72,6 +72,7 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         ("--mesh-within-m", args.mesh_within_m),
         ("--box-beyond-m", args.box_beyond_m),
         ("--hold-s", args.hold_s),
+        ("--max-below-terrain-m", args.max_below_terrain_m),
     ] {
         if !(v.is_finite() && v >= 0.0) {
             return Err(Error::Usage(format!("{name} {v}: give a number >= 0")));
@@ -92,6 +93,7 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         hold_s: args.hold_s,
         near_miss_m: args.near_miss_m,
         max_gap_s: args.max_gap_s,
+        max_below_terrain_m: args.max_below_terrain_m,
         ahp,
         ..defaults
     })

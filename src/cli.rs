@@ -67,6 +67,9 @@ pub struct CollisionArgs {
     /// A mesh collider farther than this turns back into a box, metres (paper: 800).
     #[arg(long, default_value_t = 800.0)]
     pub box_beyond_m: f64,
+    /// A sample this far below the terrain is implausible and skipped, metres.
+    #[arg(long, default_value_t = 50.0)]
+    pub max_below_terrain_m: f64,
     /// Least time a collider keeps its state before it is downgraded, seconds.
     #[arg(long, default_value_t = 2.0)]
     pub hold_s: f64,

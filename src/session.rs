@@ -265,6 +265,8 @@ impl Session {
                 "collider_swaps": totals.swaps,
                 "near_misses": totals.near_misses,
                 "telemetry_gaps": totals.telemetry_gaps,
+                "terrain_clearance_min_m": totals.terrain_clearance_min_m,
+                "implausible_samples": totals.implausible_samples,
                 "per_tick": {
                     "active_box_mean": totals.active_box_sum as f64 / ticks,
                     "active_box_max": totals.active_box_max,

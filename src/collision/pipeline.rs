@@ -85,6 +85,10 @@ pub struct CollisionConfig {
     pub near_miss_m: f64,
     /// A telemetry gap longer than this is reported and not swept, seconds. Default 1.
     pub max_gap_s: f64,
+    /// A sample more than this far below the terrain surface is implausible (an altitude
+    /// reference not yet set, e.g. before the autopilot's EKF has an origin): it is counted
+    /// and skipped, and no sweep starts or ends at it. Metres. Default 50.
+    pub max_below_terrain_m: f64,
     /// AHP weights for beta. Default: the paper's Table 3.
     pub ahp: AhpWeights,
     /// Octree shape.
@@ -103,6 +107,7 @@ impl Default for CollisionConfig {
             hold_s: 2.0,
             near_miss_m: 10.0,
             max_gap_s: 1.0,
+            max_below_terrain_m: 50.0,
             ahp: AhpWeights::from_matrix(PAPER_MATRIX).expect("the paper's matrix is valid"),
             octree: OctreeConfig::default(),
         }
@@ -201,6 +206,8 @@ pub struct VehicleCollision {
     near: Vec<(ObstacleRef, f64, f64, bool)>,
     /// The six rays' nearest hits at the last tick (FRD order of [`RAY_AXES_FRD`]).
     pub rays: [Option<RayHit>; 6],
+    /// The last sample was implausible: do not sweep from it.
+    last_implausible: bool,
 }
 
 impl VehicleCollision {
@@ -228,6 +235,11 @@ pub struct TickReport {
     pub narrow_tests: usize,
     /// True when the contacts were swept from the previous sample.
     pub swept: bool,
+    /// Height of the vehicle's reference point above the terrain under it, metres (None
+    /// where there is no terrain).
+    pub terrain_clearance_m: Option<f64>,
+    /// True when the sample was skipped as implausible (far below the terrain).
+    pub implausible: bool,
 }
 
 /// Counters over a whole run.
@@ -257,6 +269,10 @@ pub struct PipelineTotals {
     pub active_triangles_max: usize,
     /// Narrow-phase tests run.
     pub narrow_tests: u64,
+    /// Lowest terrain clearance seen over the run, metres.
+    pub terrain_clearance_min_m: Option<f64>,
+    /// Samples skipped as implausible (far below the terrain).
+    pub implausible_samples: u64,
 }
 
 enum Holder {
@@ -403,6 +419,7 @@ pub struct Pipeline {
     merged: Vec<Active>,
     touching_now: Vec<(ObstacleRef, Touch)>,
     static_triangles: usize,
+    has_terrain: bool,
 }
 
 impl Pipeline {
@@ -426,6 +443,7 @@ impl Pipeline {
                 .iter()
                 .map(|o| o.geometry.triangle_count())
                 .sum(),
+            has_terrain: scene.obstacles.iter().any(|o| o.geometry.is_terrain()),
         }
     }
 
@@ -468,6 +486,10 @@ impl Pipeline {
         t.active_mesh_max = t.active_mesh_max.max(report.active_mesh);
         t.active_triangles_max = t.active_triangles_max.max(report.active_triangles);
         t.narrow_tests += report.narrow_tests as u64;
+        if let Some(c) = report.terrain_clearance_m.filter(|_| !report.implausible) {
+            t.terrain_clearance_min_m = Some(t.terrain_clearance_min_m.map_or(c, |m| m.min(c)));
+        }
+        t.implausible_samples += u64::from(report.implausible);
         report
     }
 
@@ -534,6 +556,23 @@ impl Pipeline {
             Some(p) if t > p.t_s => Some(p),
             _ => None,
         };
+        // Terrain under the vehicle; a sample far below it is implausible.
+        if self.has_terrain {
+            report.terrain_clearance_m =
+                terrain_clearance(&self.octree, &mut self.ws, scene, current.position_enu_m);
+        }
+        let implausible = report
+            .terrain_clearance_m
+            .is_some_and(|c| c < -cfg.max_below_terrain_m);
+        let previous = if std::mem::replace(&mut state.last_implausible, implausible) {
+            None
+        } else {
+            previous
+        };
+        if implausible {
+            report.implausible = true;
+            return report;
+        }
         report.swept = previous.is_some() && matches!(cfg.mode, Mode::Adaptive | Mode::Oracle);
 
         let vehicle_index = scene.vehicle_model(system_id);
@@ -988,7 +1027,9 @@ impl Pipeline {
                 v.current.enu_from_body,
             );
             let mut touch = None;
-            if v.aabb_enu_m.intersects(&contact_box) {
+            if v.aabb_enu_m.intersects(&contact_box)
+                && !above_terrain(v.geometry, &v.current, &contact_box)
+            {
                 report.narrow_tests += 1;
                 touch = match (report.swept, vehicle_pose_before) {
                     (true, Some(before)) => sweep_bodies(
@@ -1031,7 +1072,8 @@ impl Pipeline {
             }
             match touch {
                 Some(touch) => self.touching_now.push((act.obstacle, touch)),
-                None if near_box => {
+                // Terrain is not a near miss: its closeness is the clearance (summary).
+                None if near_box && !v.geometry.is_terrain() => {
                     report.narrow_tests += 1;
                     let d = contact::distance_m(&vehicle_body.placed(), &body.placed());
                     if d < band {
@@ -1118,6 +1160,43 @@ fn swap(
     }));
     act.collider = to;
     act.since_t_s = t;
+}
+
+/// True when `region` lies entirely above a terrain patch's surface (a cheap, conservative
+/// test that spares the exact query for a vehicle flying over terrain).
+fn above_terrain(geometry: &Geometry, pose: &BodyPose, region: &Aabb64) -> bool {
+    if !geometry.is_terrain() {
+        return false;
+    }
+    // Terrain patches are placed without rotation.
+    let min = region.min - pose.position_enu_m;
+    let max = region.max - pose.position_enu_m;
+    geometry
+        .terrain_max_height_in(min.x as f32, min.y as f32, max.x as f32, max.y as f32)
+        .is_some_and(|top| min.z > f64::from(top))
+}
+
+/// Height of `position` above the highest terrain patch under it (None: no terrain there).
+fn terrain_clearance(
+    octree: &Octree,
+    ws: &mut OctreeWorkspace,
+    scene: &Scene,
+    position: DVec3,
+) -> Option<f64> {
+    let column = Aabb64::new(
+        DVec3::new(position.x, position.y, f64::MIN / 4.0),
+        DVec3::new(position.x, position.y, f64::MAX / 4.0),
+    );
+    let mut ground: Option<f64> = None;
+    octree.query_aabb(&column, ws, |i| {
+        let o = &scene.obstacles[i as usize];
+        let local = o.placement.enu_from_local.inverse() * (position - o.placement.position_enu_m);
+        if let Some(h) = o.geometry.terrain_height_at(local.x as f32, local.y as f32) {
+            let z = o.placement.position_enu_m.z + f64::from(h);
+            ground = Some(ground.map_or(z, |g| g.max(z)));
+        }
+    });
+    ground.map(|g| position.z - g)
 }
 
 /// The active collider of `o` (the active list is sorted by obstacle).

@@ -10,6 +10,7 @@ use serde::Deserialize;
 
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::scene::geometry::{Geometry, HeightGrid, TerrainPatch};
+use crate::scene::terrain::{self, Elevation};
 use crate::scene::{
     gen, models, DynamicObstacle, DynamicSource, Kind, Placement, Scene, StaticObstacle, Waypoint,
 };
@@ -118,6 +119,19 @@ struct TerrainSpec {
     /// Cells per patch side. Default 32.
     patch_cells: Option<usize>,
     threat: Option<f64>,
+    /// For files: the area to load. Default 4 km x 4 km around the scene origin.
+    area: Option<AreaSpec>,
+    /// For files: grid spacing, metres. Default: the file's own spacing, within 10..25 m.
+    cell_m: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AreaSpec {
+    /// Centre, [lat_deg, lon_deg]. Default: the scene origin.
+    center_geo: Option<[f64; 2]>,
+    /// Size east, north, metres.
+    size_m: [f64; 2],
 }
 
 fn default_terrain_kind() -> Kind {
@@ -539,7 +553,7 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
     for (i, value) in array("terrain")?.iter().enumerate() {
         let item = item_name("terrain", value, i);
         let spec: TerrainSpec = parse_item(&b, value, &item)?;
-        let grid = match (&spec.file, &spec.generated) {
+        let (grid, file_corner) = match (&spec.file, &spec.generated) {
             (None, Some(g)) => {
                 if !(g.cell_m > 0.0 && g.size_m.iter().all(|s| *s >= g.cell_m) && g.relief_m >= 0.0)
                     || g.size_m.iter().any(|s| s / g.cell_m > 20_000.0)
@@ -550,14 +564,65 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
                         "need cell_m > 0, size_m >= cell_m (at most 20000 cells a side), relief_m >= 0",
                     ));
                 }
-                gen::terrain_grid(g.seed, g.size_m, g.cell_m, g.relief_m)
+                (
+                    gen::terrain_grid(g.seed, g.size_m, g.cell_m, g.relief_m),
+                    None,
+                )
             }
-            (Some(_), None) => {
-                return Err(b.err(
-                    Some(item),
-                    Some("file"),
-                    "terrain files are not supported yet; use `generated`",
-                ))
+            (Some(file), None) => {
+                let path = b.dir.join(file);
+                let elevation = Elevation::load(&path).map_err(|m| {
+                    b.err(
+                        Some(item.clone()),
+                        Some("file"),
+                        format!("{}: {m}", path.display()),
+                    )
+                })?;
+                let (centre, size_m) = match &spec.area {
+                    Some(a) => (a.center_geo, a.size_m),
+                    None => (None, [4000.0, 4000.0]),
+                };
+                let centre_enu = match centre {
+                    Some([lat, lon]) => {
+                        let g = Geodetic::new(lat, lon, 0.0);
+                        if !g.is_valid() {
+                            return Err(b.err(
+                                Some(item),
+                                Some("area.center_geo"),
+                                "not a valid [lat_deg, lon_deg]",
+                            ));
+                        }
+                        let p = b.plane.enu_m_from_geodetic(&g);
+                        DVec3::new(p.x, p.y, 0.0)
+                    }
+                    None => DVec3::ZERO,
+                };
+                // Default: the file's spacing, but at most 25 m, so the triangles follow the
+                // file's bilinear surface closely.
+                let cell_m = spec
+                    .cell_m
+                    .unwrap_or_else(|| elevation.spacing_m().clamp(10.0, 25.0));
+                if !(cell_m > 0.0
+                    && size_m
+                        .iter()
+                        .all(|s| *s >= cell_m && s / cell_m <= 20_000.0))
+                {
+                    return Err(b.err(
+                        Some(item),
+                        Some("area.size_m"),
+                        "need size_m >= cell_m > 0, at most 20000 cells a side",
+                    ));
+                }
+                let corner = centre_enu - DVec3::new(size_m[0], size_m[1], 0.0) * 0.5;
+                let grid = terrain::resample(&elevation, &b.plane, corner, size_m, cell_m)
+                    .map_err(|m| {
+                        b.err(
+                            Some(item.clone()),
+                            Some("area"),
+                            format!("{}: {m}", path.display()),
+                        )
+                    })?;
+                (grid, Some(corner))
             }
             _ => {
                 return Err(b.err(
@@ -573,7 +638,11 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
             (grid.ny - 1) as f64 * grid.cell_m as f64,
             0.0,
         );
-        let corner = spec.position_enu_m.map_or(-extent * 0.5, DVec3::from);
+        let corner = match (spec.position_enu_m, file_corner) {
+            (Some(p), _) => DVec3::from(p),
+            (None, Some(c)) => c,
+            (None, None) => -extent * 0.5,
+        };
         let patch_cells = spec.patch_cells.unwrap_or(32).max(1);
         let threat = threat_of(spec.kind, spec.threat);
         for (geometry, x0, y0) in terrain_patches(&grid, patch_cells) {

@@ -328,6 +328,34 @@ impl Geometry {
         }
     }
 
+    /// The highest terrain sample of the cells that the local rectangle [x0, x1] x [y0, y1]
+    /// touches: an upper bound of the surface there (None: not terrain, or outside it).
+    pub fn terrain_max_height_in(&self, x0: f32, y0: f32, x1: f32, y1: f32) -> Option<f32> {
+        let GeometrySource::Terrain(p) = &self.source else {
+            return None;
+        };
+        let c = p.grid.cell_m;
+        let clamp_x = |v: f32| ((v / c).floor().max(0.0) as usize).min(p.nx - 1);
+        let clamp_y = |v: f32| ((v / c).floor().max(0.0) as usize).min(p.ny - 1);
+        if x1 < 0.0 || y1 < 0.0 || x0 > (p.nx - 1) as f32 * c || y0 > (p.ny - 1) as f32 * c {
+            return None;
+        }
+        let (ix0, ix1) = (clamp_x(x0), (clamp_x(x1) + 1).min(p.nx - 1));
+        let (iy0, iy1) = (clamp_y(y0), (clamp_y(y1) + 1).min(p.ny - 1));
+        let mut top = f32::NEG_INFINITY;
+        for iy in iy0..=iy1 {
+            for ix in ix0..=ix1 {
+                top = top.max(p.grid.at(p.x0 + ix, p.y0 + iy) - p.base_m);
+            }
+        }
+        Some(top)
+    }
+
+    /// True for a terrain patch.
+    pub fn is_terrain(&self) -> bool {
+        matches!(self.source, GeometrySource::Terrain(_))
+    }
+
     /// Height of a terrain patch's surface at local (x, y), if this is terrain and the point
     /// lies over it.
     pub fn terrain_height_at(&self, x_m: f32, y_m: f32) -> Option<f32> {

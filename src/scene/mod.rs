@@ -13,6 +13,7 @@ pub mod gen;
 pub mod geometry;
 pub mod info;
 pub mod models;
+pub mod terrain;
 
 use std::sync::Arc;
 

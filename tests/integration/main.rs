@@ -7,6 +7,7 @@
 //! - `live`: a UDP link to a vehicle played by a tokio task using the mavlink crate; recording.
 //! - `scenes`: the scene file format and its errors.
 //! - `collision`: golden scenarios, one per step of the algorithm.
+//! - `terrain`: SRTM and ArduPilot elevation files, real flights over them.
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
 //! - `cli`: the commands README.md gives.
 //! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink).
@@ -20,4 +21,5 @@ mod live;
 mod properties;
 mod scenes;
 mod shared_fixtures;
+mod terrain;
 mod viz;
