@@ -12,7 +12,8 @@ use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::scene::geometry::{Geometry, HeightGrid, TerrainPatch};
 use crate::scene::terrain::{self, Elevation};
 use crate::scene::{
-    gen, models, DynamicObstacle, DynamicSource, Kind, Placement, Scene, StaticObstacle, Waypoint,
+    cityjson, gen, models, DynamicObstacle, DynamicSource, Kind, Placement, Scene, StaticObstacle,
+    Waypoint,
 };
 
 /// A scene file that cannot be used: which file, which item, which field, and why.
@@ -44,11 +45,11 @@ pub struct ShapeSpec {
     /// Box size east, north, up, metres (base centre at the position).
     #[serde(rename = "box")]
     pub box_m: Option<[f64; 3]>,
-    /// A mesh file (OBJ or STL), relative to the scene file.
+    /// A mesh file (OBJ, STL, glTF/GLB), relative to the scene file.
     pub mesh: Option<String>,
     /// Scale applied to a mesh (metres per file unit). Default 1.
     pub scale: Option<f64>,
-    /// The mesh's up axis, "z" or "y". Default "y" for OBJ, "z" for STL.
+    /// The mesh's up axis, "z" or "y". Default "y" for OBJ and glTF, "z" for STL.
     pub up: Option<String>,
     /// Blocks `[x0, y0, z0, x1, y1, z1]`, metres in the obstacle frame.
     pub blocks: Option<Vec<[f64; 6]>>,
@@ -123,6 +124,23 @@ struct TerrainSpec {
     area: Option<AreaSpec>,
     /// For files: grid spacing, metres. Default: the file's own spacing, within 10..25 m.
     cell_m: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CitySpec {
+    id: String,
+    file: String,
+    /// Where the dataset's anchor goes: [lat_deg, lon_deg, alt_m AMSL].
+    anchor_geo: [f64; 3],
+    /// The anchor in dataset coordinates. Default: bounding-box centre at z = 0.
+    anchor_xyz: Option<[f64; 3]>,
+    /// Grid north of the dataset's projection, counter-clockwise from true north, degrees.
+    #[serde(default)]
+    rotation_deg: f64,
+    /// CityObject types to load. Default: Building, BuildingPart, Bridge.
+    types: Option<Vec<String>>,
+    threat: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -357,10 +375,67 @@ pub fn load_mesh_file(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String>
                 .collect();
             Ok((vertices, indices))
         }
+        "gltf" | "glb" => load_gltf(path),
         other => Err(format!(
-            "unsupported mesh format {other:?} (savsim reads .obj and .stl)"
+            "unsupported mesh format {other:?} (savsim reads .obj, .stl, .gltf and .glb)"
         )),
     }
+}
+
+/// Read every triangle of a glTF 2.0 file (.gltf with its buffers, or .glb), with node
+/// transforms applied, in file units (glTF: metres, Y up).
+fn load_gltf(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
+    let gltf = gltf::Gltf::open(path).map_err(|e| e.to_string())?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut buffers: Vec<Vec<u8>> = Vec::new();
+    for buffer in gltf.buffers() {
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or("the .glb has no binary chunk")?,
+            gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
+                std::fs::read(dir.join(uri)).map_err(|e| format!("buffer {uri}: {e}"))?
+            }
+            gltf::buffer::Source::Uri(_) => {
+                return Err(
+                    "embedded data: URIs are not supported; use .glb or external buffers".into(),
+                )
+            }
+        };
+        buffers.push(data);
+    }
+    let mut vertices = Vec::new();
+    let mut indices = Vec::new();
+    let mut stack: Vec<(gltf::Node<'_>, glam::Mat4)> =
+        match gltf.default_scene().or_else(|| gltf.scenes().next()) {
+            Some(scene) => scene.nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect(),
+            None => gltf.nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect(),
+        };
+    while let Some((node, parent)) = stack.pop() {
+        let world = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(mesh) = node.mesh() {
+            for primitive in mesh.primitives() {
+                if primitive.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+                let Some(positions) = reader.read_positions() else {
+                    continue;
+                };
+                let base = vertices.len() as u32;
+                vertices.extend(positions.map(|p| world.transform_point3(Vec3::from(p))));
+                let count = vertices.len() as u32 - base;
+                let flat: Vec<u32> = match reader.read_indices() {
+                    Some(i) => i.into_u32().collect(),
+                    None => (0..count).collect(),
+                };
+                indices.extend(
+                    flat.chunks_exact(3)
+                        .map(|t| [base + t[0], base + t[1], base + t[2]]),
+                );
+            }
+        }
+        stack.extend(node.children().map(|c| (c, world)));
+    }
+    Ok((vertices, indices))
 }
 
 fn item_name(what: &str, table: &toml::Value, index: usize) -> String {
@@ -447,14 +522,14 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
     })?;
     for key in root.keys() {
         if ![
-            "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain",
+            "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain", "city",
         ]
         .contains(&key.as_str())
         {
             return Err(fail(
                 None,
                 Some(key.clone()),
-                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain)"
+                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city)"
                     .into(),
             ));
         }
@@ -655,6 +730,68 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
             obstacles.push(StaticObstacle {
                 id: format!("{}/{}_{}", spec.id, x0 / patch_cells, y0 / patch_cells),
                 kind: spec.kind,
+                threat,
+                aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
+                placement,
+                geometry,
+                geometry_index,
+            });
+        }
+    }
+
+    for (i, value) in array("city")?.iter().enumerate() {
+        let item = item_name("city", value, i);
+        let spec: CitySpec = parse_item(&b, value, &item)?;
+        let path = b.dir.join(&spec.file);
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            b.err(
+                Some(item.clone()),
+                Some("file"),
+                format!("{}: {e}", path.display()),
+            )
+        })?;
+        let [lat, lon, alt] = spec.anchor_geo;
+        let anchor = Geodetic::new(lat, lon, alt);
+        if !anchor.is_valid() || !spec.rotation_deg.is_finite() {
+            return Err(b.err(
+                Some(item),
+                Some("anchor_geo"),
+                "not a valid [lat_deg, lon_deg, alt_m]",
+            ));
+        }
+        let types = spec.types.clone().unwrap_or_else(|| {
+            ["Building", "BuildingPart", "Bridge"]
+                .map(str::to_owned)
+                .to_vec()
+        });
+        let city = cityjson::buildings(&text, &types, spec.anchor_xyz, spec.rotation_deg).map_err(
+            |m| {
+                b.err(
+                    Some(item.clone()),
+                    Some("file"),
+                    format!("{}: {m}", path.display()),
+                )
+            },
+        )?;
+        let anchor_enu = b.plane.enu_m_from_geodetic(&anchor);
+        // The dataset's axes are the anchor's local east, north, up, turned into the plane's.
+        let plane_from_local = b.plane.plane_enu_from_local_enu_at(&anchor);
+        let rotation = glam::DQuat::from_mat3(&plane_from_local);
+        let threat = threat_of(Kind::Building, spec.threat);
+        for building in city {
+            let id = format!("{}/{}", spec.id, building.id);
+            if !ids.insert(id.clone()) {
+                return Err(b.err(Some(item), Some("id"), format!("duplicate id {id:?}")));
+            }
+            let geometry_index = b.add(building.geometry);
+            let geometry = b.geometries[geometry_index].clone();
+            let placement = Placement {
+                position_enu_m: anchor_enu + plane_from_local * building.origin_from_anchor_m,
+                enu_from_local: rotation,
+            };
+            obstacles.push(StaticObstacle {
+                id,
+                kind: Kind::Building,
                 threat,
                 aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
                 placement,

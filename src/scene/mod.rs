@@ -8,6 +8,7 @@
 //! The loaded [`Scene`] is plain data in local ENU metres relative to the origin; nothing here
 //! builds colliders (that is `collision`'s job) or knows of MAVLink sockets.
 
+pub mod cityjson;
 pub mod format;
 pub mod gen;
 pub mod geometry;

@@ -9,9 +9,11 @@
 //! - `collision`: golden scenarios, one per step of the algorithm.
 //! - `terrain`: SRTM and ArduPilot elevation files, real flights over them.
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
+//! - `cities`: CityJSON city models.
 //! - `cli`: the commands README.md gives.
 //! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink).
 
+mod cities;
 mod cli;
 mod collision;
 mod common;

@@ -149,3 +149,49 @@ fn generators_are_deterministic() {
         "scenes/city.toml is `scene gen city --seed 5`"
     );
 }
+
+#[test]
+fn aircraft_meshes_from_obj_and_gltf_become_traffic_models() {
+    let Some(fixtures) = crate::common::shared_fixtures() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let m = fixtures.join("models");
+    let text = format!(
+        "[origin]\nlat_deg = 1.0\nlon_deg = 2.0\nalt_m = 0.0\n\
+         [[vehicle]]\nmodel = {{ mesh = \"{quad}\", scale = 0.5 }}\n\
+         [[dynamic]]\nid = \"jet\"\nkind = \"a320\"\nmodel = {{ mesh = \"{plane}\", scale = 10.0 }}\n\
+         waypoints = [{{ t_s = 0.0, position_enu_m = [0.0, 0.0, 100.0] }}]\n\
+         [[dynamic]]\nid = \"px4\"\nkind = \"dji\"\nmodel = {{ mesh = \"{px4}\", scale = 1.0 }}\n\
+         waypoints = [{{ t_s = 0.0, position_enu_m = [0.0, 0.0, 100.0] }}]\n\
+         [[dynamic]]\nid = \"balloon\"\nkind = \"balloon\"\nmodel = {{ mesh = \"{balloon}\", scale = 5.0 }}\n\
+         waypoints = [{{ t_s = 0.0, position_enu_m = [0.0, 0.0, 100.0] }}]\n",
+        quad = m.join("UAVLogViewer__quad.glb").display(),
+        plane = m.join("UAVLogViewer__plane.glb").display(),
+        px4 = m.join("mavsim-viewer__px4_fixed_wing.obj").display(),
+        balloon = m.join("PtahRenderer__balloon.obj").display(),
+    );
+    let path = dir.path().join("models.toml");
+    std::fs::write(&path, text).unwrap();
+    let scene = savsim::scene::load(&path).unwrap();
+    let vehicle = &scene.geometries[scene.vehicle_model(1)];
+    assert!(
+        vehicle.triangle_count() > 100,
+        "quad.glb: {}",
+        vehicle.triangle_count()
+    );
+    for d in &scene.dynamic {
+        assert!(
+            d.geometry.triangle_count() > 100,
+            "{}: {}",
+            d.id,
+            d.geometry.triangle_count()
+        );
+        let size = d.geometry.local_aabb.maxs - d.geometry.local_aabb.mins;
+        assert!(
+            size.max_element() > 0.1 && size.max_element() < 1.0e4,
+            "{}: {size:?}",
+            d.id
+        );
+    }
+}
