@@ -116,6 +116,8 @@ pub struct Logger {
 
 /// Messages the channel holds before dropping.
 const QUEUE_LEN: usize = 4096;
+/// Static scenes with at most this many triangles are drawn as meshes, larger ones as boxes.
+const STATIC_MESH_BUDGET: usize = 500_000;
 /// Track points kept per vehicle.
 const TRACK_LEN: usize = 2000;
 
@@ -379,24 +381,56 @@ fn log_scene(
     blueprint().send(rec, BlueprintActivation::default())?;
     rec.log_static(paths::WORLD, &ViewCoordinates::RIGHT_HAND_Z_UP())?;
     let scene = state.scene;
+    // A scene small enough is drawn with its real shapes; a big one (a generated city of
+    // millions of triangles) with boxes.
+    let triangles: usize = scene
+        .obstacles
+        .iter()
+        .map(|o| o.geometry.triangle_count())
+        .sum();
+    let as_meshes = triangles <= STATIC_MESH_BUDGET;
     for kind in Kind::ALL {
-        let items: Vec<_> = scene
-            .obstacles
-            .iter()
-            .enumerate()
-            .filter(|(_, o)| o.kind == kind)
-            .map(|(i, o)| {
+        let of_kind = || {
+            scene
+                .obstacles
+                .iter()
+                .enumerate()
+                .filter(move |(_, o)| o.kind == kind)
+        };
+        if of_kind().next().is_none() {
+            continue;
+        }
+        let path = format!("{}/{}", paths::OBSTACLES, kind.name());
+        if as_meshes {
+            let mut positions: Vec<[f32; 3]> = Vec::new();
+            let mut indices: Vec<rerun::TriangleIndices> = Vec::new();
+            for (i, o) in of_kind() {
+                let pose = pose_of_static(scene, i as u32);
+                let (vertices, tris) = o.geometry.triangles();
+                let base = positions.len() as u32;
+                positions.extend(vertices.iter().map(|v| {
+                    state
+                        .local(pose.position_enu_m + pose.enu_from_body * v.as_dvec3())
+                        .to_array()
+                }));
+                indices.extend(tris.iter().map(|t| {
+                    rerun::TriangleIndices([base + t[0], base + t[1], base + t[2]].into())
+                }));
+            }
+            rec.log_static(
+                path,
+                &Mesh3D::new(positions)
+                    .with_triangle_indices(indices)
+                    .with_albedo_factor(kind_color(kind).0),
+            )?;
+        } else {
+            let items = of_kind().map(|(i, o)| {
                 (
                     box_of_geometry(&o.geometry, &pose_of_static(scene, i as u32)),
                     kind_color(kind),
                 )
-            })
-            .collect();
-        if !items.is_empty() {
-            rec.log_static(
-                format!("{}/{}", paths::OBSTACLES, kind.name()),
-                &boxes_of(state, items.into_iter()),
-            )?;
+            });
+            rec.log_static(path, &boxes_of(state, items))?;
         }
     }
     let leaf_boxes = leaves.iter().map(|b| {
