@@ -120,6 +120,16 @@ fn parse_ahp(text: &str) -> Result<AhpWeights> {
         .ok_or_else(|| bad("every entry must be positive and finite"))
 }
 
+/// A session as the collision options ask for: scene, thresholds, events file, rerun.
+fn session_for(args: &CollisionArgs) -> Result<Session> {
+    let scene = load_scene(args.scene.as_deref())?;
+    let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
+    if let Some(target) = &args.rerun {
+        session.start_viz(&target.parse()?)?;
+    }
+    Ok(session)
+}
+
 fn load_scene(path: Option<&Path>) -> Result<Option<Arc<Scene>>> {
     Ok(match path {
         Some(p) => Some(Arc::new(scene::load(p)?)),
@@ -157,15 +167,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
 
 fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
     let speed: Speed = args.speed.parse()?;
-    let scene = load_scene(args.collision.scene.as_deref())?;
-    let mut session = Session::new(
-        scene,
-        collision_config(&args.collision)?,
-        args.collision.events.as_deref(),
-    )?;
-    if let Some(target) = &args.collision.rerun {
-        session.start_viz(&target.parse()?)?;
-    }
+    let mut session = session_for(&args.collision)?;
     let result = replay(
         &args.flight,
         speed,
@@ -355,15 +357,7 @@ fn live_options(connect: &str, rate_hz: f64, duration_s: Option<f64>) -> Result<
 
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
-    let scene = load_scene(args.collision.scene.as_deref())?;
-    let mut session = Session::new(
-        scene,
-        collision_config(&args.collision)?,
-        args.collision.events.as_deref(),
-    )?;
-    if let Some(target) = &args.collision.rerun {
-        session.start_viz(&target.parse()?)?;
-    }
+    let session = session_for(&args.collision)?;
     let mut session = live::run_blocking(options, session, args.record.as_deref(), shutdown)?;
     let finished = session.finish();
     write_summary(

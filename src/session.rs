@@ -92,12 +92,10 @@ impl Session {
 
     /// Stream this run to rerun. Needs a scene.
     pub fn start_viz(&mut self, target: &crate::viz::RerunTarget) -> Result<()> {
-        let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
+        if self.pipeline.is_none() {
             return Err(Error::Usage("--rerun needs --scene".into()));
-        };
-        let leaves = pipeline.octree.leaves().map(|(_, b, _)| b).collect();
-        self.viz = Some(crate::viz::Logger::start(target, scene.clone(), leaves)?);
-        Ok(())
+        }
+        self.start_viz_stream(crate::viz::open(target)?)
     }
 
     /// Stream this run into an already open rerun stream (tests use a memory stream).

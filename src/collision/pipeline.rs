@@ -347,6 +347,20 @@ struct ObstacleView<'s> {
     id: &'s str,
 }
 
+impl ObstacleView<'_> {
+    /// The obstacle's collider of `kind`, placed where it is now.
+    fn body(&self, meshes: &mut MeshCache, kind: ColliderKind) -> Body {
+        Body::new(
+            self.geometry,
+            self.geometry_index,
+            meshes,
+            kind,
+            self.current.position_enu_m,
+            self.current.enu_from_body,
+        )
+    }
+}
+
 fn view<'s>(scene: &'s Scene, dynamic: &'s [DynamicBody], o: ObstacleRef) -> ObstacleView<'s> {
     match o {
         ObstacleRef::Static(i) => {
@@ -836,14 +850,7 @@ impl Pipeline {
                         if !v.aabb_enu_m.ray_hits(position, dir, limit) {
                             continue;
                         }
-                        let body = Body::new(
-                            v.geometry,
-                            v.geometry_index,
-                            &mut self.meshes,
-                            act.collider,
-                            v.current.position_enu_m,
-                            v.current.enu_from_body,
-                        );
+                        let body = v.body(&mut self.meshes, act.collider);
                         report.narrow_tests += 1;
                         if let Some(d) =
                             contact::ray_distance_m(position, dir, limit, &body.placed())
@@ -936,14 +943,7 @@ impl Pipeline {
                         }
                         let v = view(scene, dynamic, o);
                         let distance_m = v.aabb_enu_m.distance_to(position);
-                        let obstacle_box = Body::new(
-                            v.geometry,
-                            v.geometry_index,
-                            &mut self.meshes,
-                            ColliderKind::Box,
-                            v.current.position_enu_m,
-                            v.current.enu_from_body,
-                        );
+                        let obstacle_box = v.body(&mut self.meshes, ColliderKind::Box);
                         report.narrow_tests += 1;
                         let near =
                             contact::distance_m(&vehicle_box_body.placed(), &obstacle_box.placed())
@@ -1018,14 +1018,7 @@ impl Pipeline {
             if cfg.mode == Mode::Adaptive && act.collider != ColliderKind::Mesh {
                 continue;
             }
-            let body = Body::new(
-                v.geometry,
-                v.geometry_index,
-                &mut self.meshes,
-                act.collider,
-                v.current.position_enu_m,
-                v.current.enu_from_body,
-            );
+            let body = v.body(&mut self.meshes, act.collider);
             let mut touch = None;
             if v.aabb_enu_m.intersects(&contact_box)
                 && !above_terrain(v.geometry, &v.current, &contact_box)

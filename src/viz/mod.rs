@@ -66,6 +66,18 @@ impl FromStr for RerunTarget {
     }
 }
 
+/// Open the recording stream a target names.
+pub fn open(target: &RerunTarget) -> Result<RecordingStream> {
+    let builder = RecordingStreamBuilder::new("savsim");
+    match target {
+        RerunTarget::Save(path) => builder.save(path),
+        RerunTarget::Connect(None) => builder.connect_grpc(),
+        RerunTarget::Connect(Some(url)) => builder.connect_grpc_opts(url.clone()),
+        RerunTarget::Spawn => builder.spawn(),
+    }
+    .map_err(|e| Error::Usage(format!("--rerun: {e}")))
+}
+
 /// One vehicle's tick, as the logger needs it.
 #[derive(Debug, Clone)]
 pub struct TickFrame {
@@ -122,24 +134,8 @@ const STATIC_MESH_BUDGET: usize = 500_000;
 const TRACK_LEN: usize = 2000;
 
 impl Logger {
-    /// Open the target and start the logger thread; the scene is logged first.
-    pub fn start(
-        target: &RerunTarget,
-        scene: Arc<Scene>,
-        octree_leaves: Vec<Aabb64>,
-    ) -> Result<Self> {
-        let builder = RecordingStreamBuilder::new("savsim");
-        let rec = match target {
-            RerunTarget::Save(path) => builder.save(path),
-            RerunTarget::Connect(None) => builder.connect_grpc(),
-            RerunTarget::Connect(Some(url)) => builder.connect_grpc_opts(url.clone()),
-            RerunTarget::Spawn => builder.spawn(),
-        }
-        .map_err(|e| Error::Usage(format!("--rerun: {e}")))?;
-        Self::with_stream(rec, scene, octree_leaves)
-    }
-
-    /// Start the logger thread on an existing stream (tests pass a memory stream).
+    /// Start the logger thread on a stream (see [`open`]; tests pass a memory stream); the
+    /// scene is logged first.
     pub fn with_stream(
         rec: RecordingStream,
         scene: Arc<Scene>,

@@ -99,3 +99,27 @@ pub fn straight(
         })
         .collect()
 }
+
+/// Replay a tlog as fast as possible into a new session (over `scene`, if given) and finish it.
+pub fn replay_into_session(
+    path: &Path,
+    scene: Option<savsim::scene::Scene>,
+) -> savsim::session::Session {
+    let mut session = savsim::session::Session::new(
+        scene.map(std::sync::Arc::new),
+        savsim::collision::pipeline::CollisionConfig::default(),
+        None,
+    )
+    .unwrap();
+    let shutdown = std::sync::atomic::AtomicBool::new(false);
+    savsim::app::replay(
+        path,
+        savsim::app::Speed::Max,
+        false,
+        &mut session,
+        &shutdown,
+    )
+    .unwrap();
+    session.finish().unwrap();
+    session
+}

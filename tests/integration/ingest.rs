@@ -2,7 +2,6 @@
 
 use std::collections::BTreeMap;
 
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::geo::Geodetic;
 use savsim::ingest::decode::{decode, Rejection, Report};
 use savsim::ingest::frame::{scan, FrameStatus, Scan};
@@ -10,7 +9,6 @@ use savsim::ingest::stats::{IngestStats, SenderId};
 use savsim::ingest::stream::frames_in_datagram;
 use savsim::ingest::tlog::{TlogReader, TlogWriter};
 use savsim::ingest::Ingestor;
-use savsim::session::Session;
 use savsim::world::{WorldConfig, WorldStore};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
@@ -235,16 +233,7 @@ fn tlog_written_by_pymavlink_matches_pymavlink_counts() {
         &[path.to_str().unwrap()],
     );
     let want: BTreeMap<String, u64> = serde_json::from_str(out.trim()).unwrap();
-    let mut session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let shutdown = std::sync::atomic::AtomicBool::new(false);
-    savsim::app::replay(
-        &path,
-        savsim::app::Speed::Max,
-        false,
-        &mut session,
-        &shutdown,
-    )
-    .unwrap();
+    let session = crate::common::replay_into_session(&path, None);
     let stats = &session.ingestor.stats;
     let got: BTreeMap<String, u64> = stats
         .messages_by_name()

@@ -194,9 +194,7 @@ fn recording_is_a_tlog_pymavlink_reads_with_the_same_counts() {
     let (session, _) = run_vehicle_and_savsim(Some(&path));
     let ours = session.ingestor.stats.messages_by_name();
     // savsim reads its own recording back identically.
-    let mut again = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let shutdown = AtomicBool::new(false);
-    savsim::app::replay(&path, savsim::app::Speed::Max, false, &mut again, &shutdown).unwrap();
+    let again = crate::common::replay_into_session(&path, None);
     assert_eq!(again.ingestor.stats.messages_by_name(), ours);
     if !have_pymavlink() {
         return;

@@ -9,9 +9,6 @@
 
 use std::collections::BTreeMap;
 
-use savsim::collision::pipeline::CollisionConfig;
-use savsim::session::Session;
-
 use crate::common::shared_fixtures;
 
 #[derive(serde::Deserialize)]
@@ -33,16 +30,7 @@ fn message_counts_equal_pymavlink_on_every_real_tlog() {
             &std::fs::read_to_string(dir.join("expected").join(format!("{name}.json"))).unwrap(),
         )
         .unwrap();
-        let mut session = Session::new(None, CollisionConfig::default(), None).unwrap();
-        let shutdown = std::sync::atomic::AtomicBool::new(false);
-        savsim::app::replay(
-            &path,
-            savsim::app::Speed::Max,
-            false,
-            &mut session,
-            &shutdown,
-        )
-        .unwrap();
+        let session = crate::common::replay_into_session(&path, None);
         let stats = &session.ingestor.stats;
         let got = stats.messages_by_name();
         let bad_prefix = expected.bad_data.get("Bad prefix").copied().unwrap_or(0);
@@ -79,16 +67,7 @@ fn message_counts_equal_pymavlink_on_every_real_tlog() {
 fn bad_crc_frames_of_other_dialects_are_skipped_by_length() {
     let Some(dir) = shared_fixtures() else { return };
     let path = dir.join("tlogs/ardusub_log_tools__pymavlink_bug_2023-04-18_11-03-34.tlog");
-    let mut session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let shutdown = std::sync::atomic::AtomicBool::new(false);
-    savsim::app::replay(
-        &path,
-        savsim::app::Speed::Max,
-        false,
-        &mut session,
-        &shutdown,
-    )
-    .unwrap();
+    let session = crate::common::replay_into_session(&path, None);
     assert_eq!(session.ingestor.stats.bad_crc, 1967);
     assert_eq!(session.ingestor.stats.garbage_bytes, 0, "stayed aligned");
 }

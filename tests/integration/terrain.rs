@@ -1,12 +1,8 @@
 //! Terrain from elevation files: SRTM tiles and ArduPilot .DAT grids, real flights over them.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::scene::terrain::Elevation;
-use savsim::session::Session;
 
 use crate::common::{have_pymavlink, python, root, shared_fixtures};
 
@@ -25,18 +21,7 @@ fn scene_file(dir: &Path, origin: [f64; 3], terrain: &str) -> PathBuf {
 
 fn replay(scene: &Path, flight: &Path) -> serde_json::Value {
     let scene = savsim::scene::load(scene).unwrap();
-    let mut session =
-        Session::new(Some(Arc::new(scene)), CollisionConfig::default(), None).unwrap();
-    savsim::app::replay(
-        flight,
-        savsim::app::Speed::Max,
-        false,
-        &mut session,
-        &AtomicBool::new(false),
-    )
-    .unwrap();
-    session.finish().unwrap();
-    session.summary("replay", "test")
+    crate::common::replay_into_session(flight, Some(scene)).summary("replay", "test")
 }
 
 fn cmac_terrain(fixtures: &Path) -> String {
