@@ -226,26 +226,8 @@ impl Octree {
     }
 
     /// Call `visit` once for every object whose box intersects `query`.
-    pub fn query_aabb(&self, query: &Aabb64, ws: &mut OctreeWorkspace, mut visit: impl FnMut(u32)) {
-        ws.begin(self.object_boxes.len());
-        ws.stack.push(0);
-        while let Some(id) = ws.stack.pop() {
-            if !self.node_aabb(id).intersects(query) {
-                continue;
-            }
-            let n = &self.nodes[id as usize];
-            if n.first_child != 0 {
-                ws.stack.extend((0..8).map(|o| n.first_child + o));
-                continue;
-            }
-            for &o in &self.items[n.items.0 as usize..n.items.1 as usize] {
-                let mark = &mut ws.marks[o as usize];
-                if *mark != ws.epoch && self.object_boxes[o as usize].intersects(query) {
-                    *mark = ws.epoch;
-                    visit(o);
-                }
-            }
-        }
+    pub fn query_aabb(&self, query: &Aabb64, ws: &mut OctreeWorkspace, visit: impl FnMut(u32)) {
+        self.traverse(ws, |b| b.intersects(query), visit);
     }
 
     /// Call `visit` once for every object whose box the segment from `origin` along `dir`
@@ -256,12 +238,23 @@ impl Octree {
         dir: DVec3,
         max_m: f64,
         ws: &mut OctreeWorkspace,
+        visit: impl FnMut(u32),
+    ) {
+        self.traverse(ws, |b| b.ray_hits(origin, dir, max_m), visit);
+    }
+
+    /// Visit once each object whose box passes `test`, descending only into nodes whose cube
+    /// passes it.
+    fn traverse(
+        &self,
+        ws: &mut OctreeWorkspace,
+        test: impl Fn(&Aabb64) -> bool,
         mut visit: impl FnMut(u32),
     ) {
         ws.begin(self.object_boxes.len());
         ws.stack.push(0);
         while let Some(id) = ws.stack.pop() {
-            if !self.node_aabb(id).ray_hits(origin, dir, max_m) {
+            if !test(&self.node_aabb(id)) {
                 continue;
             }
             let n = &self.nodes[id as usize];
@@ -271,7 +264,7 @@ impl Octree {
             }
             for &o in &self.items[n.items.0 as usize..n.items.1 as usize] {
                 let mark = &mut ws.marks[o as usize];
-                if *mark != ws.epoch && self.object_boxes[o as usize].ray_hits(origin, dir, max_m) {
+                if *mark != ws.epoch && test(&self.object_boxes[o as usize]) {
                     *mark = ws.epoch;
                     visit(o);
                 }
