@@ -238,8 +238,11 @@ impl Builder<'_> {
         let is_stl = path
             .extension()
             .is_some_and(|x| x.eq_ignore_ascii_case("stl"));
+        let is_dae = path
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("dae"));
         let y_up = match spec.up.as_deref() {
-            None => !is_stl,
+            None => !is_stl && !is_dae,
             Some("y") => true,
             Some("z") => false,
             Some(other) => {
@@ -376,8 +379,9 @@ pub fn load_mesh_file(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String>
             Ok((vertices, indices))
         }
         "gltf" | "glb" => load_gltf(path),
+        "dae" => load_collada(path),
         other => Err(format!(
-            "unsupported mesh format {other:?} (savsim reads .obj, .stl, .gltf and .glb)"
+            "unsupported mesh format {other:?} (savsim reads .obj, .stl, .gltf, .glb and .dae)"
         )),
     }
 }
@@ -436,6 +440,140 @@ fn load_gltf(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
         stack.extend(node.children().map(|c| (c, world)));
     }
     Ok((vertices, indices))
+}
+
+/// Read every triangle of a COLLADA 1.4 file, with the visual scene's node transforms applied,
+/// converted to metres and to Z up by the file's own `<unit>` and `<up_axis>` (so `scale` and
+/// `up` need not be given for it).
+fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
+    use dae_parser::{
+        Document, Geometry as DaeGeometry, GeometryElement, Node, Primitive, Semantic, Transform,
+        UpAxis, Url, VisualScene,
+    };
+    let doc = Document::from_file(path).map_err(|e| format!("{e:?}"))?;
+    let fragment = |url: &Url| match url {
+        Url::Fragment(id) => Some(id.clone()),
+        Url::Other(_) => None,
+    };
+    let geometries: std::collections::HashMap<String, &DaeGeometry> = doc
+        .iter::<DaeGeometry>()
+        .filter_map(|g| Some((g.id.clone()?, g)))
+        .collect();
+    let mut vertices = Vec::new();
+    let mut indices = Vec::new();
+    let mut add = |g: &DaeGeometry, world: glam::Mat4| -> Result<(), String> {
+        let GeometryElement::Mesh(mesh) = &g.element else { return Ok(()) };
+        let Some(verts) = &mesh.vertices else { return Ok(()) };
+        let Some(position) = verts.inputs.iter().find(|i| i.semantic == Semantic::Position) else {
+            return Ok(());
+        };
+        let id = fragment(&position.source).ok_or("a position source that is not in the file")?;
+        let source = mesh
+            .sources
+            .iter()
+            .find(|s| s.id.as_deref() == Some(id.as_str()))
+            .ok_or_else(|| format!("position source {id:?} missing"))?;
+        let Some(dae_parser::ArrayElement::Float(floats)) = &source.array else {
+            return Err(format!("position source {id:?} is not a float array"));
+        };
+        let stride = source.accessor.stride.max(3);
+        let offset = source.accessor.offset;
+        let count = source.accessor.count;
+        let base = vertices.len() as u32;
+        for k in 0..count {
+            let at = offset + k * stride;
+            let p = floats.val.get(at..at + 3).ok_or("a position array shorter than its accessor")?;
+            vertices.push(world.transform_point3(Vec3::new(p[0], p[1], p[2])));
+        }
+        let vertex_offset = |inputs: &dae_parser::InputList| {
+            inputs
+                .inputs
+                .iter()
+                .find(|i| i.input.semantic == Semantic::Vertex)
+                .map(|i| (i.offset as usize, inputs.stride.max(1)))
+        };
+        for primitive in &mesh.elements {
+            let mut polygon = |corners: &[u32]| {
+                for k in 1..corners.len().saturating_sub(1) {
+                    indices.push([base + corners[0], base + corners[k], base + corners[k + 1]]);
+                }
+            };
+            match primitive {
+                Primitive::Triangles(t) => {
+                    let (Some((off, stride)), Some(prim)) = (vertex_offset(&t.inputs), &t.data.prim)
+                    else {
+                        continue;
+                    };
+                    let corners: Vec<u32> = prim.chunks_exact(stride).map(|c| c[off]).collect();
+                    for tri in corners.chunks_exact(3) {
+                        polygon(tri);
+                    }
+                }
+                Primitive::PolyList(p) => {
+                    let Some((off, stride)) = vertex_offset(&p.inputs) else { continue };
+                    let corners: Vec<u32> = p.data.prim.chunks_exact(stride).map(|c| c[off]).collect();
+                    let mut at = 0usize;
+                    for &n in p.data.vcount.iter() {
+                        let n = n as usize;
+                        if let Some(poly) = corners.get(at..at + n) {
+                            polygon(poly);
+                        }
+                        at += n;
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    };
+    let scene_id = doc
+        .scene
+        .as_ref()
+        .and_then(|s| s.instance_visual_scene.as_ref())
+        .and_then(|i| fragment(&i.url.val));
+    let scene = doc
+        .iter::<VisualScene>()
+        .find(|v| scene_id.is_none() || v.id == scene_id)
+        .or_else(|| doc.iter::<VisualScene>().next());
+    match scene {
+        Some(scene) => {
+            let mut stack: Vec<(&Node, glam::Mat4)> =
+                scene.nodes.iter().map(|n| (n, glam::Mat4::IDENTITY)).collect();
+            while let Some((node, parent)) = stack.pop() {
+                let mut world = parent;
+                for t in &node.transforms {
+                    world *= match t {
+                        Transform::Matrix(m) => glam::Mat4::from_cols_array(&m.0).transpose(),
+                        Transform::Translate(v) => glam::Mat4::from_translation(Vec3::from(*v.0)),
+                        Transform::Rotate(r) => glam::Mat4::from_axis_angle(
+                            Vec3::new(r.0[0], r.0[1], r.0[2]).normalize_or(Vec3::Z),
+                            r.0[3].to_radians(),
+                        ),
+                        Transform::Scale(s) => glam::Mat4::from_scale(Vec3::from(*s.0)),
+                        _ => glam::Mat4::IDENTITY,
+                    };
+                }
+                for instance in &node.instance_geometry {
+                    if let Some(g) = fragment(&instance.url.val).and_then(|id| geometries.get(&id)) {
+                        add(g, world)?;
+                    }
+                }
+                stack.extend(node.children.iter().map(|c| (c, world)));
+            }
+        }
+        None => {
+            for g in geometries.values() {
+                add(g, glam::Mat4::IDENTITY)?;
+            }
+        }
+    }
+    let meter = if doc.asset.unit.meter > 0.0 { doc.asset.unit.meter } else { 1.0 };
+    let to_z_up = |v: Vec3| match doc.asset.up_axis {
+        UpAxis::ZUp => v,
+        UpAxis::YUp => Vec3::new(v.x, -v.z, v.y),
+        UpAxis::XUp => Vec3::new(-v.y, -v.z, v.x),
+    };
+    Ok((vertices.into_iter().map(|v| to_z_up(v) * meter).collect(), indices))
 }
 
 fn item_name(what: &str, table: &toml::Value, index: usize) -> String {

@@ -195,3 +195,33 @@ fn aircraft_meshes_from_obj_and_gltf_become_traffic_models() {
         );
     }
 }
+
+#[test]
+fn collada_models_come_in_metres_and_z_up() {
+    let Some(fixtures) = crate::common::shared_fixtures() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let obstacle = |id: &str, file: &str| {
+        format!(
+            "[[obstacle]]\nid = \"{id}\"\nkind = \"building\"\nshape = {{ mesh = \"{}\" }}\nposition_enu_m = [0.0, 0.0, 0.0]\n",
+            fixtures.join(file).display()
+        )
+    };
+    let text = format!(
+        "[origin]\nlat_deg = 1.0\nlon_deg = 2.0\nalt_m = 0.0\n{}{}",
+        obstacle("office", "city/gazebo_models__office_building.dae"),
+        obstacle("quadrotor", "models/gazebo_models__quadrotor_base.dae"),
+    );
+    let path = dir.path().join("dae.toml");
+    std::fs::write(&path, text).unwrap();
+    let scene = savsim::scene::load(&path).unwrap();
+    let size = |i: usize| {
+        let b = scene.obstacles[i].aabb_enu_m;
+        b.max - b.min
+    };
+    // The office building is modelled in inches, Z up: a few storeys, some tens of metres wide.
+    let office = size(0);
+    assert!(office.z > 5.0 && office.z < 60.0 && office.x > 5.0 && office.x < 100.0, "{office:?}");
+    // The quadrotor is in metres: well under two metres across, flatter than it is wide.
+    let quad = size(1);
+    assert!(quad.x < 2.0 && quad.y < 2.0 && quad.z < quad.x, "{quad:?}");
+}
