@@ -157,6 +157,12 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
                 }
             }
         }
+        Command::Scene(SceneCommand::Show { scene, rerun }) => {
+            let s = Arc::new(scene::load(&scene)?);
+            let mut session = Session::new(Some(s), CollisionConfig::default(), None)?;
+            session.start_viz(&rerun.parse()?)?;
+            session.finish()
+        }
         Command::Scene(SceneCommand::Info { scene }) => {
             let s = scene::load(&scene)?;
             print!("{}", scene::info::describe(&s));

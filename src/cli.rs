@@ -176,4 +176,12 @@ pub enum SceneCommand {
         /// The scene file.
         scene: PathBuf,
     },
+    /// Send a scene (no flight) to rerun: save=OUT.rrd, connect[=URL] or spawn.
+    Show {
+        /// The scene file.
+        scene: PathBuf,
+        /// Where to: save=OUT.rrd, connect[=URL] or spawn.
+        #[arg(long, default_value = "spawn")]
+        rerun: String,
+    },
 }

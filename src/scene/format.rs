@@ -462,9 +462,17 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
     let mut vertices = Vec::new();
     let mut indices = Vec::new();
     let mut add = |g: &DaeGeometry, world: glam::Mat4| -> Result<(), String> {
-        let GeometryElement::Mesh(mesh) = &g.element else { return Ok(()) };
-        let Some(verts) = &mesh.vertices else { return Ok(()) };
-        let Some(position) = verts.inputs.iter().find(|i| i.semantic == Semantic::Position) else {
+        let GeometryElement::Mesh(mesh) = &g.element else {
+            return Ok(());
+        };
+        let Some(verts) = &mesh.vertices else {
+            return Ok(());
+        };
+        let Some(position) = verts
+            .inputs
+            .iter()
+            .find(|i| i.semantic == Semantic::Position)
+        else {
             return Ok(());
         };
         let id = fragment(&position.source).ok_or("a position source that is not in the file")?;
@@ -482,7 +490,10 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
         let base = vertices.len() as u32;
         for k in 0..count {
             let at = offset + k * stride;
-            let p = floats.val.get(at..at + 3).ok_or("a position array shorter than its accessor")?;
+            let p = floats
+                .val
+                .get(at..at + 3)
+                .ok_or("a position array shorter than its accessor")?;
             vertices.push(world.transform_point3(Vec3::new(p[0], p[1], p[2])));
         }
         let vertex_offset = |inputs: &dae_parser::InputList| {
@@ -500,7 +511,8 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
             };
             match primitive {
                 Primitive::Triangles(t) => {
-                    let (Some((off, stride)), Some(prim)) = (vertex_offset(&t.inputs), &t.data.prim)
+                    let (Some((off, stride)), Some(prim)) =
+                        (vertex_offset(&t.inputs), &t.data.prim)
                     else {
                         continue;
                     };
@@ -510,8 +522,11 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
                     }
                 }
                 Primitive::PolyList(p) => {
-                    let Some((off, stride)) = vertex_offset(&p.inputs) else { continue };
-                    let corners: Vec<u32> = p.data.prim.chunks_exact(stride).map(|c| c[off]).collect();
+                    let Some((off, stride)) = vertex_offset(&p.inputs) else {
+                        continue;
+                    };
+                    let corners: Vec<u32> =
+                        p.data.prim.chunks_exact(stride).map(|c| c[off]).collect();
                     let mut at = 0usize;
                     for &n in p.data.vcount.iter() {
                         let n = n as usize;
@@ -537,8 +552,11 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
         .or_else(|| doc.iter::<VisualScene>().next());
     match scene {
         Some(scene) => {
-            let mut stack: Vec<(&Node, glam::Mat4)> =
-                scene.nodes.iter().map(|n| (n, glam::Mat4::IDENTITY)).collect();
+            let mut stack: Vec<(&Node, glam::Mat4)> = scene
+                .nodes
+                .iter()
+                .map(|n| (n, glam::Mat4::IDENTITY))
+                .collect();
             while let Some((node, parent)) = stack.pop() {
                 let mut world = parent;
                 for t in &node.transforms {
@@ -554,7 +572,8 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
                     };
                 }
                 for instance in &node.instance_geometry {
-                    if let Some(g) = fragment(&instance.url.val).and_then(|id| geometries.get(&id)) {
+                    if let Some(g) = fragment(&instance.url.val).and_then(|id| geometries.get(&id))
+                    {
                         add(g, world)?;
                     }
                 }
@@ -567,13 +586,20 @@ fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
             }
         }
     }
-    let meter = if doc.asset.unit.meter > 0.0 { doc.asset.unit.meter } else { 1.0 };
+    let meter = if doc.asset.unit.meter > 0.0 {
+        doc.asset.unit.meter
+    } else {
+        1.0
+    };
     let to_z_up = |v: Vec3| match doc.asset.up_axis {
         UpAxis::ZUp => v,
         UpAxis::YUp => Vec3::new(v.x, -v.z, v.y),
         UpAxis::XUp => Vec3::new(-v.y, -v.z, v.x),
     };
-    Ok((vertices.into_iter().map(|v| to_z_up(v) * meter).collect(), indices))
+    Ok((
+        vertices.into_iter().map(|v| to_z_up(v) * meter).collect(),
+        indices,
+    ))
 }
 
 fn item_name(what: &str, table: &toml::Value, index: usize) -> String {

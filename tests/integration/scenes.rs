@@ -198,7 +198,9 @@ fn aircraft_meshes_from_obj_and_gltf_become_traffic_models() {
 
 #[test]
 fn collada_models_come_in_metres_and_z_up() {
-    let Some(fixtures) = crate::common::shared_fixtures() else { return };
+    let Some(fixtures) = crate::common::shared_fixtures() else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let obstacle = |id: &str, file: &str| {
         format!(
@@ -220,7 +222,10 @@ fn collada_models_come_in_metres_and_z_up() {
     };
     // The office building is modelled in inches, Z up: a few storeys, some tens of metres wide.
     let office = size(0);
-    assert!(office.z > 5.0 && office.z < 60.0 && office.x > 5.0 && office.x < 100.0, "{office:?}");
+    assert!(
+        office.z > 5.0 && office.z < 60.0 && office.x > 5.0 && office.x < 100.0,
+        "{office:?}"
+    );
     // The quadrotor is in metres: well under two metres across, flatter than it is wide.
     let quad = size(1);
     assert!(quad.x < 2.0 && quad.y < 2.0 && quad.z < quad.x, "{quad:?}");
