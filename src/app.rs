@@ -314,6 +314,8 @@ pub fn print_report(session: &Session) {
         "tick cost median {median_us:.1} us, p99 {p99_us:.1} us; {} meshes built ({} triangles)",
         p.meshes.built, p.meshes.triangles
     );
+    // Times relative to the first message, as a person reads a flight.
+    let t0 = stats.time_span_s.map_or(0.0, |(first, _)| first);
     for e in &session.notable {
         match &e.kind {
             EventKind::Collision {
@@ -323,17 +325,22 @@ pub fn print_report(session: &Session) {
                 time_of_impact,
                 ..
             } => println!(
-                "  COLLISION  vehicle {} with {obstacle} ({obstacle_kind}) at t={time_of_impact:.2} s, \
+                "  COLLISION  vehicle {} with {obstacle} ({obstacle_kind}) at +{:.2} s, \
                  point E {:.1} N {:.1} U {:.1} m",
-                e.vehicle, point_enu_m[0], point_enu_m[1], point_enu_m[2]
+                e.vehicle,
+                time_of_impact - t0,
+                point_enu_m[0],
+                point_enu_m[1],
+                point_enu_m[2]
             ),
             EventKind::NearMiss {
                 obstacle,
                 closest_m,
                 closest_t,
             } => println!(
-                "  near miss  vehicle {} passed {obstacle} at {closest_m:.2} m (t={closest_t:.2} s)",
-                e.vehicle
+                "  near miss  vehicle {} passed {obstacle} at {closest_m:.2} m (+{:.2} s)",
+                e.vehicle,
+                closest_t - t0
             ),
             _ => {}
         }
