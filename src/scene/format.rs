@@ -442,159 +442,211 @@ fn load_gltf(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
     Ok((vertices, indices))
 }
 
-/// Read every triangle of a COLLADA 1.4 file, with the visual scene's node transforms applied,
-/// converted to metres and to Z up by the file's own `<unit>` and `<up_axis>` (so `scale` and
-/// `up` need not be given for it).
+/// Read every triangle of a COLLADA file (`<triangles>`, `<polylist>` and `<polygons>` of its
+/// meshes), with the visual scene's node transforms applied, converted to metres and to Z up
+/// by the file's own `<unit>` and `<up_axis>` (so `scale` and `up` need not be given for it).
+/// Read with a plain XML parser and no schema validation: real exporters' files vary.
 fn load_collada(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
-    use dae_parser::{
-        Document, Geometry as DaeGeometry, GeometryElement, Node, Primitive, Semantic, Transform,
-        UpAxis, Url, VisualScene,
-    };
-    let doc = Document::from_file(path).map_err(|e| format!("{e:?}"))?;
-    let fragment = |url: &Url| match url {
-        Url::Fragment(id) => Some(id.clone()),
-        Url::Other(_) => None,
-    };
-    let geometries: std::collections::HashMap<String, &DaeGeometry> = doc
-        .iter::<DaeGeometry>()
-        .filter_map(|g| Some((g.id.clone()?, g)))
+    use roxmltree::{Document, Node};
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    let doc = Document::parse(&text).map_err(|e| e.to_string())?;
+    fn named(n: &Node<'_, '_>, name: &str) -> bool {
+        n.tag_name().name() == name
+    }
+    fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+        n.children().find(|c| c.tag_name().name() == name)
+    }
+    fn numbers(n: Node<'_, '_>) -> Vec<f32> {
+        n.text()
+            .unwrap_or("")
+            .split_ascii_whitespace()
+            .filter_map(|t| t.parse().ok())
+            .collect()
+    }
+    let fragment = |s: &str| s.strip_prefix('#').unwrap_or(s).to_owned();
+    let by_id: std::collections::HashMap<&str, Node<'_, '_>> = doc
+        .descendants()
+        .filter_map(|n| Some((n.attribute("id")?, n)))
         .collect();
+    // Positions of a <vertices> (or <source>) id, as points.
+    let positions = |id: &str| -> Option<Vec<Vec3>> {
+        let mut node = *by_id.get(id)?;
+        if named(&node, "vertices") {
+            let input = node
+                .children()
+                .find(|c| named(c, "input") && c.attribute("semantic") == Some("POSITION"))?;
+            node = *by_id.get(fragment(input.attribute("source")?).as_str())?;
+        }
+        let floats = numbers(child(node, "float_array")?);
+        let accessor = child(child(node, "technique_common")?, "accessor")?;
+        let stride: usize = accessor
+            .attribute("stride")
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(3);
+        Some(
+            floats
+                .chunks(stride.max(1))
+                .filter(|c| c.len() >= 3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect(),
+        )
+    };
     let mut vertices = Vec::new();
     let mut indices = Vec::new();
-    let mut add = |g: &DaeGeometry, world: glam::Mat4| -> Result<(), String> {
-        let GeometryElement::Mesh(mesh) = &g.element else {
-            return Ok(());
+    let mut add_geometry = |geometry: Node<'_, '_>, world: glam::Mat4| {
+        let Some(mesh) = child(geometry, "mesh") else {
+            return;
         };
-        let Some(verts) = &mesh.vertices else {
-            return Ok(());
-        };
-        let Some(position) = verts
-            .inputs
-            .iter()
-            .find(|i| i.semantic == Semantic::Position)
-        else {
-            return Ok(());
-        };
-        let id = fragment(&position.source).ok_or("a position source that is not in the file")?;
-        let source = mesh
-            .sources
-            .iter()
-            .find(|s| s.id.as_deref() == Some(id.as_str()))
-            .ok_or_else(|| format!("position source {id:?} missing"))?;
-        let Some(dae_parser::ArrayElement::Float(floats)) = &source.array else {
-            return Err(format!("position source {id:?} is not a float array"));
-        };
-        let stride = source.accessor.stride.max(3);
-        let offset = source.accessor.offset;
-        let count = source.accessor.count;
-        let base = vertices.len() as u32;
-        for k in 0..count {
-            let at = offset + k * stride;
-            let p = floats
-                .val
-                .get(at..at + 3)
-                .ok_or("a position array shorter than its accessor")?;
-            vertices.push(world.transform_point3(Vec3::new(p[0], p[1], p[2])));
-        }
-        let vertex_offset = |inputs: &dae_parser::InputList| {
-            inputs
-                .inputs
+        for primitive in mesh
+            .children()
+            .filter(|c| ["triangles", "polylist", "polygons"].contains(&c.tag_name().name()))
+        {
+            let inputs: Vec<_> = primitive.children().filter(|c| named(c, "input")).collect();
+            let stride = inputs
                 .iter()
-                .find(|i| i.input.semantic == Semantic::Vertex)
-                .map(|i| (i.offset as usize, inputs.stride.max(1)))
-        };
-        for primitive in &mesh.elements {
-            let mut polygon = |corners: &[u32]| {
-                for k in 1..corners.len().saturating_sub(1) {
-                    indices.push([base + corners[0], base + corners[k], base + corners[k + 1]]);
+                .filter_map(|i| i.attribute("offset")?.parse::<usize>().ok())
+                .max()
+                .unwrap_or(0)
+                + 1;
+            let Some(vertex) = inputs
+                .iter()
+                .find(|i| i.attribute("semantic") == Some("VERTEX"))
+            else {
+                continue;
+            };
+            let offset: usize = vertex
+                .attribute("offset")
+                .and_then(|o| o.parse().ok())
+                .unwrap_or(0);
+            let Some(points) = vertex
+                .attribute("source")
+                .and_then(|s| positions(&fragment(s)))
+            else {
+                continue;
+            };
+            let base = vertices.len() as u32;
+            vertices.extend(points.iter().map(|p| world.transform_point3(*p)));
+            let corners = |p: Node<'_, '_>| -> Vec<u32> {
+                numbers(p)
+                    .chunks_exact(stride)
+                    .map(|c| c[offset] as u32)
+                    .collect()
+            };
+            let mut polygon = |c: &[u32]| {
+                for k in 1..c.len().saturating_sub(1) {
+                    indices.push([base + c[0], base + c[k], base + c[k + 1]]);
                 }
             };
-            match primitive {
-                Primitive::Triangles(t) => {
-                    let (Some((off, stride)), Some(prim)) =
-                        (vertex_offset(&t.inputs), &t.data.prim)
-                    else {
-                        continue;
-                    };
-                    let corners: Vec<u32> = prim.chunks_exact(stride).map(|c| c[off]).collect();
-                    for tri in corners.chunks_exact(3) {
-                        polygon(tri);
+            match primitive.tag_name().name() {
+                "triangles" => {
+                    for p in primitive.children().filter(|c| named(c, "p")) {
+                        corners(p).chunks_exact(3).for_each(&mut polygon);
                     }
                 }
-                Primitive::PolyList(p) => {
-                    let Some((off, stride)) = vertex_offset(&p.inputs) else {
-                        continue;
-                    };
-                    let corners: Vec<u32> =
-                        p.data.prim.chunks_exact(stride).map(|c| c[off]).collect();
+                "polylist" => {
+                    let counts = child(primitive, "vcount").map(numbers).unwrap_or_default();
+                    let all = child(primitive, "p").map(corners).unwrap_or_default();
                     let mut at = 0usize;
-                    for &n in p.data.vcount.iter() {
+                    for n in counts {
                         let n = n as usize;
-                        if let Some(poly) = corners.get(at..at + n) {
-                            polygon(poly);
+                        if let Some(c) = all.get(at..at + n) {
+                            polygon(c);
                         }
                         at += n;
                     }
                 }
-                _ => {}
-            }
-        }
-        Ok(())
-    };
-    let scene_id = doc
-        .scene
-        .as_ref()
-        .and_then(|s| s.instance_visual_scene.as_ref())
-        .and_then(|i| fragment(&i.url.val));
-    let scene = doc
-        .iter::<VisualScene>()
-        .find(|v| scene_id.is_none() || v.id == scene_id)
-        .or_else(|| doc.iter::<VisualScene>().next());
-    match scene {
-        Some(scene) => {
-            let mut stack: Vec<(&Node, glam::Mat4)> = scene
-                .nodes
-                .iter()
-                .map(|n| (n, glam::Mat4::IDENTITY))
-                .collect();
-            while let Some((node, parent)) = stack.pop() {
-                let mut world = parent;
-                for t in &node.transforms {
-                    world *= match t {
-                        Transform::Matrix(m) => glam::Mat4::from_cols_array(&m.0).transpose(),
-                        Transform::Translate(v) => glam::Mat4::from_translation(Vec3::from(*v.0)),
-                        Transform::Rotate(r) => glam::Mat4::from_axis_angle(
-                            Vec3::new(r.0[0], r.0[1], r.0[2]).normalize_or(Vec3::Z),
-                            r.0[3].to_radians(),
-                        ),
-                        Transform::Scale(s) => glam::Mat4::from_scale(Vec3::from(*s.0)),
-                        _ => glam::Mat4::IDENTITY,
-                    };
-                }
-                for instance in &node.instance_geometry {
-                    if let Some(g) = fragment(&instance.url.val).and_then(|id| geometries.get(&id))
-                    {
-                        add(g, world)?;
+                _ => {
+                    for p in primitive.children().filter(|c| named(c, "p")) {
+                        polygon(&corners(p));
                     }
                 }
-                stack.extend(node.children.iter().map(|c| (c, world)));
+            }
+        }
+    };
+    let transform_of = |n: Node<'_, '_>| -> glam::Mat4 {
+        let v = numbers(n);
+        match (n.tag_name().name(), v.as_slice()) {
+            ("matrix", m) if m.len() == 16 => {
+                let mut a = [0f32; 16];
+                a.copy_from_slice(m);
+                glam::Mat4::from_cols_array(&a).transpose()
+            }
+            ("translate", [x, y, z]) => glam::Mat4::from_translation(Vec3::new(*x, *y, *z)),
+            ("rotate", [x, y, z, deg]) => glam::Mat4::from_axis_angle(
+                Vec3::new(*x, *y, *z).normalize_or(Vec3::Z),
+                deg.to_radians(),
+            ),
+            ("scale", [x, y, z]) => glam::Mat4::from_scale(Vec3::new(*x, *y, *z)),
+            _ => glam::Mat4::IDENTITY,
+        }
+    };
+    let scene = doc
+        .descendants()
+        .find(|n| named(n, "instance_visual_scene"))
+        .and_then(|i| by_id.get(fragment(i.attribute("url")?).as_str()).copied())
+        .or_else(|| doc.descendants().find(|n| named(n, "visual_scene")));
+    match scene {
+        Some(scene) => {
+            let mut stack: Vec<(Node<'_, '_>, glam::Mat4)> = scene
+                .children()
+                .filter(|c| named(c, "node"))
+                .map(|n| (n, glam::Mat4::IDENTITY))
+                .collect();
+            // A file whose nodes instance each other in a cycle is cut off here.
+            const MAX_INSTANCES: usize = 100_000;
+            let mut instances = 0usize;
+            while let Some((node, parent)) = stack.pop() {
+                let mut world = parent;
+                for t in node.children().filter(|c| {
+                    ["matrix", "translate", "rotate", "scale"].contains(&c.tag_name().name())
+                }) {
+                    world *= transform_of(t);
+                }
+                for instance in node.children().filter(|c| named(c, "instance_geometry")) {
+                    let target = instance.attribute("url").map(fragment).unwrap_or_default();
+                    if let Some(g) = by_id.get(target.as_str()) {
+                        add_geometry(*g, world);
+                    }
+                }
+                stack.extend(
+                    node.children()
+                        .filter(|c| named(c, "node"))
+                        .map(|c| (c, world)),
+                );
+                // Nodes instanced from <library_nodes>.
+                for instance in node.children().filter(|c| named(c, "instance_node")) {
+                    let target = instance.attribute("url").map(fragment).unwrap_or_default();
+                    if let Some(n) = by_id.get(target.as_str()) {
+                        if instances < MAX_INSTANCES {
+                            instances += 1;
+                            stack.push((*n, world));
+                        }
+                    }
+                }
             }
         }
         None => {
-            for g in geometries.values() {
-                add(g, glam::Mat4::IDENTITY)?;
+            for g in doc.descendants().filter(|n| named(n, "geometry")) {
+                add_geometry(g, glam::Mat4::IDENTITY);
             }
         }
     }
-    let meter = if doc.asset.unit.meter > 0.0 {
-        doc.asset.unit.meter
-    } else {
-        1.0
-    };
-    let to_z_up = |v: Vec3| match doc.asset.up_axis {
-        UpAxis::ZUp => v,
-        UpAxis::YUp => Vec3::new(v.x, -v.z, v.y),
-        UpAxis::XUp => Vec3::new(-v.y, -v.z, v.x),
+    let asset = doc.descendants().find(|n| named(n, "asset"));
+    let meter = asset
+        .and_then(|a| child(a, "unit"))
+        .and_then(|u| u.attribute("meter")?.trim().parse::<f32>().ok())
+        .filter(|m| *m > 0.0)
+        .unwrap_or(1.0);
+    let up = asset
+        .and_then(|a| child(a, "up_axis"))
+        .and_then(|u| u.text())
+        .unwrap_or("Y_UP")
+        .trim()
+        .to_owned();
+    let to_z_up = |v: Vec3| match up.as_str() {
+        "Z_UP" => v,
+        "X_UP" => Vec3::new(-v.y, -v.z, v.x),
+        _ => Vec3::new(v.x, -v.z, v.y),
     };
     Ok((
         vertices.into_iter().map(|v| to_z_up(v) * meter).collect(),

@@ -212,6 +212,12 @@ fn collada_models_come_in_metres_and_z_up() {
         "[origin]\nlat_deg = 1.0\nlon_deg = 2.0\nalt_m = 0.0\n{}{}",
         obstacle("office", "city/gazebo_models__office_building.dae"),
         obstacle("quadrotor", "models/gazebo_models__quadrotor_base.dae"),
+    ) + &format!(
+        "[[dynamic]]\nid = \"cessna\"\nkind = \"dji\"\nmodel = {{ mesh = \"{}\" }}\n\
+         waypoints = [{{ t_s = 0.0, position_enu_m = [0.0, 0.0, 100.0] }}]\n",
+        fixtures
+            .join("models/gazebo_models__cessna_body.dae")
+            .display()
     );
     let path = dir.path().join("dae.toml");
     std::fs::write(&path, text).unwrap();
@@ -229,4 +235,11 @@ fn collada_models_come_in_metres_and_z_up() {
     // The quadrotor is in metres: well under two metres across, flatter than it is wide.
     let quad = size(1);
     assert!(quad.x < 2.0 && quad.y < 2.0 && quad.z < quad.x, "{quad:?}");
+    // The Cessna (inches, nodes instanced from <library_nodes>): a light aircraft, 11 m span.
+    let cessna = scene.dynamic[0].geometry.local_aabb;
+    let span = cessna.maxs - cessna.mins;
+    assert!(
+        span.max_element() > 9.0 && span.max_element() < 13.0 && span.z < 4.0,
+        "{span:?}"
+    );
 }
