@@ -1,5 +1,5 @@
-//! Elevation files: SRTM `.hgt` tiles and ArduPilot terrain `.DAT` files, resampled onto a
-//! regular grid in the scene's ENU frame.
+//! Elevation files: SRTM `.hgt` tiles, geographic GeoTIFF DEMs and ArduPilot terrain `.DAT`
+//! files, resampled onto a regular grid in the scene's ENU frame.
 //!
 //! SRTM: 1 or 3 arc-second tiles, big-endian i16 metres AMSL, row 0 at the north edge, the
 //! file name giving the south-west corner (`N44W072.hgt`); voids (-32768) are filled from their
@@ -20,8 +20,8 @@ use crate::scene::geometry::HeightGrid;
 /// A source of ground heights, metres AMSL.
 #[derive(Debug, Clone)]
 pub enum Elevation {
-    /// An SRTM tile.
-    Srtm(SrtmTile),
+    /// An SRTM tile or a geographic GeoTIFF DEM.
+    Grid(LatLonGrid),
     /// An ArduPilot terrain file.
     ArduPilot(ArduPilotTerrain),
 }
@@ -39,10 +39,13 @@ impl Elevation {
             .map(|e| e.to_string_lossy().to_ascii_lowercase())
             .unwrap_or_default();
         match ext.as_str() {
-            "hgt" => SrtmTile::parse(&name, &bytes).map(Elevation::Srtm),
+            "hgt" => parse_srtm(&name, &bytes).map(Elevation::Grid),
+            "tif" | "tiff" => parse_geotiff(&bytes)
+                .map(Elevation::Grid)
+                .map_err(|e| format!("{name}: {e}")),
             "dat" => ArduPilotTerrain::parse(&bytes).map(Elevation::ArduPilot),
             _ => Err(format!(
-                "{name}: expected an SRTM .hgt or an ArduPilot .DAT file"
+                "{name}: expected an SRTM .hgt, a GeoTIFF .tif or an ArduPilot .DAT file"
             )),
         }
     }
@@ -50,156 +53,249 @@ impl Elevation {
     /// Ground height at a position, metres AMSL; `None` outside the data.
     pub fn height_amsl_m(&self, lat_deg: f64, lon_deg: f64) -> Option<f64> {
         match self {
-            Elevation::Srtm(t) => t.height_amsl_m(lat_deg, lon_deg),
+            Elevation::Grid(t) => t.height_amsl_m(lat_deg, lon_deg),
             Elevation::ArduPilot(t) => t.height_amsl_m(lat_deg, lon_deg),
         }
     }
 
-    /// The source's own sample spacing, metres (roughly, for SRTM).
+    /// The source's own sample spacing, metres (north-south, for latitude/longitude grids).
     pub fn spacing_m(&self) -> f64 {
         match self {
-            Elevation::Srtm(t) => 111_320.0 / (t.size - 1) as f64,
+            Elevation::Grid(t) => 111_320.0 * t.dlat_deg,
             Elevation::ArduPilot(t) => f64::from(t.spacing_m),
         }
     }
 
-    /// Voids filled (SRTM) when the file was read.
+    /// Voids filled (SRTM, GeoTIFF) when the file was read.
     pub fn voids_filled(&self) -> usize {
         match self {
-            Elevation::Srtm(t) => t.voids_filled,
+            Elevation::Grid(t) => t.voids_filled,
             Elevation::ArduPilot(_) => 0,
         }
     }
 }
 
-/// An SRTM tile.
+/// Heights on a regular latitude/longitude grid (an SRTM tile, a geographic GeoTIFF).
 #[derive(Debug, Clone)]
-pub struct SrtmTile {
-    /// South-west corner latitude, degrees.
-    pub lat0: i32,
-    /// South-west corner longitude, degrees.
-    pub lon0: i32,
-    /// Samples per side (1201 or 3601).
-    pub size: usize,
-    heights_m: Vec<i16>,
+pub struct LatLonGrid {
+    /// Samples along longitude.
+    pub nx: usize,
+    /// Samples along latitude.
+    pub ny: usize,
+    /// Longitude of sample column 0, degrees.
+    pub lon0_deg: f64,
+    /// Latitude of sample row 0 (the northern edge), degrees.
+    pub lat0_deg: f64,
+    /// Degrees between columns.
+    pub dlon_deg: f64,
+    /// Degrees between rows (southwards).
+    pub dlat_deg: f64,
+    heights_m: Vec<f32>,
     /// Void samples that were filled from neighbours.
     pub voids_filled: usize,
 }
 
-/// The SRTM void marker.
-pub const SRTM_VOID: i16 = -32768;
-
-impl SrtmTile {
-    /// Parse a tile; `name` is its file name (it carries the corner).
-    ///
-    /// ```
-    /// use savsim::scene::terrain::SrtmTile;
-    /// // A 1201 x 1201 tile of flat 100 m with one void.
-    /// let mut bytes: Vec<u8> = (0..1201 * 1201).flat_map(|_| 100i16.to_be_bytes()).collect();
-    /// bytes[2 * 600_000..2 * 600_000 + 2].copy_from_slice(&(-32768i16).to_be_bytes());
-    /// let t = SrtmTile::parse("S36E149.hgt", &bytes).unwrap();
-    /// assert_eq!((t.lat0, t.lon0, t.voids_filled), (-36, 149, 1));
-    /// assert_eq!(t.height_amsl_m(-35.5, 149.5), Some(100.0));
-    /// assert_eq!(t.height_amsl_m(-34.5, 149.5), None);
-    /// ```
-    pub fn parse(name: &str, bytes: &[u8]) -> Result<SrtmTile, String> {
-        let upper = name.to_ascii_uppercase();
-        // The corner is the first N/S dd E/W ddd in the name (`N44W072.hgt`, `srtm3_N44W072.hgt`).
-        let parse_at = |i: usize| -> Option<(i32, i32)> {
-            let t = upper.get(i..i + 7)?;
-            let lat: i32 = t.get(1..3)?.parse().ok()?;
-            let lon: i32 = t.get(4..7)?.parse().ok()?;
-            let lat = match &t[0..1] {
-                "N" => lat,
-                "S" => -lat,
-                _ => return None,
-            };
-            let lon = match &t[3..4] {
-                "E" => lon,
-                "W" => -lon,
-                _ => return None,
-            };
-            Some((lat, lon))
-        };
-        let corner = (0..upper.len()).find_map(parse_at).ok_or_else(|| {
-            format!("{name}: an SRTM file is named after its corner, like N44W072.hgt")
-        })?;
-        let size = match bytes.len() {
-            n if n == 1201 * 1201 * 2 => 1201,
-            n if n == 3601 * 3601 * 2 => 3601,
-            n => {
-                return Err(format!(
-                    "{name}: {n} bytes is neither a 3 arc-second (1201 x 1201) nor a 1 arc-second (3601 x 3601) tile"
-                ))
-            }
-        };
-        let mut heights_m: Vec<i16> = bytes
-            .chunks_exact(2)
-            .map(|b| i16::from_be_bytes([b[0], b[1]]))
-            .collect();
-        let voids_filled = fill_voids(&mut heights_m, size);
-        Ok(SrtmTile {
-            lat0: corner.0,
-            lon0: corner.1,
-            size,
+impl LatLonGrid {
+    /// A grid from row-major heights, north row first; NaN marks voids, which are filled.
+    pub fn new(
+        nx: usize,
+        ny: usize,
+        (lat0_deg, lon0_deg): (f64, f64),
+        (dlat_deg, dlon_deg): (f64, f64),
+        mut heights_m: Vec<f32>,
+    ) -> Result<LatLonGrid, String> {
+        if nx < 2 || ny < 2 || heights_m.len() != nx * ny {
+            return Err(format!("a {nx} x {ny} grid needs at least 2 x 2 samples"));
+        }
+        let voids_filled = fill_voids(&mut heights_m, nx, ny);
+        Ok(LatLonGrid {
+            nx,
+            ny,
+            lon0_deg,
+            lat0_deg,
+            dlon_deg,
+            dlat_deg,
             heights_m,
             voids_filled,
         })
     }
 
-    /// Bilinear height at a position, metres AMSL.
+    /// Bilinear height at a position, metres; `None` outside the grid.
     pub fn height_amsl_m(&self, lat_deg: f64, lon_deg: f64) -> Option<f64> {
-        let n = (self.size - 1) as f64;
-        let fy = (f64::from(self.lat0) + 1.0 - lat_deg) * n; // rows from the north edge
-        let fx = (lon_deg - f64::from(self.lon0)) * n;
-        if !(0.0..=n).contains(&fx) || !(0.0..=n).contains(&fy) {
+        let fx = (lon_deg - self.lon0_deg) / self.dlon_deg;
+        let fy = (self.lat0_deg - lat_deg) / self.dlat_deg;
+        let (mx, my) = ((self.nx - 1) as f64, (self.ny - 1) as f64);
+        if !(0.0..=mx).contains(&fx) || !(0.0..=my).contains(&fy) {
             return None;
         }
         let (ix, iy) = (
-            (fx as usize).min(self.size - 2),
-            (fy as usize).min(self.size - 2),
+            (fx as usize).min(self.nx - 2),
+            (fy as usize).min(self.ny - 2),
         );
         let (u, v) = (fx - ix as f64, fy - iy as f64);
-        let h = |x: usize, y: usize| f64::from(self.heights_m[y * self.size + x]);
+        let h = |x: usize, y: usize| f64::from(self.heights_m[y * self.nx + x]);
         let top = h(ix, iy) * (1.0 - u) + h(ix + 1, iy) * u;
         let bottom = h(ix, iy + 1) * (1.0 - u) + h(ix + 1, iy + 1) * u;
         Some(top * (1.0 - v) + bottom * v)
     }
 }
 
-/// Replace voids with the mean of their valid neighbours, growing inwards until none is left
-/// (a tile that is all void becomes 0). Returns how many were filled.
-fn fill_voids(heights: &mut [i16], size: usize) -> usize {
-    let total = heights.iter().filter(|&&h| h == SRTM_VOID).count();
-    if total == 0 || total == heights.len() {
-        if total == heights.len() {
-            heights.fill(0);
+/// The SRTM void marker.
+pub const SRTM_VOID: i16 = -32768;
+
+/// Parse an SRTM tile; `name` is its file name (it carries the corner).
+///
+/// ```
+/// use savsim::scene::terrain::parse_srtm;
+/// // A 1201 x 1201 tile of flat 100 m with one void.
+/// let mut bytes: Vec<u8> = (0..1201 * 1201).flat_map(|_| 100i16.to_be_bytes()).collect();
+/// bytes[2 * 600_000..2 * 600_000 + 2].copy_from_slice(&(-32768i16).to_be_bytes());
+/// let t = parse_srtm("S36E149.hgt", &bytes).unwrap();
+/// assert_eq!((t.lat0_deg, t.lon0_deg, t.voids_filled), (-35.0, 149.0, 1));
+/// assert_eq!(t.height_amsl_m(-35.5, 149.5), Some(100.0));
+/// assert_eq!(t.height_amsl_m(-34.5, 149.5), None);
+/// ```
+pub fn parse_srtm(name: &str, bytes: &[u8]) -> Result<LatLonGrid, String> {
+    let upper = name.to_ascii_uppercase();
+    // The corner is the first N/S dd E/W ddd in the name (`N44W072.hgt`, `srtm3_N44W072.hgt`).
+    let parse_at = |i: usize| -> Option<(i32, i32)> {
+        let t = upper.get(i..i + 7)?;
+        let lat: i32 = t.get(1..3)?.parse().ok()?;
+        let lon: i32 = t.get(4..7)?.parse().ok()?;
+        let lat = match &t[0..1] {
+            "N" => lat,
+            "S" => -lat,
+            _ => return None,
+        };
+        let lon = match &t[3..4] {
+            "E" => lon,
+            "W" => -lon,
+            _ => return None,
+        };
+        Some((lat, lon))
+    };
+    let (lat, lon) = (0..upper.len()).find_map(parse_at).ok_or_else(|| {
+        format!("{name}: an SRTM file is named after its corner, like N44W072.hgt")
+    })?;
+    let size = match bytes.len() {
+        n if n == 1201 * 1201 * 2 => 1201,
+        n if n == 3601 * 3601 * 2 => 3601,
+        n => {
+            return Err(format!(
+                "{name}: {n} bytes is neither a 3 arc-second (1201 x 1201) nor a 1 arc-second (3601 x 3601) tile"
+            ))
         }
+    };
+    let heights_m = bytes
+        .chunks_exact(2)
+        .map(|b| match i16::from_be_bytes([b[0], b[1]]) {
+            SRTM_VOID => f32::NAN,
+            h => f32::from(h),
+        })
+        .collect();
+    let step = 1.0 / (size - 1) as f64;
+    LatLonGrid::new(
+        size,
+        size,
+        (f64::from(lat) + 1.0, f64::from(lon)),
+        (step, step),
+        heights_m,
+    )
+}
+
+/// Parse a GeoTIFF DEM in geographic coordinates (longitude, latitude degrees; e.g. EPSG:4326):
+/// one band of integer or float heights, georeferenced by ModelTiepoint and ModelPixelScale,
+/// no-data from GDAL_NODATA and NaN (filled like SRTM voids).
+pub fn parse_geotiff(bytes: &[u8]) -> Result<LatLonGrid, String> {
+    use tiff::decoder::{Decoder, DecodingResult};
+    use tiff::tags::Tag;
+    let mut d = Decoder::new(std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+    let (w, h) = d.dimensions().map_err(|e| e.to_string())?;
+    let (nx, ny) = (w as usize, h as usize);
+    let scale = d
+        .get_tag_f64_vec(Tag::ModelPixelScaleTag)
+        .map_err(|_| "no ModelPixelScale tag: not a georeferenced GeoTIFF".to_owned())?;
+    let tie = d
+        .get_tag_f64_vec(Tag::ModelTiepointTag)
+        .map_err(|_| "no ModelTiepoint tag: not a georeferenced GeoTIFF".to_owned())?;
+    if scale.len() < 2 || tie.len() < 6 || scale[0] <= 0.0 || scale[1] <= 0.0 {
+        return Err("ModelPixelScale / ModelTiepoint are malformed".into());
+    }
+    let keys = d
+        .get_tag_u16_vec(Tag::GeoKeyDirectoryTag)
+        .unwrap_or_default();
+    let key = |id: u16| {
+        keys.chunks_exact(4)
+            .skip(1)
+            .find(|k| k[0] == id && k[1] == 0)
+            .map(|k| k[3])
+    };
+    // GTModelTypeGeoKey (1024): 2 = geographic. GTRasterTypeGeoKey (1025): 1 area, 2 point.
+    if key(1024).is_some_and(|t| t != 2) {
+        return Err("a projected GeoTIFF: savsim reads geographic (longitude/latitude) DEMs; reproject it to EPSG:4326".into());
+    }
+    let centre = if key(1025) == Some(2) { 0.0 } else { 0.5 };
+    let nodata: Option<f64> = match d.get_tag(Tag::GdalNodata) {
+        Ok(v) => v
+            .into_string()
+            .ok()
+            .and_then(|s| s.trim().trim_end_matches('\0').parse().ok()),
+        Err(_) => None,
+    };
+    let values: Vec<f64> = match d.read_image().map_err(|e| e.to_string())? {
+        DecodingResult::I16(v) => v.into_iter().map(f64::from).collect(),
+        DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
+        DecodingResult::I32(v) => v.into_iter().map(f64::from).collect(),
+        DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
+        DecodingResult::F64(v) => v,
+        _ => return Err("unsupported sample type (use 16/32-bit integers or floats)".into()),
+    };
+    if values.len() != nx * ny {
+        return Err("more than one band: savsim reads single-band DEMs".into());
+    }
+    let heights = values
+        .into_iter()
+        .map(|v| {
+            if Some(v) == nodata || !v.is_finite() {
+                f32::NAN
+            } else {
+                v as f32
+            }
+        })
+        .collect();
+    let lon0 = tie[3] + (centre - tie[0]) * scale[0];
+    let lat0 = tie[4] - (centre - tie[1]) * scale[1];
+    LatLonGrid::new(nx, ny, (lat0, lon0), (scale[1], scale[0]), heights)
+}
+
+/// Replace voids (NaN) with the mean of their valid neighbours, growing inwards until none is
+/// left (a grid that is all void becomes 0). Returns how many were filled.
+fn fill_voids(heights: &mut [f32], nx: usize, ny: usize) -> usize {
+    let total = heights.iter().filter(|h| h.is_nan()).count();
+    if total == heights.len() {
+        heights.fill(0.0);
         return total;
     }
     let mut left = total;
     while left > 0 {
         let snapshot = heights.to_vec();
-        for y in 0..size {
-            for x in 0..size {
-                if snapshot[y * size + x] != SRTM_VOID {
+        for y in 0..ny {
+            for x in 0..nx {
+                if !snapshot[y * nx + x].is_nan() {
                     continue;
                 }
-                let mut sum = 0i64;
-                let mut n = 0i64;
-                for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 || nx >= size as i64 || ny >= size as i64 {
-                        continue;
-                    }
-                    let h = snapshot[ny as usize * size + nx as usize];
-                    if h != SRTM_VOID {
-                        sum += i64::from(h);
-                        n += 1;
-                    }
-                }
+                let neighbours = [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                    .iter()
+                    .filter_map(|(dx, dy)| {
+                        let (x, y) = (x as i64 + dx, y as i64 + dy);
+                        (x >= 0 && y >= 0 && x < nx as i64 && y < ny as i64)
+                            .then(|| snapshot[y as usize * nx + x as usize])
+                    })
+                    .filter(|h| !h.is_nan());
+                let (sum, n) =
+                    neighbours.fold((0.0f64, 0u32), |(s, n), h| (s + f64::from(h), n + 1));
                 if n > 0 {
-                    heights[y * size + x] = (sum / n) as i16;
+                    heights[y * nx + x] = (sum / f64::from(n)) as f32;
                     left -= 1;
                 }
             }

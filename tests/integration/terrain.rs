@@ -141,3 +141,58 @@ fn srtm_voids_are_filled_and_areas_beyond_the_file_are_errors() {
     let e = savsim::scene::load(&scene).unwrap_err().to_string();
     assert!(e.contains("neither"), "{e}");
 }
+
+/// Write a small geographic GeoTIFF (i16, 0.001 degree pixels, pixel-is-area) with a no-data
+/// hole, the way GDAL does.
+fn write_geotiff(path: &Path, nodata_at: usize) {
+    use tiff::encoder::{colortype::GrayI16, TiffEncoder};
+    use tiff::tags::Tag;
+    let (w, h) = (200u32, 150u32);
+    let mut data: Vec<i16> = (0..w * h).map(|i| 300 + (i % w) as i16).collect(); // rises eastwards
+    data[nodata_at] = -9999;
+    let file = std::fs::File::create(path).unwrap();
+    let mut tiff = TiffEncoder::new(file).unwrap();
+    let mut image = tiff.new_image::<GrayI16>(w, h).unwrap();
+    let e = image.encoder();
+    e.write_tag(Tag::ModelPixelScaleTag, &[0.001f64, 0.001, 0.0][..])
+        .unwrap();
+    e.write_tag(
+        Tag::ModelTiepointTag,
+        &[0.0f64, 0.0, 0.0, 20.0, 10.15, 0.0][..],
+    )
+    .unwrap();
+    // GeoKeyDirectory: version 1.1.0, 2 keys: model type geographic, raster type area.
+    e.write_tag(
+        Tag::GeoKeyDirectoryTag,
+        &[1u16, 1, 0, 2, 1024, 0, 1, 2, 1025, 0, 1, 1][..],
+    )
+    .unwrap();
+    e.write_tag(Tag::GdalNodata, "-9999").unwrap();
+    image.write_data(&data).unwrap();
+}
+
+#[test]
+fn geotiff_dems_are_georeferenced_and_their_holes_filled() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("dem.tif");
+    write_geotiff(&path, 75 * 200 + 100);
+    let e = Elevation::load(&path).unwrap();
+    assert_eq!(e.voids_filled(), 1);
+    // Pixel (100, 75)'s centre: lon 20 + 100.5 * 0.001, lat 10.15 - 75.5 * 0.001; the hole is
+    // filled from its neighbours (399 and 401 to the west and east, 400 above and below).
+    let h = e.height_amsl_m(10.15 - 0.0755, 20.0 + 0.1005).unwrap();
+    assert!((h - 400.0).abs() < 1e-6, "{h}");
+    // Between two columns: the mean.
+    let h = e.height_amsl_m(10.15 - 0.0105, 20.0 + 0.0110).unwrap();
+    assert!((h - 310.5).abs() < 1e-6, "{h}");
+    assert!(e.height_amsl_m(10.0, 20.1).is_none(), "south of the raster");
+    // As a scene's terrain.
+    let scene = scene_file(
+        dir.path(),
+        [10.075, 20.1, 0.0],
+        "[[terrain]]\nid = \"dem\"\nfile = \"dem.tif\"\narea = { size_m = [10000.0, 8000.0] }\ncell_m = 100.0\n",
+    );
+    let s = savsim::scene::load(&scene).unwrap();
+    let b = s.bounds_enu_m();
+    assert!(b.min.z > 290.0 && b.max.z < 510.0, "{b:?}");
+}
