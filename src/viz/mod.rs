@@ -450,6 +450,22 @@ fn obstacle_id(scene: &Scene, frame: &TickFrame, o: ObstacleRef) -> Option<Strin
     }
 }
 
+/// Every marker so far at `path`, as points.
+fn log_markers(
+    rec: &RecordingStream,
+    path: &str,
+    points: &[Vec3],
+    radius: f32,
+    color: Color,
+) -> rerun::RecordingStreamResult<()> {
+    rec.log(
+        path,
+        &Points3D::new(points.iter().map(|p| p.to_array()))
+            .with_radii([radius])
+            .with_colors([color]),
+    )
+}
+
 fn log_tick(
     rec: &RecordingStream,
     state: &mut State<'_>,
@@ -626,20 +642,22 @@ fn log_tick(
             EventKind::Collision { point_enu_m, .. } => {
                 let p = state.local(DVec3::from(*point_enu_m));
                 state.collisions.push(p);
-                rec.log(
+                log_markers(
+                    rec,
                     paths::COLLISIONS,
-                    &Points3D::new(state.collisions.iter().map(|p| p.to_array()))
-                        .with_radii([2.0])
-                        .with_colors([Color::from_rgb(255, 0, 0)]),
+                    &state.collisions,
+                    2.0,
+                    Color::from_rgb(255, 0, 0),
                 )?;
             }
             EventKind::NearMiss { .. } => {
                 state.near_misses.push(position);
-                rec.log(
+                log_markers(
+                    rec,
                     paths::NEAR_MISSES,
-                    &Points3D::new(state.near_misses.iter().map(|p| p.to_array()))
-                        .with_radii([1.5])
-                        .with_colors([Color::from_rgb(255, 160, 0)]),
+                    &state.near_misses,
+                    1.5,
+                    Color::from_rgb(255, 160, 0),
                 )?;
             }
             _ => {}

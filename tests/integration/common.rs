@@ -100,6 +100,13 @@ pub fn straight(
         .collect()
 }
 
+/// Replay a tlog as fast as possible into `session` and finish it.
+pub fn replay_session(path: &Path, session: &mut savsim::session::Session) {
+    let shutdown = std::sync::atomic::AtomicBool::new(false);
+    savsim::app::replay(path, savsim::app::Speed::Max, false, session, &shutdown).unwrap();
+    session.finish().unwrap();
+}
+
 /// Replay a tlog as fast as possible into a new session (over `scene`, if given) and finish it.
 pub fn replay_into_session(
     path: &Path,
@@ -111,15 +118,6 @@ pub fn replay_into_session(
         None,
     )
     .unwrap();
-    let shutdown = std::sync::atomic::AtomicBool::new(false);
-    savsim::app::replay(
-        path,
-        savsim::app::Speed::Max,
-        false,
-        &mut session,
-        &shutdown,
-    )
-    .unwrap();
-    session.finish().unwrap();
+    replay_session(path, &mut session);
     session
 }

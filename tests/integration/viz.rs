@@ -104,16 +104,10 @@ fn a_run_logs_into_the_memory_sink() {
         .memory()
         .unwrap();
     session.start_viz_stream(rec).unwrap();
-    let shutdown = std::sync::atomic::AtomicBool::new(false);
-    savsim::app::replay(
-        Path::new(&root().join("scenes/flights/copter_square_10ms.tlog")),
-        savsim::app::Speed::Max,
-        false,
+    crate::common::replay_session(
+        &root().join("scenes/flights/copter_square_10ms.tlog"),
         &mut session,
-        &shutdown,
-    )
-    .unwrap();
-    session.finish().unwrap();
+    );
     let messages = storage.take();
     assert!(messages.len() > 100, "{} messages", messages.len());
     let text = format!("{messages:?}");
