@@ -7,8 +7,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::cli::{
-    Cli, CollisionArgs, Command, DemoArgs, LiveArgs, RecordArgs, ReplayArgs, SceneCommand,
-    SceneKind,
+    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, LiveArgs, RecordArgs, ReplayArgs,
+    SceneCommand, SceneKind,
 };
 use crate::collision::events::EventKind;
 use crate::collision::pipeline::CollisionConfig;
@@ -125,9 +125,21 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
     let scene = load_scene(args.scene.as_deref())?;
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
     if let Some(target) = &args.rerun {
-        session.start_viz(&target.parse()?)?;
+        start_viz(&mut session, target)?;
     }
     Ok(session)
+}
+
+#[cfg(feature = "viz")]
+fn start_viz(session: &mut Session, target: &str) -> Result<()> {
+    session.start_viz(&target.parse()?)
+}
+
+#[cfg(not(feature = "viz"))]
+fn start_viz(_: &mut Session, _: &str) -> Result<()> {
+    Err(Error::Usage(
+        "this savsim was built without the `viz` feature: rebuild with it for --rerun".into(),
+    ))
 }
 
 fn load_scene(path: Option<&Path>) -> Result<Option<Arc<Scene>>> {
@@ -144,6 +156,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Demo(args) => demo(args, &shutdown),
         Command::Live(args) => live_command(&args, shutdown),
         Command::Record(args) => record_command(&args, shutdown),
+        Command::Bench(args) => bench_command(&args),
         Command::Scene(SceneCommand::Gen { kind, seed, out }) => {
             let text = match kind {
                 SceneKind::City => gen::city(seed, gen::DEFAULT_ORIGIN),
@@ -160,7 +173,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Scene(SceneCommand::Show { scene, rerun }) => {
             let s = Arc::new(scene::load(&scene)?);
             let mut session = Session::new(Some(s), CollisionConfig::default(), None)?;
-            session.start_viz(&rerun.parse()?)?;
+            start_viz(&mut session, &rerun)?;
             session.finish()
         }
         Command::Scene(SceneCommand::Info { scene }) => {
@@ -169,6 +182,36 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Powers of ten from 10^2 (or 1 for fleets) up to `max`.
+fn decades(from: usize, max: usize) -> Vec<usize> {
+    std::iter::successors(Some(from), |n| n.checked_mul(10))
+        .take_while(|&n| n <= max)
+        .collect()
+}
+
+fn bench_command(args: &BenchArgs) -> Result<()> {
+    let options = crate::bench::BenchOptions {
+        scenes: args
+            .scene
+            .iter()
+            .map(|s| s.parse().expect("infallible"))
+            .collect(),
+        flights: args.flights.clone(),
+        modes: args.modes.clone(),
+        config: CollisionConfig::default(),
+        scale_sizes: decades(100, args.scale_max),
+        fleet_sizes: decades(1, args.fleet_max),
+    };
+    let report = crate::bench::run(&options, |what| eprintln!("bench: {what}"))?;
+    print!("{}", crate::bench::markdown(&report));
+    if let Some(path) = &args.json {
+        write_json_atomic(path, &report)?;
+    }
+    crate::bench::chart::draw(&report, &args.chart)?;
+    eprintln!("bench: chart written to {}", args.chart.display());
+    Ok(())
 }
 
 fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {

@@ -29,6 +29,41 @@ pub enum Command {
     /// Generate or inspect scenes.
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// Measure every collision mode's cost and accuracy (against the exact oracle) on a
+    /// generated flight set, scene sizes 10^2..10^6 and fleets of 1..1000 vehicles.
+    Bench(BenchArgs),
+}
+
+/// `savsim bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Scenes: `city`, `mountain` (the bundled ones) or a scene file; repeat or separate with
+    /// commas.
+    #[arg(long, value_delimiter = ',', default_value = "city,mountain")]
+    pub scene: Vec<String>,
+    /// Only flights whose name contains one of these (comma-separated); default all.
+    #[arg(long, value_delimiter = ',')]
+    pub flights: Vec<String>,
+    /// Modes to compare (`box` and `oracle` always run: they are the cost and truth references).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "none,box,mesh,paper,adaptive,oracle"
+    )]
+    pub modes: Vec<Mode>,
+    /// Write the full report as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Draw the cost-against-missed-collisions chart here (PNG).
+    #[arg(long, default_value = "bench.png")]
+    pub chart: PathBuf,
+    /// Largest static scene of the scale run (10^2, 10^3, ... up to this; 0 skips it).
+    #[arg(long, default_value_t = 1_000_000)]
+    pub scale_max: usize,
+    /// Largest fleet of the fleet run (1, 10, 100, ... up to this; 0 skips it).
+    #[arg(long, default_value_t = 1000)]
+    pub fleet_max: usize,
 }
 
 /// Options shared by everything that checks collisions.

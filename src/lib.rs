@@ -6,6 +6,7 @@
 //! 2019, see docs/ARCHITECTURE.md).
 
 pub mod app;
+pub mod bench;
 pub mod cli;
 pub mod collision;
 pub mod error;
@@ -14,5 +15,6 @@ pub mod ingest;
 pub mod scene;
 pub mod session;
 pub mod signals;
+#[cfg(feature = "viz")]
 pub mod viz;
 pub mod world;

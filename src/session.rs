@@ -49,6 +49,7 @@ pub struct Session {
     /// Set when the run was stopped by a signal.
     pub interrupted: bool,
     /// The rerun logger, when `--rerun` is on.
+    #[cfg(feature = "viz")]
     viz: Option<crate::viz::Logger>,
     ticks: u64,
 }
@@ -85,12 +86,14 @@ impl Session {
             last_expire_t_s: f64::NEG_INFINITY,
             started: Instant::now(),
             interrupted: false,
+            #[cfg(feature = "viz")]
             viz: None,
             ticks: 0,
         })
     }
 
     /// Stream this run to rerun. Needs a scene.
+    #[cfg(feature = "viz")]
     pub fn start_viz(&mut self, target: &crate::viz::RerunTarget) -> Result<()> {
         if self.pipeline.is_none() {
             return Err(Error::Usage("--rerun needs --scene".into()));
@@ -99,6 +102,7 @@ impl Session {
     }
 
     /// Stream this run into an already open rerun stream (tests use a memory stream).
+    #[cfg(feature = "viz")]
     pub fn start_viz_stream(&mut self, rec: rerun::RecordingStream) -> Result<()> {
         let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
             return Err(Error::Usage("--rerun needs --scene".into()));
@@ -156,7 +160,7 @@ impl Session {
         let started = Instant::now();
         let report = pipeline.step(
             &scene,
-            sender.system_id,
+            u16::from(sender.system_id),
             previous.as_ref(),
             &current,
             &self.dynamic,
@@ -165,8 +169,11 @@ impl Session {
         let cost_ns = started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64;
         self.tick_cost_ns.push(cost_ns);
         self.ticks += 1;
+        #[cfg(not(feature = "viz"))]
+        let _ = (first, report);
+        #[cfg(feature = "viz")]
         if let Some(viz) = &mut self.viz {
-            let state = pipeline.vehicle(sender.system_id);
+            let state = pipeline.vehicle(u16::from(sender.system_id));
             viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
                 tick: self.ticks,
                 t_s: current.t_s,
@@ -228,6 +235,7 @@ impl Session {
         if let Some((path, out)) = &mut self.events_out {
             out.flush().map_err(|e| Error::file(path.clone(), e))?;
         }
+        #[cfg(feature = "viz")]
         if let Some(viz) = &mut self.viz {
             viz.finish()?;
         }
@@ -246,6 +254,7 @@ impl Session {
                     "sysid": id.system_id,
                     "compid": id.component_id,
                     "messages": stats.by_sender.get(id).copied().unwrap_or(0),
+                    "sequence": stats.sequence.get(id),
                     "positions": seen.positions,
                     "boot_resets": seen.boot_resets,
                     "returns": seen.returns,
@@ -294,10 +303,24 @@ impl Session {
             "traffic_aircraft": self.world.traffic.len(),
             "tracks_expired": self.world.expired,
             "collision": collision,
-            "rerun": self.viz.as_ref().map(|v| json!({ "sent": v.sent(), "dropped": v.dropped() })),
+            "rerun": self.rerun_summary(),
             "interrupted": self.interrupted,
             "wall_time_s": self.started.elapsed().as_secs_f64(),
         })
+    }
+}
+
+impl Session {
+    #[cfg(feature = "viz")]
+    fn rerun_summary(&self) -> Option<serde_json::Value> {
+        self.viz
+            .as_ref()
+            .map(|v| json!({ "sent": v.sent(), "dropped": v.dropped() }))
+    }
+
+    #[cfg(not(feature = "viz"))]
+    fn rerun_summary(&self) -> Option<serde_json::Value> {
+        None
     }
 }
 

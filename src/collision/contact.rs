@@ -168,14 +168,18 @@ pub fn sweep(
     })
 }
 
-/// Distance along a ray from `origin_enu_m` in direction `dir_enu` (unit) to the placed shape,
-/// up to `max_m`.
+/// Distance along a ray from `origin_enu_m` in direction `dir_enu` (normalised here; a zero or
+/// non-finite direction hits nothing) to the placed shape, up to `max_m`.
 pub fn ray_distance_m(
     origin_enu_m: DVec3,
     dir_enu: DVec3,
     max_m: f64,
     b: &Placed<'_>,
 ) -> Option<f64> {
+    let dir_enu = dir_enu.try_normalize()?;
+    if !(origin_enu_m.is_finite() && max_m >= 0.0) {
+        return None;
+    }
     let anchor = origin_enu_m;
     let ray = Ray::new(Vec3::ZERO, dir_enu.as_vec3());
     b.shape

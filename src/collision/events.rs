@@ -12,8 +12,8 @@ pub struct Event {
     pub t: f64,
     /// The vehicle's own clock at the tick, ms since boot.
     pub time_boot_ms: u32,
-    /// The vehicle's MAVLink system id.
-    pub vehicle: u8,
+    /// The vehicle's MAVLink system id (in `savsim bench`, the fleet's vehicle number).
+    pub vehicle: u16,
     /// What happened.
     #[serde(flatten)]
     pub kind: EventKind,

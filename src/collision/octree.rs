@@ -50,6 +50,7 @@ impl Default for OctreeConfig {
 #[derive(Debug, Clone, Default)]
 pub struct OctreeWorkspace {
     stack: SmallVec<[NodeId; 64]>,
+    ray_stack: SmallVec<[(NodeId, f64); 64]>,
     marks: Vec<u32>,
     epoch: u32,
 }
@@ -241,6 +242,83 @@ impl Octree {
         visit: impl FnMut(u32),
     ) {
         self.traverse(ws, |b| b.ray_hits(origin, dir, max_m), visit);
+    }
+
+    /// The nearest hit of a ray: objects are offered to `hit` nearest box first (front to back)
+    /// with the distance to beat, and nodes and boxes beyond the best hit so far are skipped.
+    /// `hit(object, limit_m)` returns the exact distance if the object is hit closer than
+    /// `limit_m`. Returns the object and distance of the nearest hit.
+    ///
+    /// ```
+    /// use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+    /// use savsim::scene::Aabb64;
+    /// use glam::DVec3;
+    /// let boxes: Vec<Aabb64> = (0..100)
+    ///     .map(|i| Aabb64::around(DVec3::new(i as f64 * 50.0, 0.0, 0.0), DVec3::splat(5.0)))
+    ///     .collect();
+    /// let tree = Octree::build(&boxes, OctreeConfig::default());
+    /// let mut ws = OctreeWorkspace::default();
+    /// let mut offered = 0;
+    /// let exact = |i: u32, limit: f64| {
+    ///     let t = boxes[i as usize].min.x - 1000.0;
+    ///     (t >= 0.0 && t < limit).then_some(t)
+    /// };
+    /// let best = tree.cast_ray(DVec3::new(1000.0, 0.0, 0.0), DVec3::X, 500.0, &mut ws, |i, limit| {
+    ///     offered += 1;
+    ///     exact(i, limit)
+    /// });
+    /// assert_eq!(best, Some((21, 45.0)));
+    /// assert!(offered < 3, "boxes beyond the first hit are not offered");
+    /// ```
+    pub fn cast_ray(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        max_m: f64,
+        ws: &mut OctreeWorkspace,
+        mut hit: impl FnMut(u32, f64) -> Option<f64>,
+    ) -> Option<(u32, f64)> {
+        ws.begin(self.object_boxes.len());
+        let mut best: Option<(u32, f64)> = None;
+        let limit = |best: Option<(u32, f64)>| best.map_or(max_m, |b| b.1);
+        let t0 = self.node_aabb(0).ray_entry(origin, dir, max_m)?;
+        ws.ray_stack.clear();
+        ws.ray_stack.push((0, t0));
+        while let Some((id, entry)) = ws.ray_stack.pop() {
+            if entry > limit(best) {
+                continue;
+            }
+            let n = &self.nodes[id as usize];
+            if n.first_child != 0 {
+                // Children nearest last, so that they are popped first.
+                let mut children: SmallVec<[(NodeId, f64); 8]> = SmallVec::new();
+                for c in n.first_child..n.first_child + 8 {
+                    if let Some(t) = self.node_aabb(c).ray_entry(origin, dir, limit(best)) {
+                        children.push((c, t));
+                    }
+                }
+                children.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+                ws.ray_stack.extend(children);
+                continue;
+            }
+            for &o in &self.items[n.items.0 as usize..n.items.1 as usize] {
+                let mark = &mut ws.marks[o as usize];
+                if *mark == ws.epoch {
+                    continue;
+                }
+                *mark = ws.epoch;
+                let l = limit(best);
+                if self.object_boxes[o as usize]
+                    .ray_entry(origin, dir, l)
+                    .is_some()
+                {
+                    if let Some(d) = hit(o, l).filter(|&d| d < l) {
+                        best = Some((o, d));
+                    }
+                }
+            }
+        }
+        best
     }
 
     /// Visit once each object whose box passes `test`, descending only into nodes whose cube

@@ -27,7 +27,7 @@ pub enum Mode {
     None,
     /// Every obstacle and the vehicle a box; checks at samples only.
     Box,
-    /// Every obstacle and the vehicle a mesh; checks at samples only.
+    /// Every obstacle and the vehicle a mesh (all built at start-up); checks at samples only.
     Mesh,
     /// The paper as written: current node only, six rays, the beta rule, vehicle mesh,
     /// checks at samples only.
@@ -173,9 +173,6 @@ pub struct RayHit {
     pub point_enu_m: DVec3,
 }
 
-/// Up to this many active colliders the rays test each; beyond, the octree picks candidates.
-const RAY_SCAN_MAX_ACTIVE: usize = 48;
-
 /// The six body axes, in FRD: forward, back, right, left, down, up.
 pub const RAY_AXES_FRD: [Vec3; 6] = [
     Vec3::X,
@@ -211,6 +208,16 @@ pub struct VehicleCollision {
 }
 
 impl VehicleCollision {
+    const EMPTY: VehicleCollision = VehicleCollision {
+        node: None,
+        queried: None,
+        active: Vec::new(),
+        touching: Vec::new(),
+        near: Vec::new(),
+        rays: [None; 6],
+        last_implausible: false,
+    };
+
     /// The octree leaf the vehicle was in at the last tick.
     pub fn node(&self) -> Option<NodeId> {
         self.node
@@ -422,13 +429,12 @@ pub struct Pipeline {
     pub octree: Octree,
     /// Built mesh colliders.
     pub meshes: MeshCache,
-    /// Per-vehicle state, by system id.
+    /// Per-vehicle state, by vehicle number (the MAVLink system id in a session).
     vehicles: Vec<VehicleCollision>,
     /// Totals over the run.
     pub totals: PipelineTotals,
     ws: OctreeWorkspace,
     desired: Vec<ObstacleRef>,
-    candidates: Vec<ObstacleRef>,
     near: Vec<ObstacleRef>,
     merged: Vec<Active>,
     touching_now: Vec<(ObstacleRef, Touch)>,
@@ -437,18 +443,25 @@ pub struct Pipeline {
 }
 
 impl Pipeline {
-    /// A pipeline for `scene`: builds the octree (once) and an empty mesh cache.
+    /// A pipeline for `scene`: builds the octree (once) and the mesh cache, empty except in
+    /// `mesh` mode, where every obstacle has its mesh from the start (what "every obstacle a
+    /// mesh" costs in start-up time and memory).
     pub fn new(scene: &Scene, config: CollisionConfig) -> Self {
         let boxes: Vec<Aabb64> = scene.obstacles.iter().map(|o| o.aabb_enu_m).collect();
+        let mut meshes = MeshCache::new(scene.geometries.len());
+        if config.mode == Mode::Mesh {
+            for o in &scene.obstacles {
+                meshes.get(o.geometry_index, &o.geometry);
+            }
+        }
         Self {
             config,
             octree: Octree::build(&boxes, config.octree),
-            meshes: MeshCache::new(scene.geometries.len()),
-            vehicles: vec![VehicleCollision::default(); 256],
+            meshes,
+            vehicles: Vec::new(),
             totals: PipelineTotals::default(),
             ws: OctreeWorkspace::default(),
             desired: Vec::new(),
-            candidates: Vec::new(),
             near: Vec::new(),
             merged: Vec::new(),
             touching_now: Vec::new(),
@@ -461,28 +474,36 @@ impl Pipeline {
         }
     }
 
-    /// The collision state of vehicle `system_id`.
-    pub fn vehicle(&self, system_id: u8) -> &VehicleCollision {
-        &self.vehicles[usize::from(system_id)]
+    /// The collision state of vehicle `vehicle` (empty if it never ticked).
+    pub fn vehicle(&self, vehicle: u16) -> &VehicleCollision {
+        static EMPTY: VehicleCollision = VehicleCollision::EMPTY;
+        self.vehicles.get(usize::from(vehicle)).unwrap_or(&EMPTY)
     }
 
     /// Run one tick for one vehicle: `current` is its new sample, `previous` the one before
     /// (if any), `dynamic` the moving obstacles at both times. Events are appended to `events`.
+    /// `vehicle` numbers the vehicle's state (a session passes the MAVLink system id; the
+    /// state is created on the vehicle's first tick).
     pub fn step(
         &mut self,
         scene: &Scene,
-        system_id: u8,
+        vehicle: u16,
         previous: Option<&TrackSample>,
         current: &TrackSample,
         dynamic: &[DynamicBody],
         events: &mut Vec<Event>,
     ) -> TickReport {
-        let mut state = std::mem::take(&mut self.vehicles[usize::from(system_id)]);
+        let slot = usize::from(vehicle);
+        if slot >= self.vehicles.len() {
+            self.vehicles
+                .resize_with(slot + 1, VehicleCollision::default);
+        }
+        let mut state = std::mem::take(&mut self.vehicles[slot]);
         let first_event = events.len();
         let report = self.step_vehicle(
-            scene, &mut state, system_id, previous, current, dynamic, events,
+            scene, &mut state, vehicle, previous, current, dynamic, events,
         );
-        self.vehicles[usize::from(system_id)] = state;
+        self.vehicles[slot] = state;
         let t = &mut self.totals;
         t.ticks += 1;
         for e in &events[first_event..] {
@@ -509,7 +530,7 @@ impl Pipeline {
 
     /// Report near misses still open (call at the end of a run).
     pub fn finish(&mut self, events: &mut Vec<Event>, scene: &Scene, dynamic: &[DynamicBody]) {
-        for (system_id, state) in self.vehicles.iter_mut().enumerate() {
+        for (vehicle, state) in self.vehicles.iter_mut().enumerate() {
             for (o, closest_m, closest_t, touched) in state.near.drain(..) {
                 if touched {
                     continue;
@@ -523,7 +544,7 @@ impl Pipeline {
                 events.push(Event {
                     t: closest_t,
                     time_boot_ms: 0,
-                    vehicle: system_id as u8,
+                    vehicle: vehicle as u16,
                     kind: EventKind::NearMiss {
                         obstacle: id,
                         closest_m,
@@ -540,7 +561,7 @@ impl Pipeline {
         &mut self,
         scene: &Scene,
         state: &mut VehicleCollision,
-        system_id: u8,
+        vehicle: u16,
         previous: Option<&TrackSample>,
         current: &TrackSample,
         dynamic: &[DynamicBody],
@@ -551,7 +572,7 @@ impl Pipeline {
         let event = |kind: EventKind| Event {
             t,
             time_boot_ms: current.time_boot_ms,
-            vehicle: system_id,
+            vehicle,
             kind,
         };
         let mut report = TickReport::default();
@@ -589,7 +610,8 @@ impl Pipeline {
         }
         report.swept = previous.is_some() && matches!(cfg.mode, Mode::Adaptive | Mode::Oracle);
 
-        let vehicle_index = scene.vehicle_model(system_id);
+        // Vehicle numbers beyond the MAVLink range (the bench's fleets) use the default model.
+        let vehicle_index = scene.vehicle_model(u8::try_from(vehicle).unwrap_or(0));
         let vehicle_geometry = &scene.geometries[vehicle_index];
         let radius_m = f64::from(
             vehicle_geometry
@@ -710,32 +732,44 @@ impl Pipeline {
                 } else {
                     cfg.hold_s
                 };
-                let reuse = !any_dynamic
-                    && state.node == node
+                let reuse_static = state.node == node
                     && state
                         .queried
                         .is_some_and(|q| q.contains(required.min) && q.contains(required.max));
-                if !reuse {
-                    let region = if cfg.mode == Mode::Adaptive {
-                        let margin = (0.25 * (required.max.x - required.min.x)).max(10.0);
-                        required.inflated(margin)
-                    } else {
-                        required
+                if !reuse_static || any_dynamic {
+                    let region = match state.queried {
+                        Some(q) if reuse_static => q,
+                        _ if cfg.mode == Mode::Adaptive => {
+                            let margin = (0.25 * (required.max.x - required.min.x)).max(10.0);
+                            required.inflated(margin)
+                        }
+                        _ => required,
                     };
                     state.queried = Some(region);
                     let desired = &mut self.desired;
-                    if let Some(node) = node {
+                    if reuse_static {
+                        // The static part is the last query's answer: keep it as it is.
                         desired.extend(
-                            self.octree
-                                .leaf_items(node)
+                            state
+                                .active
                                 .iter()
-                                .map(|&i| ObstacleRef::Static(i)),
+                                .map(|a| a.obstacle)
+                                .filter(|o| matches!(o, ObstacleRef::Static(_))),
                         );
-                    }
-                    if cfg.mode == Mode::Adaptive {
-                        self.octree.query_aabb(&region, &mut self.ws, |i| {
-                            desired.push(ObstacleRef::Static(i))
-                        });
+                    } else {
+                        if let Some(node) = node {
+                            desired.extend(
+                                self.octree
+                                    .leaf_items(node)
+                                    .iter()
+                                    .map(|&i| ObstacleRef::Static(i)),
+                            );
+                        }
+                        if cfg.mode == Mode::Adaptive {
+                            self.octree.query_aabb(&region, &mut self.ws, |i| {
+                                desired.push(ObstacleRef::Static(i))
+                            });
+                        }
                     }
                     for (i, d) in dynamic.iter().enumerate() {
                         let o = ObstacleRef::Dynamic(i as u32);
@@ -817,52 +851,69 @@ impl Pipeline {
                     std::mem::swap(&mut state.active, &mut self.merged);
                 }
 
-                // 3. Six rays along the body axes against the active colliders.
+                // 3. Six rays along the body axes against the active colliders: static ones
+                // front to back through the octree (stopping at the nearest hit), moving ones
+                // by a scan.
                 let forward = current.attitude.forward_enu();
                 for (k, axis) in RAY_AXES_FRD.iter().enumerate() {
                     let dir = current.attitude.enu_from_frd * axis.as_dvec3();
-                    let mut best: Option<RayHit> = None;
-                    // Few active colliders (the paper's node): test them all. Many (the
-                    // look-ahead region): let the octree find those along the ray.
-                    self.candidates.clear();
-                    let candidates = &mut self.candidates;
-                    if state.active.len() <= RAY_SCAN_MAX_ACTIVE {
-                        candidates.extend(state.active.iter().map(|a| a.obstacle));
-                    } else {
-                        self.octree
-                            .query_ray(position, dir, cfg.ray_length_m, &mut self.ws, |i| {
-                                candidates.push(ObstacleRef::Static(i))
-                            });
-                        candidates.extend(
-                            state
-                                .active
-                                .iter()
-                                .map(|a| a.obstacle)
-                                .filter(|o| matches!(o, ObstacleRef::Dynamic(_))),
-                        );
-                    }
-                    for &o in &self.candidates {
-                        let Some(act) = find_active(&state.active, o) else {
-                            continue;
-                        };
+                    let meshes = &mut self.meshes;
+                    let active = &state.active;
+                    let mut tests = 0;
+                    let mut ray_test = |o: ObstacleRef, limit: f64| -> Option<f64> {
+                        let act = find_active(active, o)?;
                         let v = view(scene, dynamic, o);
-                        let limit = best.map_or(cfg.ray_length_m, |b| b.distance_m);
                         if !v.aabb_enu_m.ray_hits(position, dir, limit) {
-                            continue;
+                            return None;
                         }
-                        let body = v.body(&mut self.meshes, act.collider);
-                        report.narrow_tests += 1;
-                        if let Some(d) =
-                            contact::ray_distance_m(position, dir, limit, &body.placed())
-                        {
-                            best = Some(RayHit {
-                                obstacle: act.obstacle,
-                                distance_m: d,
-                                point_enu_m: position + dir * d,
-                            });
+                        tests += 1;
+                        if act.collider == ColliderKind::Box {
+                            // A box collider is an oriented box: a slab test in its frame.
+                            let (cuboid, centre) = v.geometry.box_collider();
+                            let to_local = v.current.enu_from_body.inverse();
+                            let origin = to_local * (position - v.current.position_enu_m)
+                                - centre.as_dvec3();
+                            let half = cuboid.half_extents.as_dvec3();
+                            return Aabb64::new(-half, half).ray_entry(
+                                origin,
+                                to_local * dir,
+                                limit,
+                            );
+                        }
+                        let body = v.body(meshes, act.collider);
+                        contact::ray_distance_m(position, dir, limit, &body.placed())
+                    };
+                    // The obstacle this ray hit last tick usually still is the nearest: its
+                    // distance bounds the octree walk (same answer, far fewer nodes).
+                    let seed = state.rays[k]
+                        .and_then(|h| Some((h.obstacle, ray_test(h.obstacle, cfg.ray_length_m)?)));
+                    let seed_static = seed.filter(|(o, _)| matches!(o, ObstacleRef::Static(_)));
+                    let mut best = self
+                        .octree
+                        .cast_ray(
+                            position,
+                            dir,
+                            seed_static.map_or(cfg.ray_length_m, |s| s.1),
+                            &mut self.ws,
+                            |i, limit| ray_test(ObstacleRef::Static(i), limit),
+                        )
+                        .map(|(i, d)| (ObstacleRef::Static(i), d))
+                        .or(seed_static);
+                    for a in active
+                        .iter()
+                        .filter(|a| matches!(a.obstacle, ObstacleRef::Dynamic(_)))
+                    {
+                        let limit = best.map_or(cfg.ray_length_m, |b| b.1);
+                        if let Some(d) = ray_test(a.obstacle, limit).filter(|&d| d < limit) {
+                            best = Some((a.obstacle, d));
                         }
                     }
-                    state.rays[k] = best;
+                    report.narrow_tests += tests;
+                    state.rays[k] = best.map(|(obstacle, d)| RayHit {
+                        obstacle,
+                        distance_m: d,
+                        point_enu_m: position + dir * d,
+                    });
                 }
 
                 // 4-5. Threat of what the rays see, and the box <-> mesh rule.
@@ -944,10 +995,13 @@ impl Pipeline {
                         let v = view(scene, dynamic, o);
                         let distance_m = v.aabb_enu_m.distance_to(position);
                         let obstacle_box = v.body(&mut self.meshes, ColliderKind::Box);
-                        report.narrow_tests += 1;
-                        let near =
+                        // The boxes' distance is at least the bounds' distance less the
+                        // vehicle's radius: only closer ones need the exact test.
+                        let near = distance_m - radius_m < band && {
+                            report.narrow_tests += 1;
                             contact::distance_m(&vehicle_box_body.placed(), &obstacle_box.placed())
-                                < band;
+                                < band
+                        };
                         let reason = if near {
                             Some("proximity")
                         } else if !v.aabb_enu_m.intersects(&swept_box) {
@@ -1054,9 +1108,21 @@ impl Pipeline {
                         })
                     }
                 };
+                // No surfaces touch, but one solid may hold the other: the vehicle inside a
+                // building or under terrain, or a small obstacle inside the vehicle's hull.
                 if touch.is_none() && act.collider == ColliderKind::Mesh {
-                    touch = inside_solid(v.geometry, &v.current, position).then_some(Touch {
-                        point_enu_m: position,
+                    let obstacle_point = v
+                        .geometry
+                        .a_surface_point()
+                        .map(|p| v.current.position_enu_m + v.current.enu_from_body * p.as_dvec3());
+                    let inside = if inside_solid(v.geometry, &v.current, position) {
+                        Some(position)
+                    } else {
+                        obstacle_point
+                            .filter(|&p| inside_solid(vehicle_geometry, &vehicle_pose_now, p))
+                    };
+                    touch = inside.map(|point_enu_m| Touch {
+                        point_enu_m,
                         normal_enu: DVec3::Z,
                         fraction: 1.0,
                         swept: false,

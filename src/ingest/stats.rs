@@ -38,6 +38,8 @@ pub struct IngestStats {
     by_large_id: BTreeMap<u32, u64>,
     /// Valid frames per sender.
     pub by_sender: BTreeMap<SenderId, u64>,
+    /// Sequence-number bookkeeping per sender: frames the link lost, repeated or delivered late.
+    pub sequence: BTreeMap<SenderId, SequenceCounts>,
     /// Valid frames per protocol version (v1, v2).
     pub by_version: [u64; 2],
     /// Frames whose checksum failed.
@@ -78,6 +80,7 @@ impl Default for IngestStats {
             by_id: vec![0; COUNTED_IDS],
             by_large_id: BTreeMap::new(),
             by_sender: BTreeMap::new(),
+            sequence: BTreeMap::new(),
             by_version: [0; 2],
             bad_crc: 0,
             unknown_ids: BTreeMap::new(),
@@ -112,6 +115,10 @@ impl IngestStats {
                     component_id: frame.component_id,
                 };
                 *self.by_sender.entry(sender).or_default() += 1;
+                self.sequence
+                    .entry(sender)
+                    .or_insert_with(|| SequenceCounts::starting_at(frame.sequence))
+                    .observe(frame.sequence);
                 self.by_version[usize::from(frame.version == MavlinkVersion::V2)] += 1;
                 true
             }
@@ -196,6 +203,13 @@ impl IngestStats {
         for (k, v) in &other.by_sender {
             *self.by_sender.entry(*k).or_default() += v;
         }
+        for (k, v) in &other.sequence {
+            let mine = self.sequence.entry(*k).or_default();
+            mine.lost += v.lost;
+            mine.repeated += v.repeated;
+            mine.late += v.late;
+            mine.last = v.last;
+        }
         for i in 0..2 {
             self.by_version[i] += other.by_version[i];
         }
@@ -260,6 +274,11 @@ impl IngestStats {
                 interval_requests: self.interval_requests,
                 stream_requests: self.stream_requests,
             },
+            sequence: SequenceSummary {
+                lost: self.sequence.values().map(|s| s.lost).sum(),
+                repeated: self.sequence.values().map(|s| s.repeated).sum(),
+                late: self.sequence.values().map(|s| s.late).sum(),
+            },
             senders: self
                 .by_sender
                 .iter()
@@ -295,10 +314,75 @@ pub struct IngestSummary {
     pub clock_backwards: u64,
     /// Live link counters (zero for replays).
     pub live: Live,
+    /// Frames lost, repeated or late by the senders' sequence numbers, all senders.
+    pub sequence: SequenceSummary,
     /// Valid messages per "sysid/compid".
     pub senders: BTreeMap<String, u64>,
     /// First and last receive/tlog time, seconds.
     pub time_span: Option<TimeSpan>,
+}
+
+/// Sequence counts summed over senders.
+#[derive(Debug, Clone, Serialize)]
+pub struct SequenceSummary {
+    /// Frames missing from the sequence (lost on the link or before the recording).
+    pub lost: u64,
+    /// Frames whose sequence number repeated the previous one (duplicated by the link).
+    pub repeated: u64,
+    /// Frames older than the previous one (reordered by the link).
+    pub late: u64,
+}
+
+/// One sender's sequence-number bookkeeping. MAVLink's 8-bit sequence counts each sender's
+/// frames; a jump of 2..=128 means frames were lost, 0 a repeat, more than 128 (a step back) a
+/// late frame, which is then no longer lost. Runs of more than 127 lost frames in a row are
+/// undercounted by 256 each.
+///
+/// ```
+/// use savsim::ingest::stats::SequenceCounts;
+/// let mut s = SequenceCounts::starting_at(10);
+/// for seq in [10, 11, 14, 14, 12, 15, 100] {
+///     s.observe(seq);
+/// }
+/// assert_eq!((s.lost, s.repeated, s.late), (1 + 84, 1, 1));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct SequenceCounts {
+    /// The newest sequence number seen.
+    pub last: u8,
+    /// Frames missing.
+    pub lost: u64,
+    /// Repeats.
+    pub repeated: u64,
+    /// Late (reordered) frames.
+    pub late: u64,
+}
+
+impl SequenceCounts {
+    /// Bookkeeping whose next expected frame is `first` (call [`SequenceCounts::observe`]
+    /// with it).
+    pub fn starting_at(first: u8) -> Self {
+        Self {
+            last: first.wrapping_sub(1),
+            ..Self::default()
+        }
+    }
+
+    /// Note the next frame's sequence number.
+    pub fn observe(&mut self, sequence: u8) {
+        match sequence.wrapping_sub(self.last) {
+            0 => self.repeated += 1,
+            step @ 1..=128 => {
+                self.lost += u64::from(step - 1);
+                self.last = sequence;
+            }
+            // A late frame was counted lost when its successor came.
+            _ => {
+                self.late += 1;
+                self.lost = self.lost.saturating_sub(1);
+            }
+        }
+    }
 }
 
 /// Valid messages per protocol version.

@@ -307,6 +307,21 @@ impl Geometry {
         (vertices, indices)
     }
 
+    /// A point on the shape's surface, in its frame (none for terrain): a corner of its box or
+    /// first block, or its first triangle's first vertex. If this point is inside another solid,
+    /// the two touch or one holds the other.
+    pub fn a_surface_point(&self) -> Option<Vec3> {
+        match &self.source {
+            GeometrySource::Cuboid { min, .. } => Some(*min),
+            GeometrySource::Blocks { blocks, .. } => blocks.first().map(|b| b.0),
+            GeometrySource::Mesh { vertices, indices } => indices
+                .first()
+                .and_then(|t| vertices.get(t[0] as usize))
+                .copied(),
+            GeometrySource::Terrain(_) => None,
+        }
+    }
+
     /// True when `p` (obstacle frame) is inside the solid: inside the box, inside a block, or
     /// under a terrain patch. Loaded meshes are surfaces only and contain nothing (a vehicle
     /// inside one is found when it crosses the surface).

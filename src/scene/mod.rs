@@ -227,15 +227,42 @@ impl Aabb64 {
     /// assert!(!b.ray_hits(DVec3::ZERO, DVec3::NEG_X, 100.0));
     /// ```
     pub fn ray_hits(&self, origin: DVec3, dir: DVec3, max_m: f64) -> bool {
-        let inv = dir.recip();
-        let t0 = (self.min - origin) * inv;
-        let t1 = (self.max - origin) * inv;
-        let (near, far) = (t0.min(t1), t0.max(t1));
-        // f64::max and min ignore NaN (a zero direction component exactly on a slab face), so
-        // such an axis does not reject the hit.
-        let enter = 0.0f64.max(near.x).max(near.y).max(near.z);
-        let exit = max_m.min(far.x).min(far.y).min(far.z);
-        enter <= exit
+        self.ray_entry(origin, dir, max_m).is_some()
+    }
+
+    /// Where the segment from `origin` along `dir` (unit) up to `max_m` enters the box: the
+    /// distance (0 when it starts inside), or `None` if it misses.
+    ///
+    /// ```
+    /// use savsim::scene::Aabb64;
+    /// use glam::DVec3;
+    /// let b = Aabb64::new(DVec3::new(10.0, -1.0, -1.0), DVec3::new(12.0, 1.0, 1.0));
+    /// assert_eq!(b.ray_entry(DVec3::ZERO, DVec3::X, 100.0), Some(10.0));
+    /// assert_eq!(b.ray_entry(DVec3::new(11.0, 0.0, 0.0), DVec3::X, 100.0), Some(0.0));
+    /// assert_eq!(b.ray_entry(DVec3::ZERO, DVec3::Y, 100.0), None);
+    /// assert_eq!(b.ray_entry(DVec3::ZERO, DVec3::ZERO, 100.0), None);
+    /// assert_eq!(b.ray_entry(DVec3::ZERO, DVec3::NAN, 100.0), None);
+    /// ```
+    pub fn ray_entry(&self, origin: DVec3, dir: DVec3, max_m: f64) -> Option<f64> {
+        if !(dir.is_finite() && origin.is_finite()) || dir == DVec3::ZERO {
+            return None;
+        }
+        let (mut enter, mut exit) = (0.0f64, max_m);
+        for axis in 0..3 {
+            let (o, d) = (origin[axis], dir[axis]);
+            let (lo, hi) = (self.min[axis], self.max[axis]);
+            if d == 0.0 {
+                // Parallel to this slab: inside it (its faces included) or never.
+                if o < lo || o > hi {
+                    return None;
+                }
+                continue;
+            }
+            let (t0, t1) = ((lo - o) / d, (hi - o) / d);
+            enter = enter.max(t0.min(t1));
+            exit = exit.min(t0.max(t1));
+        }
+        (enter <= exit).then_some(enter)
     }
 
     /// Distance from `p` to the box (0 inside).
@@ -347,6 +374,27 @@ impl Scene {
             .find(|(k, _)| *k == kind)
             .map(|(_, g)| *g)
             .unwrap_or(0)
+    }
+
+    /// Height (ENU up, metres) of the highest terrain surface at (east, north), if any terrain
+    /// lies there. A scan of the terrain patches, for set-up code; the collision core asks its
+    /// octree instead.
+    pub fn ground_height_enu_m(&self, east_m: f64, north_m: f64) -> Option<f64> {
+        let mut ground: Option<f64> = None;
+        for o in self.obstacles.iter().filter(|o| o.geometry.is_terrain()) {
+            let b = &o.aabb_enu_m;
+            if !(b.min.x <= east_m && east_m <= b.max.x && b.min.y <= north_m && north_m <= b.max.y)
+            {
+                continue;
+            }
+            let local = o.placement.enu_from_local.inverse()
+                * (DVec3::new(east_m, north_m, 0.0) - o.placement.position_enu_m);
+            if let Some(h) = o.geometry.terrain_height_at(local.x as f32, local.y as f32) {
+                let z = o.placement.position_enu_m.z + f64::from(h);
+                ground = Some(ground.map_or(z, |g| g.max(z)));
+            }
+        }
+        ground
     }
 
     /// Bounds of all static obstacles, scene ENU metres.

@@ -5,18 +5,27 @@
 //! - `ingest`: framing, decoding, bad input, and tlogs written by pymavlink.
 //! - `shared_fixtures`: the real tlogs of ../shared/fixtures against pymavlink's counts.
 //! - `live`: a UDP link to a vehicle played by a tokio task using the mavlink crate; recording.
+//! - `faults`: live faults (garbage, truncation, repeats, reordering, reboots) and a 10 s burst
+//!   of 100k messages/s, every frame accounted for.
+//! - `extremes`: numerics at the poles, the antimeridian, -400 m to 20 km, 0 to 300 m/s, rays
+//!   along faces and edges, millimetre to 10 km meshes, coplanar contact, gimbal lock.
 //! - `scenes`: the scene file format and its errors.
 //! - `collision`: golden scenarios, one per step of the algorithm.
 //! - `terrain`: SRTM and ArduPilot elevation files, real flights over them.
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
 //! - `cities`: CityJSON city models.
 //! - `cli`: the commands README.md gives.
-//! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink).
+//! - `bench`: the bench's flight set against the oracle; `savsim bench`'s report, JSON, chart.
+//! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); SIGTERM
+//!   during a recorded replay.
 
+mod bench;
 mod cities;
 mod cli;
 mod collision;
 mod common;
+mod extremes;
+mod faults;
 mod geo;
 mod ingest;
 mod live;
@@ -24,4 +33,5 @@ mod properties;
 mod scenes;
 mod shared_fixtures;
 mod terrain;
+#[cfg(feature = "viz")]
 mod viz;

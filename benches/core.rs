@@ -1,0 +1,138 @@
+//! Criterion benches of the collision core's hot pieces, on the bundled city:
+//!
+//! - `step/<mode>`: one flight of the bench set (a crossing at 40 m), every tick, per mode;
+//! - `ray_fan`: the six 300 m rays' octree candidates at a downtown point;
+//! - `broadphase/*`: the obstacles in a 600 m box, by savsim's octree, parry's Bvh and a
+//!   linear scan;
+//! - `mesh_build/*`: turning a building and an airliner model into parry TriMeshes.
+//!
+//! `cargo bench --bench core`; figures in docs/accuracy-vs-speed.md.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use glam::DVec3;
+use parry3d::bounding_volume::Aabb;
+use parry3d::partitioning::{Bvh, BvhBuildStrategy};
+use savsim::bench::flights::flight_set;
+use savsim::bench::run_samples;
+use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline, RAY_AXES_FRD};
+use savsim::scene::{Aabb64, Kind, Scene};
+
+fn city() -> Scene {
+    savsim::scene::load(&savsim::app::bundled("scenes/city.toml")).expect("the bundled city loads")
+}
+
+fn step(c: &mut Criterion) {
+    let scene = city();
+    let flight = flight_set(&scene)
+        .into_iter()
+        .find(|f| f.name == "cross-ew-40m")
+        .expect("the crossing is in the set");
+    let mut group = c.benchmark_group("step");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(flight.samples.len() as u64));
+    for mode in [
+        Mode::Box,
+        Mode::Mesh,
+        Mode::Paper,
+        Mode::Adaptive,
+        Mode::Oracle,
+    ] {
+        let mut pipeline = Pipeline::new(
+            &scene,
+            CollisionConfig {
+                mode,
+                ..Default::default()
+            },
+        );
+        let mut vehicle = 0u16;
+        group.bench_function(BenchmarkId::from_parameter(mode.name()), |b| {
+            b.iter(|| {
+                // A fresh vehicle each flight; the mesh cache stays warm, as in a long run.
+                vehicle = vehicle.wrapping_add(1);
+                run_samples(
+                    &mut pipeline,
+                    &scene,
+                    vehicle,
+                    &flight.samples,
+                    &flight.traffic,
+                )
+            })
+        });
+    }
+    group.finish();
+}
+
+fn ray_fan(c: &mut Criterion) {
+    let scene = city();
+    let boxes: Vec<Aabb64> = scene.obstacles.iter().map(|o| o.aabb_enu_m).collect();
+    let octree = Octree::build(&boxes, OctreeConfig::default());
+    let mut ws = OctreeWorkspace::default();
+    let origin = DVec3::new(8.0, 50.0, 40.0);
+    c.bench_function("ray_fan", |b| {
+        b.iter(|| {
+            let mut n = 0usize;
+            for axis in RAY_AXES_FRD {
+                octree.query_ray(origin, axis.as_dvec3(), 300.0, &mut ws, |_| n += 1);
+            }
+            n
+        })
+    });
+}
+
+fn broadphase(c: &mut Criterion) {
+    let scene = city();
+    let boxes: Vec<Aabb64> = scene.obstacles.iter().map(|o| o.aabb_enu_m).collect();
+    let octree = Octree::build(&boxes, OctreeConfig::default());
+    let bvh = Bvh::from_iter(
+        BvhBuildStrategy::Binned,
+        boxes
+            .iter()
+            .map(|b| Aabb::new(b.min.as_vec3(), b.max.as_vec3()))
+            .enumerate(),
+    );
+    let query = Aabb64::around(DVec3::new(8.0, 50.0, 40.0), DVec3::splat(300.0));
+    let query32 = Aabb::new(query.min.as_vec3(), query.max.as_vec3());
+    let mut ws = OctreeWorkspace::default();
+    let mut group = c.benchmark_group("broadphase");
+    group.bench_function("octree", |b| {
+        b.iter(|| {
+            let mut n = 0usize;
+            octree.query_aabb(&query, &mut ws, |_| n += 1);
+            n
+        })
+    });
+    group.bench_function("parry_bvh", |b| {
+        b.iter(|| bvh.intersect_aabb(&query32).count())
+    });
+    group.bench_function("linear", |b| {
+        b.iter(|| boxes.iter().filter(|o| o.intersects(&query)).count())
+    });
+    group.finish();
+}
+
+fn mesh_build(c: &mut Criterion) {
+    let scene = city();
+    let building = scene
+        .obstacles
+        .iter()
+        .max_by_key(|o| o.geometry.triangle_count())
+        .expect("the city has buildings")
+        .geometry
+        .clone();
+    let airliner = scene.geometries[scene.kind_model(Kind::A320)].clone();
+    let mut group = c.benchmark_group("mesh_build");
+    group.sample_size(20);
+    group.bench_function(
+        format!("building_{}_triangles", building.triangle_count()),
+        |b| b.iter(|| building.build_trimesh()),
+    );
+    group.bench_function(
+        format!("a320_{}_triangles", airliner.triangle_count()),
+        |b| b.iter(|| airliner.build_trimesh()),
+    );
+    group.finish();
+}
+
+criterion_group!(benches, step, ray_fan, broadphase, mesh_build);
+criterion_main!(benches);
