@@ -192,6 +192,12 @@ fn decades(from: usize, max: usize) -> Vec<usize> {
 }
 
 fn bench_command(args: &BenchArgs) -> Result<()> {
+    if !(args.ray_length_m.is_finite() && args.ray_length_m >= 0.0) {
+        return Err(Error::Usage(format!(
+            "--ray-length-m {}: give a number >= 0",
+            args.ray_length_m
+        )));
+    }
     let options = crate::bench::BenchOptions {
         scenes: args
             .scene
@@ -200,13 +206,23 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
             .collect(),
         flights: args.flights.clone(),
         modes: args.modes.clone(),
-        config: CollisionConfig::default(),
+        config: CollisionConfig {
+            ray_length_m: args.ray_length_m,
+            ..CollisionConfig::default()
+        },
         scale_sizes: decades(100, args.scale_max),
         fleet_sizes: decades(1, args.fleet_max),
     };
-    let report = crate::bench::run(&options, |what| eprintln!("bench: {what}"))?;
+    let report = match &args.from_json {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+            serde_json::from_str(&text)
+                .map_err(|e| Error::Usage(format!("{}: not a bench report: {e}", path.display())))?
+        }
+        None => crate::bench::run(&options, |what| eprintln!("bench: {what}"))?,
+    };
     print!("{}", crate::bench::markdown(&report));
-    if let Some(path) = &args.json {
+    if let (Some(path), None) = (&args.json, &args.from_json) {
         write_json_atomic(path, &report)?;
     }
     crate::bench::chart::draw(&report, &args.chart)?;

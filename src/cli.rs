@@ -64,6 +64,12 @@ pub struct BenchArgs {
     /// Largest fleet of the fleet run (1, 10, 100, ... up to this; 0 skips it).
     #[arg(long, default_value_t = 1000)]
     pub fleet_max: usize,
+    /// Do not run: print the report and draw the chart of a saved `--json` report.
+    #[arg(long)]
+    pub from_json: Option<PathBuf>,
+    /// Length of the six rays, metres (0 shows what the rays cost).
+    #[arg(long, default_value_t = 300.0)]
+    pub ray_length_m: f64,
 }
 
 /// Options shared by everything that checks collisions.

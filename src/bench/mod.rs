@@ -20,7 +20,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{CollisionConfig, DynamicBody, Mode, Pipeline};
@@ -83,10 +83,10 @@ pub struct BenchOptions {
 }
 
 /// One mode in one scene.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ModeRow {
     /// Mode name.
-    pub mode: &'static str,
+    pub mode: String,
     /// Ticks over all flights.
     pub ticks: u64,
     /// Median per-tick cost, microseconds.
@@ -124,10 +124,10 @@ pub struct ModeRow {
 }
 
 /// One flight's result in one mode.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FlightResult {
     /// Mode name.
-    pub mode: &'static str,
+    pub mode: String,
     /// Collisions reported.
     pub collisions: usize,
     /// Missed against the oracle.
@@ -141,7 +141,7 @@ pub struct FlightResult {
 }
 
 /// One flight.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FlightRow {
     /// Name.
     pub name: String,
@@ -158,7 +158,7 @@ pub struct FlightRow {
 }
 
 /// One scene.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct SceneReport {
     /// Scene name.
     pub scene: String,
@@ -175,7 +175,7 @@ pub struct SceneReport {
 }
 
 /// The machine the run was on.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Machine {
     /// CPU model.
     pub cpu: String,
@@ -188,7 +188,7 @@ pub struct Machine {
 }
 
 /// A goal of issue 5 and whether this run met it.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Goal {
     /// The goal.
     pub goal: String,
@@ -199,7 +199,7 @@ pub struct Goal {
 }
 
 /// Everything a bench run measured.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct BenchReport {
     /// Where.
     pub machine: Machine,
@@ -448,7 +448,7 @@ fn bench_scene(
                 let (missed, false_collisions, errors, first) = compare(&truth, &found);
                 per_mode_errors[m].extend(errors);
                 FlightResult {
-                    mode: mode.name(),
+                    mode: mode.name().to_owned(),
                     collisions: found.len(),
                     missed,
                     false_collisions,
@@ -483,7 +483,7 @@ fn bench_scene(
                 flight_rows.iter().map(|r| f(&r.modes[m])).sum::<usize>()
             };
             ModeRow {
-                mode: mode.name(),
+                mode: mode.name().to_owned(),
                 ticks: totals.ticks,
                 cost_median_us: median,
                 cost_p99_us: p99,
@@ -639,7 +639,7 @@ pub fn markdown(report: &BenchReport) -> String {
             "\nPer flight: the oracle's collisions, and per mode `ok` or `-missed +false` \
              (near misses in brackets).\n"
         );
-        let names: Vec<&str> = s.modes.iter().map(|r| r.mode).collect();
+        let names: Vec<&str> = s.modes.iter().map(|r| r.mode.as_str()).collect();
         let _ = writeln!(
             out,
             "| flight | Hz | m/s | ticks | {} |\n|---|--:|--:|--:|{}",

@@ -7,7 +7,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::geo::LocalTangentPlane;
@@ -22,12 +22,12 @@ const PITCH_M: f64 = 50.0;
 const RATE_HZ: f64 = 50.0;
 
 /// One scene size.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct SizeRow {
     /// Static obstacles.
     pub obstacles: usize,
     /// Mode.
-    pub mode: &'static str,
+    pub mode: String,
     /// Building the pipeline (octree), seconds.
     pub startup_s: f64,
     /// Octree memory, bytes.
@@ -43,7 +43,7 @@ pub struct SizeRow {
 }
 
 /// One fleet size.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FleetRow {
     /// Vehicles.
     pub vehicles: usize,
@@ -150,7 +150,7 @@ pub fn sizes(sizes: &[usize], modes: &[Mode], config: CollisionConfig) -> Vec<Si
                 .map_or(median, |r| r.cost_median_us);
             rows.push(SizeRow {
                 obstacles: n,
-                mode: mode.name(),
+                mode: mode.name().to_owned(),
                 startup_s,
                 octree_bytes: pipeline.octree.memory_bytes(),
                 cost_median_us: median,

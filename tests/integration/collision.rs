@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use glam::DVec3;
+use savsim::bench::collisions;
 use savsim::collision::events::{Event, EventKind};
 use savsim::collision::pipeline::{BodyPose, CollisionConfig, DynamicBody, Mode, Pipeline};
 use savsim::collision::threat::{AhpWeights, PAPER_MATRIX};
@@ -55,20 +56,6 @@ fn fly_with(
 
 fn fly(scene: &Scene, mode: Mode, flight: &[TrackSample]) -> (Pipeline, Vec<Event>) {
     fly_with(scene, mode, flight, &|_, _| Vec::new())
-}
-
-fn collisions(events: &[Event]) -> Vec<(&str, f64)> {
-    events
-        .iter()
-        .filter_map(|e| match &e.kind {
-            EventKind::Collision {
-                obstacle,
-                time_of_impact,
-                ..
-            } => Some((obstacle.as_str(), *time_of_impact)),
-            _ => None,
-        })
-        .collect()
 }
 
 fn swaps<'a>(events: &'a [Event], id: &str) -> Vec<(ColliderKind, ColliderKind, &'a str, f64)> {

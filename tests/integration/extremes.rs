@@ -8,8 +8,9 @@ use glam::{DQuat, DVec3};
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
 use mavlink::{MavHeader, MavlinkVersion};
 use proptest::prelude::*;
+use savsim::bench::{collisions, run_samples};
 use savsim::collision::contact::{ray_distance_m, Placed};
-use savsim::collision::events::{Event, EventKind};
+use savsim::collision::events::Event;
 use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
 use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use savsim::geo::{Geodetic, LocalTangentPlane};
@@ -28,21 +29,7 @@ fn scene_at(origin: Geodetic, body: &str) -> Scene {
     parse(&text, Path::new("extremes.toml"), "extremes").unwrap()
 }
 
-fn collisions(events: &[Event]) -> Vec<(String, f64)> {
-    events
-        .iter()
-        .filter_map(|e| match &e.kind {
-            EventKind::Collision {
-                obstacle,
-                time_of_impact,
-                ..
-            } => Some((obstacle.clone(), *time_of_impact)),
-            _ => None,
-        })
-        .collect()
-}
-
-fn fly(scene: &Scene, mode: Mode, flight: &[TrackSample]) -> Vec<Event> {
+fn fly(scene: &Scene, mode: Mode, flight: &[TrackSample]) -> Vec<(String, f64)> {
     let mut pipeline = Pipeline::new(
         scene,
         CollisionConfig {
@@ -50,13 +37,15 @@ fn fly(scene: &Scene, mode: Mode, flight: &[TrackSample]) -> Vec<Event> {
             ..CollisionConfig::default()
         },
     );
-    let mut events = Vec::new();
-    for (i, s) in flight.iter().enumerate() {
-        let previous = i.checked_sub(1).map(|j| &flight[j]);
-        pipeline.step(scene, 1, previous, s, &[], &mut events);
-    }
-    pipeline.finish(&mut events, scene, &[]);
-    events
+    let (_, events) = run_samples(&mut pipeline, scene, 1, flight, &[]);
+    owned(&events)
+}
+
+fn owned(events: &[Event]) -> Vec<(String, f64)> {
+    collisions(events)
+        .into_iter()
+        .map(|(o, t)| (o.to_owned(), t))
+        .collect()
 }
 
 /// Fly a straight ENU line from `a` eastward at `speed` (10 Hz, level, nose east) as MAVLink
@@ -116,7 +105,7 @@ fn fly_mavlink(scene: Scene, mode: Mode, a: DVec3, b: DVec3, speed_mps: f64) -> 
         }
     }
     session.finish().unwrap();
-    collisions(&session.notable)
+    owned(&session.notable)
 }
 
 /// The quad's forward half-length (its nose to its reference point), metres.
@@ -216,7 +205,7 @@ proptest! {
             straight(scene.origin, start, start + DVec3::X * speed * 4.0, speed, rate)
         };
         for mode in [Mode::Adaptive, Mode::Oracle] {
-            let hits = collisions(&fly(&scene, mode, &flight));
+            let hits = fly(&scene, mode, &flight);
             if speed < 0.5 {
                 prop_assert!(hits.is_empty(), "{mode:?}: {hits:?}");
                 continue;
@@ -370,7 +359,7 @@ fn meshes_from_a_millimetre_to_ten_kilometres_with_bad_triangles() {
         let start = DVec3::new(face_x - nose - 20.0, 0.0, z);
         let flight = straight(scene.origin, start, start + DVec3::X * 40.0, 10.0, 10.0);
         for mode in [Mode::Adaptive, Mode::Oracle] {
-            let hits = collisions(&fly(&scene, mode, &flight));
+            let hits = fly(&scene, mode, &flight);
             assert_eq!(hits.len(), 1, "{size_m} m, {mode:?}: {hits:?}");
             let want = 1000.0 + 2.0;
             assert!(
@@ -396,7 +385,7 @@ fn coplanar_contact_counts_and_a_millimetre_above_does_not() {
             .map(|i| sample(scene.origin, 1000.0 + i as f64 * 0.1, p, DVec3::ZERO))
             .collect();
         for mode in [Mode::Box, Mode::Mesh, Mode::Adaptive, Mode::Oracle] {
-            let hits = collisions(&fly(&scene, mode, &flight));
+            let hits = fly(&scene, mode, &flight);
             assert_eq!(!hits.is_empty(), touching, "z {z}, {mode:?}: {hits:?}");
         }
     }

@@ -25,7 +25,22 @@ const PATHS: [&str; 12] = [
     "metrics/cost_us/1",
 ];
 
-pub(crate) fn have_rerun_cli() -> bool {
+/// rerun-sdk's own verifier accepts the recording.
+fn assert_rrd_verifies(rrd: &Path) {
+    let verify = Command::new("rerun")
+        .args(["rrd", "verify"])
+        .arg(rrd)
+        .output()
+        .unwrap();
+    assert!(
+        verify.status.success(),
+        "rerun rrd verify: {}{}",
+        String::from_utf8_lossy(&verify.stdout),
+        String::from_utf8_lossy(&verify.stderr)
+    );
+}
+
+fn have_rerun_cli() -> bool {
     let ok = Command::new("rerun")
         .arg("--version")
         .output()
@@ -66,17 +81,7 @@ fn a_replay_saves_a_recording_rerun_verifies() {
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     assert_eq!(s["rerun"]["sent"], 2025);
-    let verify = Command::new("rerun")
-        .args(["rrd", "verify"])
-        .arg(&rrd)
-        .output()
-        .unwrap();
-    assert!(
-        verify.status.success(),
-        "rerun rrd verify: {}{}",
-        String::from_utf8_lossy(&verify.stdout),
-        String::from_utf8_lossy(&verify.stderr)
-    );
+    assert_rrd_verifies(&rrd);
     let printed = Command::new("rerun")
         .args(["rrd", "print", "-vv"])
         .arg(&rrd)
@@ -196,15 +201,5 @@ fn sigterm_during_replay_leaves_complete_files() {
     if !have_rerun_cli() {
         return;
     }
-    let verify = Command::new("rerun")
-        .args(["rrd", "verify"])
-        .arg(&rrd)
-        .output()
-        .unwrap();
-    assert!(
-        verify.status.success(),
-        "rerun rrd verify: {}{}",
-        String::from_utf8_lossy(&verify.stdout),
-        String::from_utf8_lossy(&verify.stderr)
-    );
+    assert_rrd_verifies(&rrd);
 }

@@ -1,0 +1,36 @@
+//! Bytes as UDP datagrams and as a TCP stream (split where the input says), through the live
+//! path's framing, decode and world store.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use savsim::collision::pipeline::CollisionConfig;
+use savsim::ingest::stream::{frames_in_datagram, StreamFramer};
+use savsim::session::Session;
+
+fuzz_target!(|data: &[u8]| {
+    let Some((&split, rest)) = data.split_first() else {
+        return;
+    };
+    // As datagrams of at most `split + 1` bytes each.
+    let mut session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    let mut t_s = 1.0e9;
+    for datagram in rest.chunks(usize::from(split) + 1) {
+        t_s += 0.01;
+        let skipped = frames_in_datagram(datagram, |frame| {
+            let _ = session.on_frame(t_s, frame);
+        });
+        skipped.count_into(&mut session.ingestor.stats);
+    }
+    // As one TCP stream read in pieces of the same size.
+    let mut framer = StreamFramer::default();
+    for piece in rest.chunks(usize::from(split) + 1) {
+        let spare = framer.spare();
+        let n = piece.len().min(spare.len());
+        spare[..n].copy_from_slice(&piece[..n]);
+        let skipped = framer.commit(n, |frame| {
+            let _ = session.on_frame(t_s, frame);
+        });
+        skipped.count_into(&mut session.ingestor.stats);
+    }
+    let _ = session.summary("fuzz", "fuzz");
+});
