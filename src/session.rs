@@ -188,7 +188,7 @@ impl Session {
                 dynamic: self
                     .dynamic
                     .iter()
-                    .map(|d| (d.id.clone(), d.kind, d.geometry_index, d.current))
+                    .map(|d| (d.id.to_string(), d.kind, d.geometry_index, d.current))
                     .collect(),
                 events: self.events[first..]
                     .iter()
@@ -348,7 +348,8 @@ fn body_from(sample: &TrackSample) -> BodyPose {
     BodyPose::of(sample)
 }
 
-/// The moving obstacles seen by vehicle `own` between `t_before` and `t_now`.
+/// The moving obstacles seen by vehicle `own` between `t_before` and `t_now`. Ids are shared
+/// (`Arc<str>`): after warm-up this does not allocate.
 fn fill_dynamic(
     out: &mut Vec<DynamicBody>,
     scene: &Scene,
@@ -360,7 +361,7 @@ fn fill_dynamic(
 ) {
     out.clear();
     let mut claimed_sysids = [false; 256];
-    let mut claimed_icao = Vec::new();
+    let mut claimed_icao: smallvec::SmallVec<[u32; 8]> = smallvec::SmallVec::new();
     for d in &scene.dynamic {
         let poses = match &d.source {
             DynamicSource::Waypoints(w) => {
@@ -418,7 +419,7 @@ fn fill_dynamic(
             continue;
         };
         out.push(DynamicBody {
-            id: format!("vehicle:{}", v.id.system_id),
+            id: v.label.clone(),
             kind: Kind::Dji,
             threat: scene.threat_of(Kind::Dji),
             geometry_index: scene.vehicle_model(v.id.system_id),
@@ -439,7 +440,7 @@ fn fill_dynamic(
         };
         let kind = Kind::from_adsb_emitter(tr.emitter_type);
         out.push(DynamicBody {
-            id: format!("icao:{:06X}", tr.icao_address),
+            id: tr.label.clone(),
             kind,
             threat: scene.threat_of(kind),
             geometry_index: scene.kind_model(kind),

@@ -24,7 +24,7 @@ const T0_S: f64 = 1000.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Traffic {
     /// Id in events.
-    pub id: String,
+    pub id: std::sync::Arc<str>,
     /// What it is (threat class and model).
     pub kind: Kind,
     /// Where it is at the flight's first sample, scene ENU metres.

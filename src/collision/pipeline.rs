@@ -146,8 +146,9 @@ impl BodyPose {
 /// A moving obstacle at this tick (another vehicle, ADS-B traffic, a scripted track).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicBody {
-    /// Id for events (`vehicle:2`, `icao:4840D6`, or the scene's id).
-    pub id: String,
+    /// Id for events (`vehicle:2`, `icao:4840D6`, or the scene's id); shared, so that filling
+    /// a tick's moving obstacles does not allocate.
+    pub id: Arc<str>,
     /// Kind (threat class).
     pub kind: Kind,
     /// Threat T.
@@ -539,7 +540,7 @@ impl Pipeline {
                     ObstacleRef::Static(i) => scene.obstacles[i as usize].id.clone(),
                     ObstacleRef::Dynamic(i) => dynamic
                         .get(i as usize)
-                        .map_or_else(|| format!("dynamic#{i}"), |d| d.id.clone()),
+                        .map_or_else(|| format!("dynamic#{i}"), |d| d.id.to_string()),
                 };
                 events.push(Event {
                     t: closest_t,

@@ -1060,7 +1060,7 @@ pub fn parse(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
             None => kind_models.iter().find(|(k, _)| *k == spec.kind).unwrap().1,
         };
         dynamic.push(DynamicObstacle {
-            id: spec.id,
+            id: spec.id.into(),
             kind: spec.kind,
             threat: threat_of(spec.kind, spec.threat),
             geometry: b.geometries[geometry_index].clone(),

@@ -314,7 +314,7 @@ pub enum DynamicSource {
 #[derive(Debug, Clone)]
 pub struct DynamicObstacle {
     /// Unique id.
-    pub id: String,
+    pub id: Arc<str>,
     /// Kind (threat class and default model).
     pub kind: Kind,
     /// Threat T.

@@ -212,6 +212,8 @@ impl History {
 /// A MAVLink vehicle (a sender of GLOBAL_POSITION_INT).
 #[derive(Debug, Clone)]
 pub struct VehicleTrack {
+    /// Its id as a moving obstacle to other vehicles (`vehicle:7`).
+    pub label: std::sync::Arc<str>,
     /// Who it is.
     pub id: SenderId,
     /// MAV_TYPE from its HEARTBEAT, if one came.
@@ -233,6 +235,8 @@ pub struct VehicleTrack {
 /// An ADS-B aircraft.
 #[derive(Debug, Clone)]
 pub struct TrafficTrack {
+    /// Its id as a moving obstacle (`icao:4840D6`).
+    pub label: std::sync::Arc<str>,
     /// ICAO 24-bit address.
     pub icao_address: u32,
     /// Callsign as sent (trimmed ASCII).
@@ -348,6 +352,7 @@ impl WorldStore {
             }
             VehicleTrack {
                 id: sender,
+                label: format!("vehicle:{}", sender.system_id).into(),
                 vehicle_type: None,
                 autopilot: None,
                 latest_attitude: None,
@@ -449,6 +454,7 @@ impl WorldStore {
             .entry(a.icao_address)
             .or_insert_with(|| TrafficTrack {
                 icao_address: a.icao_address,
+                label: format!("icao:{:06X}", a.icao_address).into(),
                 callsign: String::from_utf8_lossy(&a.callsign)
                     .trim_matches(|c: char| c == '\0' || c.is_whitespace())
                     .to_owned(),
