@@ -317,8 +317,7 @@ pub fn flight_set(scene: &Scene) -> Vec<Flight> {
         else {
             continue;
         };
-        let (lo, hi) = half_extents(scene, vehicle, DVec3::Y);
-        let _ = hi;
+        let (lo, _) = half_extents(scene, vehicle, DVec3::Y);
         let x = face.max.x + gap_m + lo.x;
         let z = 0.5 * (face.min.z + face.max.z);
         let id = &scene.obstacles[i].id;
