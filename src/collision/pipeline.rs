@@ -419,6 +419,8 @@ struct Touch {
     normal_enu: DVec3,
     fraction: f64,
     swept: bool,
+    /// Still in contact at the sample (a sweep can touch and leave within the interval).
+    holds_now: bool,
 }
 
 /// The collision pipeline for a scene.
@@ -1093,6 +1095,7 @@ impl Pipeline {
                         normal_enu: h.normal_enu,
                         fraction: h.fraction,
                         swept: true,
+                        holds_now: true,
                     }),
                     _ => {
                         let a = vehicle_body.placed();
@@ -1105,29 +1108,43 @@ impl Pipeline {
                                 normal_enu,
                                 fraction: 1.0,
                                 swept: false,
+                                holds_now: true,
                             }
                         })
                     }
                 };
                 // No surfaces touch, but one solid may hold the other: the vehicle inside a
                 // building or under terrain, or a small obstacle inside the vehicle's hull.
-                if touch.is_none() && act.collider == ColliderKind::Mesh {
-                    let obstacle_point = v
-                        .geometry
+                let solid_overlap = || {
+                    if act.collider != ColliderKind::Mesh {
+                        return None;
+                    }
+                    if inside_solid(v.geometry, &v.current, position) {
+                        return Some(position);
+                    }
+                    v.geometry
                         .a_surface_point()
-                        .map(|p| v.current.position_enu_m + v.current.enu_from_body * p.as_dvec3());
-                    let inside = if inside_solid(v.geometry, &v.current, position) {
-                        Some(position)
-                    } else {
-                        obstacle_point
-                            .filter(|&p| inside_solid(vehicle_geometry, &vehicle_pose_now, p))
-                    };
-                    touch = inside.map(|point_enu_m| Touch {
-                        point_enu_m,
-                        normal_enu: DVec3::Z,
-                        fraction: 1.0,
-                        swept: false,
-                    });
+                        .map(|p| v.current.position_enu_m + v.current.enu_from_body * p.as_dvec3())
+                        .filter(|&p| inside_solid(vehicle_geometry, &vehicle_pose_now, p))
+                };
+                match &mut touch {
+                    None => {
+                        touch = solid_overlap().map(|point_enu_m| Touch {
+                            point_enu_m,
+                            normal_enu: DVec3::Z,
+                            fraction: 1.0,
+                            swept: false,
+                            holds_now: true,
+                        });
+                    }
+                    // A sweep touched: does the contact still hold at the sample? If not, it
+                    // began and ended within the interval, and the next touch is a new one.
+                    Some(hit) if hit.swept => {
+                        report.narrow_tests += 1;
+                        hit.holds_now = contact::intersects(&vehicle_body.placed(), &body.placed())
+                            || solid_overlap().is_some();
+                    }
+                    Some(_) => {}
                 }
             }
             match touch {
@@ -1166,9 +1183,12 @@ impl Pipeline {
             }
         }
         state.touching.clear();
-        state
-            .touching
-            .extend(self.touching_now.iter().map(|(o, _)| *o));
+        state.touching.extend(
+            self.touching_now
+                .iter()
+                .filter(|(_, touch)| touch.holds_now)
+                .map(|(o, _)| *o),
+        );
         // A near miss ends when the obstacle leaves the band; one that was touched meanwhile is
         // a collision, not a near miss.
         for (o, _) in &self.touching_now {
