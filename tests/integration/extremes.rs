@@ -407,3 +407,29 @@ fn euler_angles_at_gimbal_lock_give_a_unit_attitude() {
         }
     }
 }
+
+#[test]
+fn leaving_and_reentering_between_samples_is_two_collisions() {
+    // Inside a 10 m block, out through its roof to 2 m above it, and back in: the contact that
+    // the sweep finds on the way out has ended by the sample, so going back in is new.
+    let scene = scene_at(
+        Geodetic::new(-35.36, 149.16, 584.0),
+        "[[obstacle]]\nid = \"block\"\nkind = \"building\"\nshape = { box = [20.0, 20.0, 10.0] }\nposition_enu_m = [0.0, 0.0, 0.0]\n",
+    );
+    let flight: Vec<TrackSample> = [8.0, 12.5, 8.0]
+        .iter()
+        .enumerate()
+        .map(|(i, &z)| {
+            sample(
+                scene.origin,
+                1000.0 + i as f64 * 0.1,
+                DVec3::new(0.0, 0.0, z),
+                DVec3::ZERO,
+            )
+        })
+        .collect();
+    for mode in [Mode::Mesh, Mode::Adaptive, Mode::Oracle] {
+        let hits = fly(&scene, mode, &flight);
+        assert_eq!(hits.len(), 2, "{mode:?}: {hits:?}");
+    }
+}
