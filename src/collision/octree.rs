@@ -231,19 +231,6 @@ impl Octree {
         self.traverse(ws, |b| b.intersects(query), visit);
     }
 
-    /// Call `visit` once for every object whose box the segment from `origin` along `dir`
-    /// (unit) up to `max_m` crosses: the candidates of a ray cast.
-    pub fn query_ray(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        max_m: f64,
-        ws: &mut OctreeWorkspace,
-        visit: impl FnMut(u32),
-    ) {
-        self.traverse(ws, |b| b.ray_hits(origin, dir, max_m), visit);
-    }
-
     /// The nearest hit of a ray: objects are offered to `hit` nearest box first (front to back)
     /// with the distance to beat, and nodes and boxes beyond the best hit so far are skipped.
     /// `hit(object, limit_m)` returns the exact distance if the object is hit closer than

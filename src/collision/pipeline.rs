@@ -789,11 +789,6 @@ impl Pipeline {
                     desired.sort_unstable();
                     desired.dedup();
                     state.node = node;
-                    let hold = if cfg.mode == Mode::Paper {
-                        0.0
-                    } else {
-                        cfg.hold_s
-                    };
                     let reason = if cfg.mode == Mode::Paper {
                         "node"
                     } else {
@@ -863,10 +858,12 @@ impl Pipeline {
                     let meshes = &mut self.meshes;
                     let active = &state.active;
                     let mut tests = 0;
-                    let mut ray_test = |o: ObstacleRef, limit: f64| -> Option<f64> {
+                    // `bounds_checked`: the caller already knows the ray meets the obstacle's
+                    // bounds (the octree walk tests them).
+                    let mut ray_test = |o: ObstacleRef, limit: f64, bounds_checked: bool| {
                         let act = find_active(active, o)?;
                         let v = view(scene, dynamic, o);
-                        if !v.aabb_enu_m.ray_hits(position, dir, limit) {
+                        if !bounds_checked && !v.aabb_enu_m.ray_hits(position, dir, limit) {
                             return None;
                         }
                         tests += 1;
@@ -888,8 +885,9 @@ impl Pipeline {
                     };
                     // The obstacle this ray hit last tick usually still is the nearest: its
                     // distance bounds the octree walk (same answer, far fewer nodes).
-                    let seed = state.rays[k]
-                        .and_then(|h| Some((h.obstacle, ray_test(h.obstacle, cfg.ray_length_m)?)));
+                    let seed = state.rays[k].and_then(|h| {
+                        Some((h.obstacle, ray_test(h.obstacle, cfg.ray_length_m, false)?))
+                    });
                     let seed_static = seed.filter(|(o, _)| matches!(o, ObstacleRef::Static(_)));
                     let mut best = self
                         .octree
@@ -898,7 +896,7 @@ impl Pipeline {
                             dir,
                             seed_static.map_or(cfg.ray_length_m, |s| s.1),
                             &mut self.ws,
-                            |i, limit| ray_test(ObstacleRef::Static(i), limit),
+                            |i, limit| ray_test(ObstacleRef::Static(i), limit, true),
                         )
                         .map(|(i, d)| (ObstacleRef::Static(i), d))
                         .or(seed_static);
@@ -907,7 +905,7 @@ impl Pipeline {
                         .filter(|a| matches!(a.obstacle, ObstacleRef::Dynamic(_)))
                     {
                         let limit = best.map_or(cfg.ray_length_m, |b| b.1);
-                        if let Some(d) = ray_test(a.obstacle, limit).filter(|&d| d < limit) {
+                        if let Some(d) = ray_test(a.obstacle, limit, false).filter(|&d| d < limit) {
                             best = Some((a.obstacle, d));
                         }
                     }
@@ -1269,10 +1267,7 @@ fn terrain_clearance(
     );
     let mut ground: Option<f64> = None;
     octree.query_aabb(&column, ws, |i| {
-        let o = &scene.obstacles[i as usize];
-        let local = o.placement.enu_from_local.inverse() * (position - o.placement.position_enu_m);
-        if let Some(h) = o.geometry.terrain_height_at(local.x as f32, local.y as f32) {
-            let z = o.placement.position_enu_m.z + f64::from(h);
+        if let Some(z) = scene.obstacles[i as usize].terrain_height_enu_m(position.x, position.y) {
             ground = Some(ground.map_or(z, |g| g.max(z)));
         }
     });

@@ -290,6 +290,19 @@ pub struct StaticObstacle {
     pub aabb_enu_m: Aabb64,
 }
 
+impl StaticObstacle {
+    /// Height (ENU up, metres) of this terrain patch's surface at (east, north), if it is
+    /// terrain and lies there.
+    pub fn terrain_height_enu_m(&self, east_m: f64, north_m: f64) -> Option<f64> {
+        let local = self.placement.enu_from_local.inverse()
+            * (DVec3::new(east_m, north_m, 0.0) - self.placement.position_enu_m);
+        let h = self
+            .geometry
+            .terrain_height_at(local.x as f32, local.y as f32)?;
+        Some(self.placement.position_enu_m.z + f64::from(h))
+    }
+}
+
 /// One timed point of a scripted track.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Waypoint {
@@ -387,10 +400,7 @@ impl Scene {
             {
                 continue;
             }
-            let local = o.placement.enu_from_local.inverse()
-                * (DVec3::new(east_m, north_m, 0.0) - o.placement.position_enu_m);
-            if let Some(h) = o.geometry.terrain_height_at(local.x as f32, local.y as f32) {
-                let z = o.placement.position_enu_m.z + f64::from(h);
+            if let Some(z) = o.terrain_height_enu_m(east_m, north_m) {
                 ground = Some(ground.map_or(z, |g| g.max(z)));
             }
         }
