@@ -97,7 +97,14 @@ fn sampled(
         .map(|i| {
             let t = i as f64 / rate_hz;
             let p = position(t);
-            let velocity = (position(t + h) - position(t - h)) / (2.0 * h);
+            // Central difference inside the flight, one-sided at its ends (the path is held
+            // outside [0, duration], which would halve the speed there).
+            let (t0, t1) = ((t - h).max(0.0), (t + h).min(duration_s));
+            let velocity = if t1 > t0 {
+                (position(t1) - position(t0)) / (t1 - t0)
+            } else {
+                DVec3::ZERO
+            };
             TrackSample {
                 t_s: T0_S + t,
                 time_boot_ms: (5_000.0 + t * 1000.0).round() as u32,
