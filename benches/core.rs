@@ -36,8 +36,8 @@ fn step(c: &mut Criterion) {
         Mode::Box,
         Mode::Mesh,
         Mode::Paper,
-        Mode::Adaptive,
-        Mode::Oracle,
+        Mode::Exact,
+        Mode::Reference,
     ] {
         let mut pipeline = Pipeline::new(
             &scene,

@@ -73,6 +73,8 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         ("--box-beyond-m", args.box_beyond_m),
         ("--hold-s", args.hold_s),
         ("--max-below-terrain-m", args.max_below_terrain_m),
+        ("--sensor-hz", args.sensor_hz),
+        ("--mesh-budget-mib", args.mesh_budget_mib),
     ] {
         if !(v.is_finite() && v >= 0.0) {
             return Err(Error::Usage(format!("{name} {v}: give a number >= 0")));
@@ -84,7 +86,7 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         Some(text) => parse_ahp(text)?,
     };
     Ok(CollisionConfig {
-        mode: args.mode,
+        mode: args.mode.into(),
         ray_length_m: args.ray_length_m,
         look_ahead_s: args.look_ahead_s,
         mesh_beta: args.mesh_beta,
@@ -94,6 +96,8 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         near_miss_m: args.near_miss_m,
         max_gap_s: args.max_gap_s,
         max_below_terrain_m: args.max_below_terrain_m,
+        sensor_hz: args.sensor_hz,
+        mesh_budget_mib: args.mesh_budget_mib,
         ahp,
         ..defaults
     })
@@ -205,7 +209,7 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
             .map(|s| s.parse().expect("infallible"))
             .collect(),
         flights: args.flights.clone(),
-        modes: args.modes.clone(),
+        modes: args.modes.iter().map(|&m| m.into()).collect(),
         config: CollisionConfig {
             ray_length_m: args.ray_length_m,
             ..CollisionConfig::default()
@@ -333,7 +337,7 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
             .scene
             .as_ref()
             .map_or(String::new(), |p| p.display().to_string()),
-        args.collision.mode.name()
+        crate::collision::pipeline::Mode::from(args.collision.mode).name()
     );
     replay_command(
         &ReplayArgs {

@@ -29,7 +29,7 @@ pub enum Command {
     /// Generate or inspect scenes.
     #[command(subcommand)]
     Scene(SceneCommand),
-    /// Measure every collision mode's cost and accuracy (against the exact oracle) on a
+    /// Measure every collision mode's cost and accuracy (against the reference) on a
     /// generated flight set, scene sizes 10^2..10^6 and fleets of 1..1000 vehicles.
     Bench(BenchArgs),
 }
@@ -44,14 +44,15 @@ pub struct BenchArgs {
     /// Only flights whose name contains one of these (comma-separated); default all.
     #[arg(long, value_delimiter = ',')]
     pub flights: Vec<String>,
-    /// Modes to compare (`box` and `oracle` always run: they are the cost and truth references).
+    /// Modes to compare (`box` and `reference` always run: they are the cost and truth
+    /// references).
     #[arg(
         long,
         value_enum,
         value_delimiter = ',',
-        default_value = "none,box,mesh,paper,adaptive,oracle"
+        default_value = "none,box,mesh,paper,exact,reference"
     )]
-    pub modes: Vec<Mode>,
+    pub modes: Vec<ModeArg>,
     /// Write the full report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -78,9 +79,15 @@ pub struct CollisionArgs {
     /// The scene (TOML); without one, savsim only ingests.
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    /// How colliders are chosen (see docs/accuracy-vs-speed.md).
-    #[arg(long, value_enum, default_value = "adaptive")]
-    pub mode: Mode,
+    /// How contacts are decided (see docs/threat-model.md and docs/accuracy-vs-speed.md).
+    #[arg(long, value_enum, default_value = "exact")]
+    pub mode: ModeArg,
+    /// Sensing frames per second (the paper's node, rays and beta) in `exact` mode.
+    #[arg(long, default_value_t = 20.0)]
+    pub sensor_hz: f64,
+    /// Most memory resident triangle meshes may hold, MiB.
+    #[arg(long, default_value_t = 512.0)]
+    pub mesh_budget_mib: f64,
     /// Write events as JSON lines here.
     #[arg(long)]
     pub events: Option<PathBuf>,
@@ -225,4 +232,35 @@ pub enum SceneCommand {
         #[arg(long, default_value = "spawn")]
         rerun: String,
     },
+}
+
+/// `--mode` on the command line (the core's [`Mode`] knows nothing of clap).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModeArg {
+    /// No collision checks.
+    None,
+    /// Every obstacle a box, at samples.
+    Box,
+    /// Every obstacle a triangle mesh, at samples.
+    Mesh,
+    /// The paper's algorithm as written.
+    Paper,
+    /// Exact shapes, swept; sensing beside it (the default).
+    #[value(alias = "adaptive")]
+    Exact,
+    /// The ground truth (dense sub-stepping; slow).
+    Reference,
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Mode {
+        match m {
+            ModeArg::None => Mode::None,
+            ModeArg::Box => Mode::Box,
+            ModeArg::Mesh => Mode::Mesh,
+            ModeArg::Paper => Mode::Paper,
+            ModeArg::Exact => Mode::Exact,
+            ModeArg::Reference => Mode::Reference,
+        }
+    }
 }

@@ -12,7 +12,9 @@ use serde::Serialize;
 use serde_json::json;
 
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{BodyPose, CollisionConfig, DynamicBody, Pipeline};
+use crate::collision::pipeline::{
+    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Pipeline, VehicleKey,
+};
 use crate::error::{Error, Result};
 use crate::ingest::frame::{FrameStatus, RawFrame};
 use crate::ingest::stats::SenderId;
@@ -158,9 +160,14 @@ impl Session {
         );
         let first = self.events.len();
         let started = Instant::now();
+        let key = VehicleKey {
+            vehicle: u16::from(sender.system_id),
+            component_id: sender.component_id,
+            generation: track.generation,
+        };
         let report = pipeline.step(
             &scene,
-            u16::from(sender.system_id),
+            key,
             previous.as_ref(),
             &current,
             &self.dynamic,
@@ -173,7 +180,10 @@ impl Session {
         let _ = (first, report);
         #[cfg(feature = "viz")]
         if let Some(viz) = &mut self.viz {
-            let state = pipeline.vehicle(u16::from(sender.system_id));
+            let sensing = pipeline
+                .vehicle(key.vehicle, key.component_id)
+                .map(|v| v.sensing.clone())
+                .unwrap_or_default();
             viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
                 tick: self.ticks,
                 t_s: current.t_s,
@@ -181,14 +191,14 @@ impl Session {
                 system_id: sender.system_id,
                 pose: BodyPose::of(&current),
                 model: scene.vehicle_model(sender.system_id),
-                rays_m: state.rays.map(|r| r.map(|h| h.distance_m)),
+                rays_m: sensing.rays.map(|r| r.map(|h| h.distance_m)),
                 ray_length_m: pipeline.config.ray_length_m,
-                node: state.node().map(|n| pipeline.octree.node_aabb(n)),
-                colliders: state.colliders().collect(),
+                node: sensing.node().map(|n| pipeline.octree.node_aabb(n)),
+                colliders: sensing.colliders().collect(),
                 dynamic: self
                     .dynamic
                     .iter()
-                    .map(|d| (d.id.to_string(), d.kind, d.geometry_index, d.current))
+                    .map(|d| (d.key, d.id.to_string(), d.kind, d.geometry_index, d.current))
                     .collect(),
                 events: self.events[first..]
                     .iter()
@@ -228,8 +238,8 @@ impl Session {
 
     /// End the run: close open near misses and flush the events file.
     pub fn finish(&mut self) -> Result<()> {
-        if let (Some(scene), Some(pipeline)) = (self.scene.clone(), self.pipeline.as_mut()) {
-            pipeline.finish(&mut self.events, &scene, &self.dynamic);
+        if let Some(pipeline) = self.pipeline.as_mut() {
+            pipeline.finish(&mut self.events);
         }
         self.flush_events()?;
         if let Some((path, out)) = &mut self.events_out {
@@ -258,6 +268,7 @@ impl Session {
                     "positions": seen.positions,
                     "boot_resets": seen.boot_resets,
                     "returns": seen.returns,
+                    "clock_reanchors": seen.clock_reanchors,
                 })
             })
             .collect();
@@ -270,6 +281,8 @@ impl Session {
                 "ticks": totals.ticks,
                 "collisions": totals.collisions,
                 "collider_swaps": totals.swaps,
+                "sensing_frames": totals.sensing_frames,
+                "state_resets": totals.state_resets,
                 "near_misses": totals.near_misses,
                 "telemetry_gaps": totals.telemetry_gaps,
                 "terrain_clearance_min_m": totals.terrain_clearance_min_m,
@@ -286,6 +299,9 @@ impl Session {
                     "cost_us_p99": p99_us,
                 },
                 "meshes_built": p.meshes.built,
+                "meshes_built_on_contact": p.meshes.built_on_contact,
+                "meshes_evicted": p.meshes.evicted,
+                "mesh_bytes_peak": p.meshes.peak_bytes,
                 "mesh_triangles_built": p.meshes.triangles,
                 "mesh_bytes_built": p.meshes.bytes,
                 "mesh_build_s": p.meshes.build_time.as_secs_f64(),
@@ -362,7 +378,8 @@ fn fill_dynamic(
     out.clear();
     let mut claimed_sysids = [false; 256];
     let mut claimed_icao: smallvec::SmallVec<[u32; 8]> = smallvec::SmallVec::new();
-    for d in &scene.dynamic {
+    for (index, d) in scene.dynamic.iter().enumerate() {
+        let mut generation = 0;
         let poses = match &d.source {
             DynamicSource::Waypoints(w) => {
                 let at = |t: f64| waypoint_pose(w, t - flight_start_t_s);
@@ -378,6 +395,7 @@ fn fill_dynamic(
                         .values()
                         .find(|v| v.id.system_id == *id)
                         .and_then(|v| {
+                            generation = v.generation;
                             Some((
                                 body_speed(&v.history.predict(t_before, TRAFFIC_PREDICT_MAX_S)?),
                                 body_speed(&v.history.predict(t_now, TRAFFIC_PREDICT_MAX_S)?),
@@ -388,6 +406,7 @@ fn fill_dynamic(
             DynamicSource::Icao(icao) => {
                 claimed_icao.push(*icao);
                 world.traffic.get(icao).and_then(|tr| {
+                    generation = tr.generation;
                     Some((
                         body_speed(&tr.history.predict(t_before, TRAFFIC_PREDICT_MAX_S)?),
                         body_speed(&tr.history.predict(t_now, TRAFFIC_PREDICT_MAX_S)?),
@@ -397,6 +416,10 @@ fn fill_dynamic(
         };
         if let Some(((previous, _), (current, speed_mps))) = poses {
             out.push(DynamicBody {
+                key: BodyKey {
+                    source: BodySource::Scripted(index as u32),
+                    generation,
+                },
                 id: d.id.clone(),
                 kind: d.kind,
                 threat: d.threat,
@@ -419,6 +442,13 @@ fn fill_dynamic(
             continue;
         };
         out.push(DynamicBody {
+            key: BodyKey {
+                source: BodySource::Vehicle {
+                    system_id: v.id.system_id,
+                    component_id: v.id.component_id,
+                },
+                generation: v.generation,
+            },
             id: v.label.clone(),
             kind: Kind::Dji,
             threat: scene.threat_of(Kind::Dji),
@@ -440,6 +470,10 @@ fn fill_dynamic(
         };
         let kind = Kind::from_adsb_emitter(tr.emitter_type);
         out.push(DynamicBody {
+            key: BodyKey {
+                source: BodySource::Traffic(tr.icao_address),
+                generation: tr.generation,
+            },
             id: tr.label.clone(),
             kind,
             threat: scene.threat_of(kind),
@@ -449,6 +483,8 @@ fn fill_dynamic(
             speed_mps: now.velocity_enu_mps.length(),
         });
     }
+    // Sorted by key: the core finds a body by binary search.
+    out.sort_unstable_by_key(|d| d.key);
 }
 
 fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {

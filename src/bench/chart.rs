@@ -30,7 +30,7 @@ fn colour(mode: &str) -> RGBColor {
         "box" => RGBColor(31, 119, 180),
         "mesh" => RGBColor(255, 127, 14),
         "paper" => RGBColor(214, 39, 40),
-        "adaptive" => RGBColor(44, 160, 44),
+        "exact" => RGBColor(44, 160, 44),
         _ => RGBColor(148, 103, 189),
     }
 }
@@ -50,7 +50,7 @@ pub fn draw(report: &BenchReport, path: &Path) -> Result<()> {
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let root = root
         .titled(
-            "savsim bench: median per-tick cost against collisions missed (truth: oracle)",
+            "savsim bench: median per-tick cost against collisions missed (truth: reference)",
             ("sans-serif", 18),
         )
         .map_err(|e| fail(&e))?;

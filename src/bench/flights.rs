@@ -4,13 +4,13 @@
 //! families.
 //!
 //! A flight's description says what it was built to do ("passes 2.0 m from b17's east
-//! face"); the bench's truth is the `oracle` mode, never the description.
+//! face"); the bench's truth is the `reference` mode, never the description.
 
 use std::f64::consts::PI;
 
 use glam::{DQuat, DVec3};
 
-use crate::collision::pipeline::{BodyPose, DynamicBody};
+use crate::collision::pipeline::{BodyKey, BodyPose, BodySource, DynamicBody};
 use crate::geo::LocalTangentPlane;
 use crate::scene::geometry::GeometrySource;
 use crate::scene::{Aabb64, Kind, Scene};
@@ -42,9 +42,13 @@ impl Traffic {
         }
     }
 
-    /// The moving obstacle between two sample times.
-    pub fn body(&self, scene: &Scene, t_before_s: f64, t_now_s: f64) -> DynamicBody {
+    /// The moving obstacle between two sample times; `index` numbers it in its flight.
+    pub fn body(&self, scene: &Scene, index: u32, t_before_s: f64, t_now_s: f64) -> DynamicBody {
         DynamicBody {
+            key: BodyKey {
+                source: BodySource::Scripted(index),
+                generation: 0,
+            },
             id: self.id.clone(),
             kind: self.kind,
             threat: scene.threat_of(self.kind),
@@ -91,6 +95,17 @@ fn sampled(
     duration_s: f64,
     position: impl Fn(f64) -> DVec3,
 ) -> Vec<TrackSample> {
+    sampled_banked(plane, rate_hz, duration_s, position, |_| 0.0)
+}
+
+/// As [`sampled`], the nose also pitched along a climb and the body rolled by `roll_rad(t)`.
+fn sampled_banked(
+    plane: &LocalTangentPlane,
+    rate_hz: f64,
+    duration_s: f64,
+    position: impl Fn(f64) -> DVec3,
+    roll_rad: impl Fn(f64) -> f64,
+) -> Vec<TrackSample> {
     let n = (duration_s * rate_hz).round().max(1.0) as usize;
     let h = 0.25 / rate_hz;
     (0..=n)
@@ -113,7 +128,10 @@ fn sampled(
                 velocity_enu_mps: velocity,
                 attitude: Attitude {
                     time_boot_ms: (5_000.0 + t * 1000.0).round() as u32,
-                    enu_from_frd: level_frd(velocity),
+                    // Pitch up along a climb (about FRD y), then roll (about FRD x).
+                    enu_from_frd: level_frd(velocity)
+                        * DQuat::from_rotation_y(velocity.z.atan2(velocity.truncate().length()))
+                        * DQuat::from_rotation_x(roll_rad(t)),
                     body_rates_radps: DVec3::ZERO,
                 },
             }
@@ -472,6 +490,86 @@ pub fn flight_set(scene: &Scene) -> Vec<Flight> {
             vec![traffic],
         );
     }
+
+    // Turning, climbing and rolling near the obstacles: the sweeps turn (screw motion).
+    let turn_radius = 60.0;
+    let turn_speed = 15.0;
+    let orbit_s = 2.0 * PI * turn_radius / turn_speed;
+    let around = |r: f64, t: f64, omega: f64| {
+        DVec3::new(
+            centre.x + r * (omega * t).cos(),
+            centre.y + r * (omega * t).sin(),
+            0.0,
+        )
+    };
+    add(
+        "turn-orbit-40m".into(),
+        format!("a banked (25 deg) orbit of {turn_radius} m radius around the centre, 40 m up"),
+        10.0,
+        turn_speed,
+        sampled_banked(
+            &plane,
+            10.0,
+            orbit_s,
+            |t| {
+                let p = around(turn_radius, t, turn_speed / turn_radius);
+                p.with_z(ground(p.x, p.y) + 40.0)
+            },
+            |_| 25f64.to_radians(),
+        ),
+        vec![],
+    );
+    add(
+        "climb-spiral".into(),
+        "a climbing spiral of 40 m radius from 10 m to 130 m up, banked 30 deg".into(),
+        10.0,
+        12.0,
+        sampled_banked(
+            &plane,
+            10.0,
+            60.0,
+            |t| {
+                let p = around(40.0, t, 12.0 / 40.0);
+                p.with_z(ground(centre.x, centre.y) + 10.0 + 2.0 * t)
+            },
+            |_| 30f64.to_radians(),
+        ),
+        vec![],
+    );
+    add(
+        "roll-weave".into(),
+        "a weave across the crossing line (80 m amplitude) at 30 m up, rolling +-35 deg, 20 Hz"
+            .into(),
+        20.0,
+        15.0,
+        sampled_banked(
+            &plane,
+            20.0,
+            2.0 * half / 15.0,
+            |t| {
+                let x = centre.x - half + 15.0 * t;
+                let y = centre.y + 80.0 * (t * 0.3).sin();
+                DVec3::new(x, y, ground(x, y) + 30.0)
+            },
+            |t| 35f64.to_radians() * (t * 0.3).cos(),
+        ),
+        vec![],
+    );
+    // Vehicle against vehicle: a quad like this one, head-on at the same height.
+    let quad_v = DVec3::new(-10.0, 0.0, 0.0);
+    add(
+        "vehicle-quad-headon".into(),
+        "another quadcopter head-on at 10 m/s, same height: a vehicle-vehicle collision".into(),
+        10.0,
+        15.0,
+        own.clone(),
+        vec![Traffic {
+            id: "quad-headon".into(),
+            kind: Kind::Dji,
+            start_enu_m: meet - quad_v * meet_s,
+            velocity_enu_mps: quad_v,
+        }],
+    );
 
     // Terrain: following it, and flying level into it.
     if has_terrain {

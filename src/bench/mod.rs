@@ -1,13 +1,13 @@
 //! `savsim bench`: the speed/accuracy trade of the collision modes, measured side by side in one
-//! run, against the exact ground truth of the `oracle` mode (savsim's Table 4).
+//! run, against the independent ground truth of the `reference` mode (savsim's Table 4).
 //!
 //! For each scene, every flight of [`flights::flight_set`] is flown once per mode, the modes
 //! interleaved flight by flight so that a noisy machine slows them alike. Each mode has its own
 //! [`Pipeline`]; each flight its own vehicle number in it. Per-tick cost is the wall time of
 //! [`Pipeline::step`] alone (building the moving obstacles of a tick is outside it).
 //!
-//! Accuracy: a flight's collisions (obstacle, time of impact) are matched to the oracle's by
-//! obstacle, the k-th contact with an obstacle to the k-th; what the oracle has and the mode
+//! Accuracy: a flight's collisions (obstacle, time of impact) are matched to the reference's by
+//! obstacle, the k-th contact with an obstacle to the k-th; what the reference has and the mode
 //! does not is *missed*, the rest of the mode's are *false*. The time error is the difference
 //! in time of impact of matched contacts.
 
@@ -23,7 +23,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{CollisionConfig, DynamicBody, Mode, Pipeline};
+use crate::collision::pipeline::{CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey};
 use crate::error::Result;
 use crate::scene::Scene;
 use crate::session::percentiles_us;
@@ -72,7 +72,7 @@ pub struct BenchOptions {
     pub scenes: Vec<SceneChoice>,
     /// Only flights whose name contains one of these (all when empty).
     pub flights: Vec<String>,
-    /// Modes to report. `box` (the cost reference) and `oracle` (the truth) always run.
+    /// Modes to report. `box` (the cost reference) and `reference` (the truth) always run.
     pub modes: Vec<Mode>,
     /// Settings other than the mode.
     pub config: CollisionConfig,
@@ -95,6 +95,21 @@ pub struct ModeRow {
     pub cost_p99_us: f64,
     /// Median cost over `box`'s median in the same run.
     pub cost_vs_box: f64,
+    /// Median per-tick cost of the contact layer alone, microseconds.
+    #[serde(default)]
+    pub contact_median_us: f64,
+    /// 99th percentile per-tick cost of the contact layer alone, microseconds.
+    #[serde(default)]
+    pub contact_p99_us: f64,
+    /// Sensing frames run.
+    #[serde(default)]
+    pub sensing_frames: u64,
+    /// Median cost of one sensing frame (rays, beta, residency), microseconds.
+    #[serde(default)]
+    pub sensing_median_us: f64,
+    /// Meshes built because a contact needed one that was not resident.
+    #[serde(default)]
+    pub meshes_built_on_contact: usize,
     /// Mean active box colliders per tick.
     pub active_box_mean: f64,
     /// Mean active mesh colliders per tick.
@@ -111,13 +126,13 @@ pub struct ModeRow {
     pub mesh_build_s: f64,
     /// Collisions reported.
     pub collisions: usize,
-    /// The oracle's collisions this mode did not report.
+    /// The reference's collisions this mode did not report.
     pub missed: usize,
-    /// Collisions this mode reported that the oracle did not.
+    /// Collisions this mode reported that the reference did not.
     pub false_collisions: usize,
-    /// Mean |time of impact - oracle's| over matched collisions, seconds.
+    /// Mean |time of impact - reference's| over matched collisions, seconds.
     pub contact_time_error_mean_s: Option<f64>,
-    /// Largest |time of impact - oracle's| over matched collisions, seconds.
+    /// Largest |time of impact - reference's| over matched collisions, seconds.
     pub contact_time_error_max_s: Option<f64>,
     /// Flights with a missed or false collision.
     pub wrong_flights: Vec<String>,
@@ -130,13 +145,13 @@ pub struct FlightResult {
     pub mode: String,
     /// Collisions reported.
     pub collisions: usize,
-    /// Missed against the oracle.
+    /// Missed against the reference.
     pub missed: usize,
-    /// False against the oracle.
+    /// False against the reference.
     pub false_collisions: usize,
     /// Near misses reported.
     pub near_misses: usize,
-    /// |time of impact - oracle's| of the flight's first collision, seconds.
+    /// |time of impact - reference's| of the flight's first collision, seconds.
     pub first_contact_error_s: Option<f64>,
 }
 
@@ -217,28 +232,64 @@ pub struct BenchReport {
     pub wall_s: f64,
 }
 
-/// Fly `samples` (with `traffic`) through `pipeline` as vehicle `vehicle`; return each tick's
-/// cost in nanoseconds and the events, near misses closed at the end.
+/// What a flight cost, nanoseconds: each tick whole, its contact layer, and each sensing
+/// frame.
+#[derive(Debug, Clone, Default)]
+pub struct Costs {
+    /// Each tick, whole.
+    pub tick_ns: Vec<u64>,
+    /// Each tick's contact layer (and episodes).
+    pub contact_ns: Vec<u64>,
+    /// Each sensing frame.
+    pub sensing_ns: Vec<u64>,
+}
+
+impl Costs {
+    fn extend(&mut self, other: Costs) {
+        self.tick_ns.extend(other.tick_ns);
+        self.contact_ns.extend(other.contact_ns);
+        self.sensing_ns.extend(other.sensing_ns);
+    }
+}
+
+/// Fly `samples` (with `traffic`) through `pipeline` as vehicle `vehicle`; return the costs
+/// and the events, near misses closed at the end.
 pub fn run_samples(
     pipeline: &mut Pipeline,
     scene: &Scene,
     vehicle: u16,
     samples: &[TrackSample],
     traffic: &[Traffic],
-) -> (Vec<u64>, Vec<Event>) {
-    let mut costs = Vec::with_capacity(samples.len());
+) -> (Costs, Vec<Event>) {
+    let mut costs = Costs::default();
     let mut events = Vec::new();
     let mut dynamic: Vec<DynamicBody> = Vec::with_capacity(traffic.len());
     for (i, current) in samples.iter().enumerate() {
         let previous = i.checked_sub(1).map(|p| &samples[p]);
         let t_before = previous.map_or(current.t_s, |p| p.t_s);
         dynamic.clear();
-        dynamic.extend(traffic.iter().map(|a| a.body(scene, t_before, current.t_s)));
+        dynamic.extend(
+            traffic
+                .iter()
+                .enumerate()
+                .map(|(k, a)| a.body(scene, k as u32, t_before, current.t_s)),
+        );
         let started = Instant::now();
-        pipeline.step(scene, vehicle, previous, current, &dynamic, &mut events);
-        costs.push(started.elapsed().as_nanos() as u64);
+        let report = pipeline.step(
+            scene,
+            VehicleKey::new(vehicle),
+            previous,
+            current,
+            &dynamic,
+            &mut events,
+        );
+        costs.tick_ns.push(started.elapsed().as_nanos() as u64);
+        costs.contact_ns.push(report.contact_ns);
+        if report.sensed {
+            costs.sensing_ns.push(report.sensing_ns);
+        }
     }
-    pipeline.finish(&mut events, scene, &dynamic);
+    pipeline.finish(&mut events);
     (costs, events)
 }
 
@@ -317,12 +368,12 @@ pub fn peak_rss_bytes() -> Option<u64> {
 /// Run the bench; `progress` hears what is being done.
 pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport> {
     let started = Instant::now();
-    // box is the cost reference and oracle the truth: both always run.
+    // box is the cost reference and `reference` the truth: both always run.
     let mut modes: Vec<Mode> = Vec::new();
     for m in [Mode::Box]
         .into_iter()
         .chain(options.modes.iter().copied())
-        .chain([Mode::Oracle])
+        .chain([Mode::Reference])
     {
         if !modes.contains(&m) {
             modes.push(m);
@@ -361,7 +412,7 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
         progress("scale: scenes of 10^2 .. 10^6 obstacles");
         scale::sizes(
             &options.scale_sizes,
-            &[Mode::Box, Mode::Adaptive],
+            &[Mode::Box, Mode::Exact],
             options.config,
         )
     };
@@ -372,7 +423,7 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
                 scene,
                 &options.fleet_sizes,
                 CollisionConfig {
-                    mode: Mode::Adaptive,
+                    mode: Mode::Exact,
                     ..options.config
                 },
             )
@@ -414,13 +465,13 @@ fn bench_scene(
             (p, t.elapsed().as_secs_f64())
         })
         .collect();
-    let mut costs: Vec<Vec<u64>> = vec![Vec::new(); modes.len()];
+    let mut costs: Vec<Costs> = vec![Costs::default(); modes.len()];
     let mut per_mode_errors: Vec<Vec<f64>> = vec![Vec::new(); modes.len()];
     let mut flight_rows = Vec::new();
-    let oracle = modes
+    let truth_index = modes
         .iter()
-        .position(|&m| m == Mode::Oracle)
-        .expect("oracle runs");
+        .position(|&m| m == Mode::Reference)
+        .expect("the reference runs");
     for (k, flight) in flights.iter().enumerate() {
         progress(&format!(
             "{}: {} ({} ticks)",
@@ -439,7 +490,7 @@ fn bench_scene(
                 e
             })
             .collect();
-        let truth = collisions(&events[oracle]);
+        let truth = collisions(&events[truth_index]);
         let results = modes
             .iter()
             .enumerate()
@@ -469,7 +520,7 @@ fn bench_scene(
             modes: results,
         });
     }
-    let box_median = percentiles_us(&costs[0]).0;
+    let box_median = percentiles_us(&costs[0].tick_ns).0;
     let mode_rows = modes
         .iter()
         .enumerate()
@@ -477,7 +528,9 @@ fn bench_scene(
             let (pipeline, startup_s) = &pipelines[m];
             let totals = &pipeline.totals;
             let ticks = totals.ticks.max(1) as f64;
-            let (median, p99) = percentiles_us(&costs[m]);
+            let (median, p99) = percentiles_us(&costs[m].tick_ns);
+            let (contact_median, contact_p99) = percentiles_us(&costs[m].contact_ns);
+            let (sensing_median, _) = percentiles_us(&costs[m].sensing_ns);
             let errors = &per_mode_errors[m];
             let sum = |f: fn(&FlightResult) -> usize| {
                 flight_rows.iter().map(|r| f(&r.modes[m])).sum::<usize>()
@@ -488,6 +541,11 @@ fn bench_scene(
                 cost_median_us: median,
                 cost_p99_us: p99,
                 cost_vs_box: median / box_median.max(1e-9),
+                contact_median_us: contact_median,
+                contact_p99_us: contact_p99,
+                sensing_frames: totals.sensing_frames,
+                sensing_median_us: sensing_median,
+                meshes_built_on_contact: pipeline.meshes.built_on_contact,
                 active_box_mean: totals.active_box_sum as f64 / ticks,
                 active_mesh_mean: totals.active_mesh_sum as f64 / ticks,
                 triangles_mean: totals.active_triangles_sum as f64 / ticks,
@@ -527,40 +585,44 @@ fn goals(report: &BenchReport) -> Vec<Goal> {
     let mut goals = Vec::new();
     for s in &report.scenes {
         let row = |m: &str| s.modes.iter().find(|r| r.mode == m);
-        if let Some(a) = row("adaptive") {
-            goals.push(Goal {
-                goal: format!("{}: adaptive 0 missed, 0 false", s.scene),
-                measured: format!("{} missed, {} false", a.missed, a.false_collisions),
-                met: a.missed == 0 && a.false_collisions == 0,
-            });
-            goals.push(Goal {
-                goal: format!("{}: adaptive <= 1.5x box per tick", s.scene),
-                measured: format!("{:.2}x", a.cost_vs_box),
-                met: a.cost_vs_box <= 1.5,
-            });
-            if let Some(m) = row("mesh") {
-                let ratio = m.cost_median_us / a.cost_median_us.max(1e-9);
-                goals.push(Goal {
-                    goal: format!("{}: adaptive >= 5x cheaper than mesh per tick", s.scene),
-                    measured: format!(
-                        "{ratio:.2}x per tick; memory {:.1}x, start-up {:.0}x less",
-                        m.memory_bytes as f64 / a.memory_bytes.max(1) as f64,
-                        m.startup_s / a.startup_s.max(1e-9)
-                    ),
-                    met: ratio >= 5.0,
-                });
-            }
-        }
-    }
-    let adaptive_scale: Vec<_> = report
-        .scale
-        .iter()
-        .filter(|r| r.mode == "adaptive")
-        .collect();
-    if let (Some(first), Some(last)) = (adaptive_scale.first(), adaptive_scale.last()) {
+        let (Some(e), Some(b)) = (row("exact"), row("box")) else {
+            continue;
+        };
+        let error_ms = e.contact_time_error_max_s.unwrap_or(0.0) * 1e3;
         goals.push(Goal {
             goal: format!(
-                "adaptive: {} -> {} obstacles costs <= 3x per tick",
+                "{}: exact 0 missed, 0 false, contact time error <= 1 ms",
+                s.scene
+            ),
+            measured: format!(
+                "{} missed, {} false, {error_ms:.3} ms",
+                e.missed, e.false_collisions
+            ),
+            met: e.missed == 0 && e.false_collisions == 0 && error_ms <= 1.0,
+        });
+        let median = e.contact_median_us / b.contact_median_us.max(1e-9);
+        let p99 = e.contact_p99_us / b.contact_p99_us.max(1e-9);
+        goals.push(Goal {
+            goal: format!(
+                "{}: exact contact layer median <= 1.5x box, p99 <= 5x box",
+                s.scene
+            ),
+            measured: format!("{median:.2}x median, {p99:.2}x p99"),
+            met: median <= 1.5 && p99 <= 5.0,
+        });
+        if s.scene == "city" {
+            goals.push(Goal {
+                goal: "city: sensing frame (six rays, beta, residency) <= 3 us median".into(),
+                measured: format!("{:.2} us", e.sensing_median_us),
+                met: e.sensing_median_us <= 3.0,
+            });
+        }
+    }
+    let exact_scale: Vec<_> = report.scale.iter().filter(|r| r.mode == "exact").collect();
+    if let (Some(first), Some(last)) = (exact_scale.first(), exact_scale.last()) {
+        goals.push(Goal {
+            goal: format!(
+                "exact: {} -> {} obstacles costs <= 3x per tick",
                 first.obstacles, last.obstacles
             ),
             measured: format!("{:.2}x", last.cost_vs_smallest),
@@ -581,7 +643,7 @@ fn goals(report: &BenchReport) -> Vec<Goal> {
 }
 
 fn opt_ms(v: Option<f64>) -> String {
-    v.map_or("-".into(), |s| format!("{:.0}", s * 1e3))
+    v.map_or("-".into(), |s| format!("{:.3}", s * 1e3))
 }
 
 /// The report as markdown tables.
@@ -636,7 +698,34 @@ pub fn markdown(report: &BenchReport) -> String {
         }
         let _ = writeln!(
             out,
-            "\nPer flight: the oracle's collisions, and per mode `ok` or `-missed +false` \
+            "\nThe layers apart: the contact layer per tick, the sensing layer per frame.\n\n\
+             | mode | contact median µs | contact p99 µs | contact × box (median / p99) | sensing frames | sensing µs per frame (median) | meshes built on contact |\n\
+             |---|--:|--:|--:|--:|--:|--:|"
+        );
+        let box_row = s.modes.iter().find(|r| r.mode == "box");
+        for r in &s.modes {
+            let vs = box_row.map_or("-".into(), |b| {
+                format!(
+                    "{:.2} / {:.2}",
+                    r.contact_median_us / b.contact_median_us.max(1e-9),
+                    r.contact_p99_us / b.contact_p99_us.max(1e-9)
+                )
+            });
+            let _ = writeln!(
+                out,
+                "| {} | {:.2} | {:.2} | {} | {} | {:.2} | {} |",
+                r.mode,
+                r.contact_median_us,
+                r.contact_p99_us,
+                vs,
+                r.sensing_frames,
+                r.sensing_median_us,
+                r.meshes_built_on_contact
+            );
+        }
+        let _ = writeln!(
+            out,
+            "\nPer flight: the reference's collisions, and per mode `ok` or `-missed +false` \
              (near misses in brackets).\n"
         );
         let names: Vec<&str> = s.modes.iter().map(|r| r.mode.as_str()).collect();
@@ -651,7 +740,7 @@ pub fn markdown(report: &BenchReport) -> String {
                 .modes
                 .iter()
                 .map(|r| {
-                    let head = if r.mode == "oracle" {
+                    let head = if r.mode == "reference" {
                         r.collisions.to_string()
                     } else if r.missed + r.false_collisions == 0 {
                         "ok".into()
@@ -703,7 +792,7 @@ pub fn markdown(report: &BenchReport) -> String {
     if !report.fleets.is_empty() {
         let _ = writeln!(
             out,
-            "### Fleets: vehicles at 50 Hz in the first scene, adaptive, one core\n\n\
+            "### Fleets: vehicles at 50 Hz in the first scene, exact, one core\n\n\
              | vehicles | ticks | ticks/s | × real time | median µs | p99 µs |\n|--:|--:|--:|--:|--:|--:|"
         );
         for f in &report.fleets {

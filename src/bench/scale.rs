@@ -143,7 +143,7 @@ pub fn sizes(sizes: &[usize], modes: &[Mode], config: CollisionConfig) -> Vec<Si
             let mut pipeline = Pipeline::new(&scene, CollisionConfig { mode, ..config });
             let startup_s = started.elapsed().as_secs_f64();
             let (costs, events) = super::run_samples(&mut pipeline, &scene, 1, &samples, &[]);
-            let (median, p99) = percentiles_us(&costs);
+            let (median, p99) = percentiles_us(&costs.tick_ns);
             let smallest = rows
                 .iter()
                 .find(|r| r.mode == mode.name())
@@ -181,7 +181,14 @@ pub fn fleets(scene: &Scene, fleet_sizes: &[usize], config: CollisionConfig) -> 
                 for (k, f) in flights.iter().enumerate() {
                     let previous = i.checked_sub(1).map(|p| &f[p]);
                     let started = Instant::now();
-                    pipeline.step(scene, k as u16, previous, &f[i], &[], &mut events);
+                    pipeline.step(
+                        scene,
+                        crate::collision::pipeline::VehicleKey::new(k as u16),
+                        previous,
+                        &f[i],
+                        &[],
+                        &mut events,
+                    );
                     let ns = started.elapsed().as_nanos() as u64;
                     busy_ns += ns;
                     costs.push(ns);

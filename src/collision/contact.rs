@@ -5,9 +5,111 @@
 //! tested with millimetre precision, not the 6 cm that f32 has at 10^6 m.
 
 use glam::{DQuat, DVec3, Vec3};
+use parry3d::bounding_volume::BoundingVolume;
 use parry3d::math::Pose;
-use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastOptions};
+use parry3d::math::{Real, Vector};
+use parry3d::query::details::{
+    distance_composite_shape_shape, distance_shape_composite_shape,
+    distance_support_map_support_map,
+};
+use parry3d::query::{
+    self, ClosestPoints, Contact, DefaultQueryDispatcher, NonlinearRigidMotion, QueryDispatcher,
+    Ray, ShapeCastHit, ShapeCastOptions, ShapeDistance, ShapeIntersection, Unsupported,
+};
 use parry3d::shape::Shape;
+
+/// parry's default dispatcher, except for the distance of two cuboids, which goes through GJK:
+/// parry 0.31's cuboid-cuboid routine can return a separation for boxes that touch (an edge
+/// of a turned box against a face), and compounds of blocks reach it for every pair of parts.
+struct Dispatcher;
+
+impl QueryDispatcher for Dispatcher {
+    fn intersection_test(
+        &self,
+        pos12: &Pose,
+        g1: &dyn Shape,
+        g2: &dyn Shape,
+    ) -> Result<ShapeIntersection, Unsupported> {
+        DefaultQueryDispatcher.intersection_test(pos12, g1, g2)
+    }
+
+    fn distance(
+        &self,
+        pos12: &Pose,
+        g1: &dyn Shape,
+        g2: &dyn Shape,
+    ) -> Result<ShapeDistance, Unsupported> {
+        if let (Some(c1), Some(c2)) = (g1.as_cuboid(), g2.as_cuboid()) {
+            return Ok(distance_support_map_support_map(pos12, c1, c2).into());
+        }
+        if let Some(c1) = g1.as_composite_shape() {
+            return Ok(distance_composite_shape_shape(self, pos12, c1, g2));
+        }
+        if let Some(c2) = g2.as_composite_shape() {
+            return Ok(distance_shape_composite_shape(self, pos12, g1, c2));
+        }
+        DefaultQueryDispatcher.distance(pos12, g1, g2)
+    }
+
+    fn contact(
+        &self,
+        pos12: &Pose,
+        g1: &dyn Shape,
+        g2: &dyn Shape,
+        prediction: Real,
+    ) -> Result<Option<Contact>, Unsupported> {
+        DefaultQueryDispatcher.contact(pos12, g1, g2, prediction)
+    }
+
+    fn closest_points(
+        &self,
+        pos12: &Pose,
+        g1: &dyn Shape,
+        g2: &dyn Shape,
+        max_dist: Real,
+    ) -> Result<ClosestPoints, Unsupported> {
+        DefaultQueryDispatcher.closest_points(pos12, g1, g2, max_dist)
+    }
+
+    fn cast_shapes(
+        &self,
+        pos12: &Pose,
+        local_vel12: Vector,
+        g1: &dyn Shape,
+        g2: &dyn Shape,
+        options: ShapeCastOptions,
+    ) -> Result<Option<ShapeCastHit>, Unsupported> {
+        DefaultQueryDispatcher.cast_shapes(pos12, local_vel12, g1, g2, options)
+    }
+
+    fn cast_shapes_nonlinear(
+        &self,
+        motion1: &NonlinearRigidMotion,
+        g1: &dyn Shape,
+        motion2: &NonlinearRigidMotion,
+        g2: &dyn Shape,
+        start_time: Real,
+        end_time: Real,
+        stop_at_penetration: bool,
+    ) -> Result<Option<ShapeCastHit>, Unsupported> {
+        DefaultQueryDispatcher.cast_shapes_nonlinear(
+            motion1,
+            g1,
+            motion2,
+            g2,
+            start_time,
+            end_time,
+            stop_at_penetration,
+        )
+    }
+}
+
+/// The distance of two posed shapes, metres (0 when they overlap).
+fn shape_distance(pos1: &Pose, g1: &dyn Shape, pos2: &Pose, g2: &dyn Shape) -> f32 {
+    Dispatcher
+        .distance(&pos1.inv_mul(pos2), g1, g2)
+        .map_or(f32::MAX, |d| d.distance)
+}
 
 /// A shape placed in the scene.
 #[derive(Clone, Copy)]
@@ -60,30 +162,36 @@ pub struct SweepHit {
     pub normal_enu: DVec3,
 }
 
-/// True when the two placed shapes overlap or touch.
+/// True when the two placed shapes overlap or touch (within [`CONTACT_TOLERANCE_M`]).
 pub fn intersects(a: &Placed<'_>, b: &Placed<'_>) -> bool {
     let anchor = a.position_enu_m;
-    query::intersection_test(
-        &a.pose_about(anchor),
-        a.shape,
-        &b.pose_about(anchor),
-        b.shape,
-    )
-    .map(|i| i.intersecting)
-    .unwrap_or(false)
+    let (pa, pb) = (a.pose_about(anchor), b.pose_about(anchor));
+    if query::intersection_test(&pa, a.shape, &pb, b.shape).is_ok_and(|i| i.intersecting) {
+        return true;
+    }
+    let tolerance = tolerance_m(a.shape, b.shape);
+    // Only shapes whose bounds come that close can touch within the tolerance.
+    a.shape
+        .compute_aabb(&pa)
+        .loosened(tolerance)
+        .intersects(&b.shape.compute_aabb(&pb))
+        && shape_distance(&pa, a.shape, &pb, b.shape) <= tolerance
 }
 
 /// Distance between the two placed shapes, metres (0 when they touch).
 pub fn distance_m(a: &Placed<'_>, b: &Placed<'_>) -> f64 {
     let anchor = a.position_enu_m;
-    query::distance(
+    let d = shape_distance(
         &a.pose_about(anchor),
         a.shape,
         &b.pose_about(anchor),
         b.shape,
-    )
-    .map(|d| f64::from(d.distance))
-    .unwrap_or(f64::INFINITY)
+    );
+    if d == f32::MAX {
+        f64::INFINITY
+    } else {
+        f64::from(d)
+    }
 }
 
 /// A contact point and normal of two overlapping shapes (normal out of `b`).
@@ -120,10 +228,28 @@ fn rotation_between(from: &Placed<'_>, to: &Placed<'_>) -> DQuat {
     }
 }
 
+/// Two shapes this close count as touching, metres (plus the f32 resolution of the larger
+/// shape's coordinates): the same rule at every query, so that "resting exactly on a roof"
+/// is contact and a millimetre above is not.
+pub const CONTACT_TOLERANCE_M: f64 = 1e-4;
+
+/// Casts restarted after a hit that an exact distance query does not confirm (parry's
+/// conservative advancement can stop short of a contact on a near-grazing pass, and lose
+/// precision on very large triangles).
+const MAX_RECASTS: usize = 16;
+
+/// The contact tolerance for two shapes: [`CONTACT_TOLERANCE_M`], grown with the shapes' size
+/// where f32 loses it (a 10 km mesh has vertices 5 km from the anchor).
+fn tolerance_m(a: &dyn Shape, b: &dyn Shape) -> f32 {
+    let size = |s: &dyn Shape| s.compute_local_aabb().half_extents().length();
+    CONTACT_TOLERANCE_M as f32 + 1e-6 * size(a).max(size(b))
+}
+
 /// First contact of body `a` moving from `a0` to `a1` with body `b` moving from `b0` to `b1`
 /// over one interval (screw motion: linear translation, constant rotation rate; a pure
 /// translation when neither body turns). Bodies that already touch at the start give a hit at
-/// fraction 0.
+/// fraction 0. Every hit is confirmed by an exact distance query at its poses; an unconfirmed
+/// one restarts the cast past it, by no more than the bodies could close in the meantime.
 pub fn sweep(
     a0: &Placed<'_>,
     a1: &Placed<'_>,
@@ -131,41 +257,83 @@ pub fn sweep(
     b1: &Placed<'_>,
 ) -> Option<SweepHit> {
     let anchor = a0.position_enu_m;
+    // Already touching at the start: an exact test (a cast from inside can lose the contact on
+    // very large triangles).
+    if intersects(a0, b0) {
+        let (point_enu_m, normal_enu) = contact_point(a0, b0).unwrap_or((anchor, DVec3::Z));
+        return Some(SweepHit {
+            fraction: 0.0,
+            point_enu_m,
+            normal_enu,
+        });
+    }
     let turning = |from: &Placed<'_>, to: &Placed<'_>| {
         rotation_between(from, to).to_scaled_axis().length() > LINEAR_SWEEP_MAX_ROTATION_RAD
     };
-    if !turning(a0, a1) && !turning(b0, b1) {
-        let (pa, pb) = (a0.pose_about(anchor), b0.pose_about(anchor));
-        let va = (a1.position_enu_m - a0.position_enu_m).as_vec3();
-        let vb = (b1.position_enu_m - b0.position_enu_m).as_vec3();
-        let options = ShapeCastOptions {
-            max_time_of_impact: 1.0,
-            stop_at_penetration: true,
-            ..ShapeCastOptions::default()
-        };
-        let hit = query::cast_shapes(&pa, va, a0.shape, &pb, vb, b0.shape, options).ok()??;
-        let toi = hit.time_of_impact;
-        let pose_b = Pose::from_parts(pb.translation + vb * toi, pb.rotation);
-        return Some(SweepHit {
-            fraction: f64::from(toi).clamp(0.0, 1.0),
-            point_enu_m: anchor + (pose_b * hit.witness2).as_dvec3(),
-            normal_enu: (pose_b.rotation * hit.normal2)
-                .as_dvec3()
-                .normalize_or_zero(),
-        });
-    }
     let ma = motion(anchor, a0, a1);
     let mb = motion(anchor, b0, b1);
-    let hit = query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, 0.0, 1.0, true).ok()??;
-    let fraction = f64::from(hit.time_of_impact).clamp(0.0, 1.0);
-    let pose_b = mb.position_at_time(hit.time_of_impact);
-    Some(SweepHit {
-        fraction,
-        point_enu_m: anchor + (pose_b * hit.witness2).as_dvec3(),
-        normal_enu: (pose_b.rotation * hit.normal2)
-            .as_dvec3()
-            .normalize_or_zero(),
-    })
+    let linear = !turning(a0, a1) && !turning(b0, b1);
+    let tolerance = tolerance_m(a0.shape, b0.shape);
+    // How fast the gap can close, metres per interval: relative travel plus the turn of the
+    // farthest point of each shape.
+    let reach = |s: &dyn Shape| {
+        s.compute_local_aabb()
+            .maxs
+            .abs()
+            .max(s.compute_local_aabb().mins.abs())
+            .length()
+    };
+    let closing = (mb.linvel - ma.linvel).length()
+        + ma.angvel.length() * (reach(a0.shape) + a0.pivot_local_m.length())
+        + mb.angvel.length() * (reach(b0.shape) + b0.pivot_local_m.length());
+    let mut start = 0.0f32;
+    for _ in 0..MAX_RECASTS {
+        let hit = if linear {
+            let pa = ma.position_at_time(start);
+            let pb = mb.position_at_time(start);
+            let options = ShapeCastOptions {
+                max_time_of_impact: 1.0 - start,
+                stop_at_penetration: true,
+                ..ShapeCastOptions::default()
+            };
+            query::cast_shapes(&pa, ma.linvel, a0.shape, &pb, mb.linvel, b0.shape, options)
+                .ok()??
+                .transform_toi(start)
+        } else {
+            query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, start, 1.0, true).ok()??
+        };
+        let toi = hit.time_of_impact.clamp(0.0, 1.0);
+        let (pose_a, pose_b) = (ma.position_at_time(toi), mb.position_at_time(toi));
+        let gap = shape_distance(&pose_a, a0.shape, &pose_b, b0.shape);
+        if gap <= tolerance {
+            return Some(SweepHit {
+                fraction: f64::from(toi),
+                point_enu_m: anchor + (pose_b * hit.witness2).as_dvec3(),
+                normal_enu: (pose_b.rotation * hit.normal2)
+                    .as_dvec3()
+                    .normalize_or_zero(),
+            });
+        }
+        // Not touching there: no contact can come sooner than the gap closes.
+        let advance = if closing > 0.0 { gap / closing } else { 1.0 };
+        start = toi + advance.max(1e-5);
+        if start >= 1.0 {
+            return None;
+        }
+    }
+    None
+}
+
+/// A time of impact found from `start` on, as a fraction of the whole interval.
+trait FromStart {
+    fn transform_toi(self, start: f32) -> Self;
+}
+
+impl FromStart for parry3d::query::ShapeCastHit {
+    fn transform_toi(mut self, start: f32) -> Self {
+        self.time_of_impact += start;
+        self
+    }
 }
 
 /// Distance along a ray from `origin_enu_m` in direction `dir_enu` (normalised here; a zero or

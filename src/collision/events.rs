@@ -14,6 +14,8 @@ pub struct Event {
     pub time_boot_ms: u32,
     /// The vehicle's MAVLink system id (in `savsim bench`, the fleet's vehicle number).
     pub vehicle: u16,
+    /// The vehicle's MAVLink component id (1 in `savsim bench`).
+    pub compid: u8,
     /// What happened.
     #[serde(flatten)]
     pub kind: EventKind,
@@ -50,7 +52,8 @@ pub enum EventKind {
         beta: f64,
         /// Distance from the vehicle to the obstacle's box, metres.
         distance_m: f64,
-        /// Why: `node`, `look_ahead`, `threat`, `far`, `contact_check`, `proximity`, `left`.
+        /// Why: `node` (paper: the vehicle's node gave it a box), `left` (paper: it left the
+        /// node), `threat` (a ray saw beta above the threshold), `far` (beyond the far distance).
         reason: &'static str,
     },
     /// The vehicle came within the near-miss distance of an obstacle without touching it.

@@ -1,5 +1,6 @@
 //! The mesh cache: a triangle-mesh collider is built the first time any obstacle using that
-//! geometry needs one, then shared. What was built is what the flight touched.
+//! geometry needs one, then shared; beyond a memory budget the least recently used mesh that
+//! no current tick needs is evicted (and rebuilt if it is needed again, which is counted).
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -11,13 +12,23 @@ use crate::scene::geometry::Geometry;
 /// Built meshes by geometry index.
 #[derive(Debug, Default)]
 pub struct MeshCache {
-    meshes: Vec<Option<Arc<TriMesh>>>,
-    /// Meshes built so far.
+    meshes: Vec<Option<(Arc<TriMesh>, usize)>>,
+    /// The tick at which each built mesh was last used (same index as `meshes`).
+    last_used: Vec<u64>,
+    tick: u64,
+    /// Meshes built so far (rebuilds after an eviction included).
     pub built: usize,
-    /// Triangles in the built meshes.
+    /// Meshes built because a contact needed one that the sensing layer had not made
+    /// resident: correctness first, counted.
+    pub built_on_contact: usize,
+    /// Meshes evicted to stay within the budget.
+    pub evicted: usize,
+    /// Triangles in the built meshes (over the run).
     pub triangles: usize,
-    /// Estimated heap bytes of the built meshes (vertices, indices and BVH).
+    /// Estimated heap bytes of the meshes held now.
     pub bytes: usize,
+    /// Most bytes held at once.
+    pub peak_bytes: usize,
     /// Time spent building.
     pub build_time: Duration,
 }
@@ -33,16 +44,31 @@ impl MeshCache {
     pub fn new(geometries: usize) -> Self {
         Self {
             meshes: vec![None; geometries],
+            last_used: vec![0; geometries],
             ..Self::default()
         }
     }
 
-    /// The mesh of geometry `index`, built now if it never was.
+    /// Start a new tick: meshes used from now on are this tick's.
+    pub fn next_tick(&mut self) {
+        self.tick += 1;
+    }
+
+    /// Mark geometry `index`'s mesh as used in this tick (if it is held).
+    pub fn touch(&mut self, index: usize) {
+        if let Some(t) = self.last_used.get_mut(index) {
+            *t = self.tick;
+        }
+    }
+
+    /// The mesh of geometry `index`, built now if it is not held.
     pub fn get(&mut self, index: usize, geometry: &Geometry) -> Arc<TriMesh> {
         if index >= self.meshes.len() {
             self.meshes.resize(index + 1, None);
+            self.last_used.resize(index + 1, 0);
         }
-        if let Some(mesh) = &self.meshes[index] {
+        self.last_used[index] = self.tick;
+        if let Some((mesh, _)) = &self.meshes[index] {
             return mesh.clone();
         }
         let started = Instant::now();
@@ -50,13 +76,40 @@ impl MeshCache {
         self.build_time += started.elapsed();
         self.built += 1;
         self.triangles += mesh.num_triangles();
-        self.bytes += trimesh_bytes(mesh.vertices().len(), mesh.num_triangles());
-        self.meshes[index] = Some(mesh.clone());
+        let bytes = trimesh_bytes(mesh.vertices().len(), mesh.num_triangles());
+        self.bytes += bytes;
+        self.peak_bytes = self.peak_bytes.max(self.bytes);
+        self.meshes[index] = Some((mesh.clone(), bytes));
         mesh
     }
 
-    /// The mesh of geometry `index` if it was built.
+    /// The mesh of geometry `index` if it is held.
     pub fn built(&self, index: usize) -> Option<&Arc<TriMesh>> {
-        self.meshes.get(index).and_then(Option::as_ref)
+        self.meshes
+            .get(index)
+            .and_then(Option::as_ref)
+            .map(|(m, _)| m)
+    }
+
+    /// Evict least recently used meshes not used in the current tick until at most
+    /// `budget_bytes` are held. Returns how many went.
+    pub fn evict_to(&mut self, budget_bytes: usize) -> usize {
+        let mut gone = 0;
+        while self.bytes > budget_bytes {
+            let oldest = self
+                .meshes
+                .iter()
+                .enumerate()
+                .filter(|(i, m)| m.is_some() && self.last_used[*i] < self.tick)
+                .min_by_key(|(i, _)| self.last_used[*i])
+                .map(|(i, _)| i);
+            let Some(i) = oldest else { break };
+            if let Some((_, bytes)) = self.meshes[i].take() {
+                self.bytes -= bytes;
+                self.evicted += 1;
+                gone += 1;
+            }
+        }
+        gone
     }
 }

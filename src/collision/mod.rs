@@ -2,21 +2,40 @@
 //! and swept time of impact, per tick and per vehicle (Li et al. 2019, with savsim's changes in
 //! ../shared/ALGORITHM.md and docs/threat-model.md).
 //!
-//! Pure and synchronous: [`pipeline::Pipeline::step`] takes the scene and one vehicle's samples
-//! and pushes [`events::Event`]s. No tokio, no rerun, no files here.
+//! Two layers: the **contact layer** decides what was hit (exact shapes, swept between samples:
+//! the truth savsim reports), the **sensing layer** models what the vehicle perceives (the
+//! paper's node, rays, beta and box/mesh state) at a sensor rate. A mode swaps a stage, never
+//! adds a branch to every stage.
 //!
+//! Pure and synchronous: [`pipeline::Pipeline::step`] takes the scene and one vehicle's samples
+//! and pushes [`events::Event`]s. No tokio, no rerun, no files, no clap or mavlink types here.
+//!
+//! - [`config`]: the modes and every threshold.
+//! - [`bodies`]: identities (generational keys), poses, placed colliders.
 //! - [`octree`]: the static scene's octree.
-//! - [`threat`]: AHP weights and beta.
+//! - [`shapes`]: the contact layer's exact shapes (cuboids, compounds, meshes).
 //! - [`contact`]: exact f64-anchored queries (intersection, distance, sweep, ray).
-//! - [`meshes`]: the lazily built, cached triangle meshes.
-//! - [`pipeline`]: modes, per-vehicle collider state, the per-tick steps.
+//! - [`meshes`]: the triangle meshes, built on demand, resident within a budget.
+//! - [`contacts`]: the contact layer, one strategy per mode.
+//! - [`sensing`]: the sensing layer (the paper's algorithm).
+//! - [`threat`]: AHP weights and beta.
+//! - [`episodes`]: contacts and near misses into events.
+//! - [`reference`]: the independent ground truth (dense sub-stepping).
+//! - [`pipeline`]: the per-tick orchestrator.
 //! - [`events`]: what is reported.
 
+pub mod bodies;
+pub mod config;
 pub mod contact;
+pub mod contacts;
+pub mod episodes;
 pub mod events;
 pub mod meshes;
 pub mod octree;
 pub mod pipeline;
+pub mod reference;
+pub mod sensing;
+pub mod shapes;
 pub mod threat;
 
 /// Which collider an obstacle currently has.

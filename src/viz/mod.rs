@@ -28,7 +28,7 @@ use rerun::{
 };
 
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{BodyPose, ObstacleRef, TickReport, RAY_AXES_FRD};
+use crate::collision::pipeline::{BodyKey, BodyPose, ObstacleRef, TickReport, RAY_AXES_FRD};
 use crate::collision::ColliderKind;
 use crate::error::{Error, Result};
 use crate::scene::{Aabb64, Kind, Scene};
@@ -101,8 +101,8 @@ pub struct TickFrame {
     pub node: Option<Aabb64>,
     /// Obstacles with a collider: which, and beta.
     pub colliders: Vec<(ObstacleRef, ColliderKind, f64)>,
-    /// Moving obstacles this tick: id, kind, model, pose.
-    pub dynamic: Vec<(String, Kind, usize, BodyPose)>,
+    /// Moving obstacles this tick: key, id, kind, model, pose.
+    pub dynamic: Vec<(BodyKey, String, Kind, usize, BodyPose)>,
     /// Collisions and near misses reported at this tick.
     pub events: Vec<Event>,
     /// The pipeline's counts for the tick.
@@ -446,7 +446,11 @@ fn log_scene(
 fn obstacle_id(scene: &Scene, frame: &TickFrame, o: ObstacleRef) -> Option<String> {
     match o {
         ObstacleRef::Static(i) => scene.obstacles.get(i as usize).map(|s| s.id.clone()),
-        ObstacleRef::Dynamic(i) => frame.dynamic.get(i as usize).map(|d| d.0.clone()),
+        ObstacleRef::Dynamic(key) => frame
+            .dynamic
+            .iter()
+            .find(|d| d.0 == key)
+            .map(|d| d.1.clone()),
     }
 }
 
@@ -586,9 +590,11 @@ fn log_tick(
                     &*scene.obstacles[i as usize].geometry,
                     pose_of_static(scene, i),
                 ),
-                ObstacleRef::Dynamic(i) => {
-                    let d = &f.dynamic[i as usize];
-                    (&*scene.geometries[d.2], d.3)
+                ObstacleRef::Dynamic(key) => {
+                    let Some(d) = f.dynamic.iter().find(|d| d.0 == key) else {
+                        continue;
+                    };
+                    (&*scene.geometries[d.3], d.4)
                 }
             };
             let path = paths::collider(id, &name);
@@ -621,7 +627,7 @@ fn log_tick(
 
     // Traffic.
     let mut seen = BTreeMap::new();
-    for (name, kind, model, pose) in &f.dynamic {
+    for (_, name, kind, model, pose) in &f.dynamic {
         let b = box_of_geometry(&scene.geometries[*model], pose);
         rec.log(
             paths::traffic(name),

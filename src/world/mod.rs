@@ -25,6 +25,11 @@ pub struct WorldConfig {
     /// A `time_boot_ms` that goes back by more than this (ms) means the vehicle rebooted.
     /// Default 5000.
     pub boot_reset_threshold_ms: u32,
+    /// A vehicle's samples are timed by its own clock (`time_boot_ms`) mapped onto the receive
+    /// clock; when the mapped time drifts further than this from arrival (seconds: a SITL
+    /// speed-up, a clock that runs fast or slow), it is pulled back within it and counted.
+    /// Default 2.
+    pub max_clock_skew_s: f64,
 }
 
 impl Default for WorldConfig {
@@ -33,6 +38,7 @@ impl Default for WorldConfig {
             stale_after_s: 10.0,
             history_len: 64,
             boot_reset_threshold_ms: 5_000,
+            max_clock_skew_s: 2.0,
         }
     }
 }
@@ -92,7 +98,9 @@ impl Attitude {
 /// One state of a vehicle or aircraft at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackSample {
-    /// Receive/tlog clock, seconds (UNIX time for tlogs and live).
+    /// When, seconds on the receive/tlog clock (UNIX time for tlogs and live). For a MAVLink
+    /// vehicle this is its own clock (`time_boot_ms`) mapped onto the receive clock: intervals
+    /// between its samples are the vehicle's, even when several arrive in one read.
     pub t_s: f64,
     /// Vehicle clock of the position, ms since boot (0 for ADS-B).
     pub time_boot_ms: u32,
@@ -214,6 +222,9 @@ impl History {
 pub struct VehicleTrack {
     /// Its id as a moving obstacle to other vehicles (`vehicle:7`).
     pub label: std::sync::Arc<str>,
+    /// Generation of the track: new at creation and at every reboot, so collision state kept
+    /// for an earlier life of the same (sysid, compid) is detectably stale.
+    pub generation: u32,
     /// Who it is.
     pub id: SenderId,
     /// MAV_TYPE from its HEARTBEAT, if one came.
@@ -237,6 +248,8 @@ pub struct VehicleTrack {
 pub struct TrafficTrack {
     /// Its id as a moving obstacle (`icao:4840D6`).
     pub label: std::sync::Arc<str>,
+    /// Generation of the track: new each time it is created (after an expiry too).
+    pub generation: u32,
     /// ICAO 24-bit address.
     pub icao_address: u32,
     /// Callsign as sent (trimmed ASCII).
@@ -273,6 +286,8 @@ pub struct WorldStore {
     pub expired: u64,
     /// Every vehicle ever seen, kept after its track expires (for summaries).
     pub seen: BTreeMap<SenderId, VehicleSeen>,
+    /// The next track generation handed out.
+    next_generation: u32,
 }
 
 /// What the store saw of one vehicle over a whole run.
@@ -284,6 +299,9 @@ pub struct VehicleSeen {
     pub boot_resets: u64,
     /// Times its track expired and came back.
     pub returns: u64,
+    /// Times its clock, mapped onto the receive clock, drifted beyond `max_clock_skew_s` and
+    /// was pulled back.
+    pub clock_reanchors: u64,
 }
 
 impl WorldStore {
@@ -296,6 +314,7 @@ impl WorldStore {
             traffic: BTreeMap::new(),
             expired: 0,
             seen: BTreeMap::new(),
+            next_generation: 1,
         }
     }
 
@@ -346,12 +365,16 @@ impl WorldStore {
 
     fn vehicle(&mut self, sender: SenderId, t_s: f64) -> &mut VehicleTrack {
         let seen = &mut self.seen;
+        let next = &mut self.next_generation;
         self.vehicles.entry(sender).or_insert_with(|| {
             if let Some(before) = seen.get_mut(&sender) {
                 before.returns += 1;
             }
+            let generation = *next;
+            *next = next.wrapping_add(1);
             VehicleTrack {
                 id: sender,
+                generation,
                 label: format!("vehicle:{}", sender.system_id).into(),
                 vehicle_type: None,
                 autopilot: None,
@@ -386,22 +409,29 @@ impl WorldStore {
         track.last_heard_t_s = t_s;
     }
 
-    fn apply_position(&mut self, t_s: f64, sender: SenderId, p: &PositionReport) {
+    fn apply_position(&mut self, receive_t_s: f64, sender: SenderId, p: &PositionReport) {
         let plane = self.plane;
         let capacity = self.config.history_len;
         let reset_ms = self.config.boot_reset_threshold_ms;
-        let track = self.vehicle(sender, t_s);
-        // History stays in time order even if the receive clock steps back.
-        let t_s = track.history.latest().map_or(t_s, |last| t_s.max(last.t_s));
+        let skew_s = self.config.max_clock_skew_s;
+        let generation = self.next_generation;
+        let track = self.vehicle(sender, receive_t_s);
         let rebooted = track.history.latest().is_some_and(|last| {
             last.time_boot_ms > p.time_boot_ms
                 && last.time_boot_ms - p.time_boot_ms > reset_ms
                 && !is_u32_wrap(last.time_boot_ms, p.time_boot_ms)
         });
+        let mut took_generation = false;
         if rebooted {
             track.boot_resets += 1;
             track.history.clear();
+            track.generation = generation;
+            took_generation = true;
         }
+        let (t_s, reanchored) = match track.history.latest() {
+            Some(last) => vehicle_time_s(last, p.time_boot_ms, receive_t_s, skew_s),
+            None => (receive_t_s, false),
+        };
         let velocity_enu_mps = plane.enu_vector_from_ned_at(&p.position, p.velocity_ned_mps);
         let attitude = track.latest_attitude.unwrap_or_else(|| {
             let yaw_rad = p
@@ -419,10 +449,14 @@ impl WorldStore {
         };
         track.history.push(sample, capacity);
         track.positions += 1;
-        track.last_heard_t_s = t_s;
+        track.last_heard_t_s = track.last_heard_t_s.max(receive_t_s);
+        if took_generation {
+            self.next_generation = self.next_generation.wrapping_add(1);
+        }
         let seen = self.seen.entry(sender).or_default();
         seen.positions += 1;
         seen.boot_resets += u64::from(rebooted);
+        seen.clock_reanchors += u64::from(reanchored);
     }
 
     fn apply_adsb(&mut self, t_s: f64, a: &AdsbReport) {
@@ -449,10 +483,12 @@ impl WorldStore {
                 0,
             ),
         };
-        let track = self
-            .traffic
-            .entry(a.icao_address)
-            .or_insert_with(|| TrafficTrack {
+        let next = &mut self.next_generation;
+        let track = self.traffic.entry(a.icao_address).or_insert_with(|| {
+            let generation = *next;
+            *next = next.wrapping_add(1);
+            TrafficTrack {
+                generation,
                 icao_address: a.icao_address,
                 label: format!("icao:{:06X}", a.icao_address).into(),
                 callsign: String::from_utf8_lossy(&a.callsign)
@@ -461,7 +497,8 @@ impl WorldStore {
                 emitter_type: a.emitter_type,
                 history: History::default(),
                 last_heard_t_s: t_s,
-            });
+            }
+        });
         track.history.push(sample, capacity);
         track.last_heard_t_s = t_s;
     }
@@ -506,6 +543,46 @@ fn course_rad(velocity_ned_mps: DVec3) -> f64 {
     } else {
         velocity_ned_mps.y.atan2(velocity_ned_mps.x)
     }
+}
+
+/// The time of a vehicle's sample stamped `time_boot_ms`, following `last` (same boot): the
+/// last sample's time plus the vehicle's own interval, kept within `skew_s` of the arrival
+/// time `receive_t_s` (true when it had to be pulled back) and never before `last`. A sample
+/// older than `last` (reordered) is held at `last`'s time.
+///
+/// ```
+/// # use savsim::world::{vehicle_time_s, TrackSample, Attitude};
+/// # use savsim::geo::Geodetic;
+/// # use glam::{DQuat, DVec3};
+/// # let last = TrackSample { t_s: 100.0, time_boot_ms: 5_000, position: Geodetic::new(0.0, 0.0, 0.0),
+/// #     position_enu_m: DVec3::ZERO, velocity_enu_mps: DVec3::ZERO,
+/// #     attitude: Attitude { time_boot_ms: 0, enu_from_frd: DQuat::IDENTITY, body_rates_radps: DVec3::ZERO } };
+/// // Two samples 100 ms apart on the vehicle's clock that arrived in one read.
+/// assert_eq!(vehicle_time_s(&last, 5_100, 100.0, 2.0), (100.1, false));
+/// // A vehicle clock running far ahead of arrival (SITL speed-up) is pulled back.
+/// assert_eq!(vehicle_time_s(&last, 9_000, 100.5, 2.0), (102.5, true));
+/// ```
+pub fn vehicle_time_s(
+    last: &TrackSample,
+    time_boot_ms: u32,
+    receive_t_s: f64,
+    skew_s: f64,
+) -> (f64, bool) {
+    // Signed difference across the u32 wrap.
+    let dt_s = f64::from(time_boot_ms.wrapping_sub(last.time_boot_ms) as i32) / 1000.0;
+    if dt_s <= 0.0 {
+        return (last.t_s, false);
+    }
+    let mapped = last.t_s + dt_s;
+    let lo = receive_t_s - skew_s;
+    let hi = receive_t_s + skew_s;
+    if (lo..=hi).contains(&mapped) {
+        return (mapped, false);
+    }
+    // Pulled back within the skew, but still after the last sample (by at least 1 ms, or
+    // the whole interval if that is smaller), so that an interval is never empty.
+    let floor = last.t_s + dt_s.min(1e-3);
+    (mapped.clamp(lo, hi).max(floor), true)
 }
 
 /// True when `later` follows `earlier` across the u32 wrap (about 49.7 days of uptime).

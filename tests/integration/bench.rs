@@ -35,14 +35,16 @@ fn the_city_flight_set_is_deterministic_and_its_near_misses_are_near_misses() {
             "no flight at {rate} Hz"
         );
     }
-    // What the descriptions promise, against the exact oracle.
-    let mut oracle = Pipeline::new(
+    // What the descriptions promise: collisions against the reference, near misses as the
+    // contact layer reports them (the reference reports collisions only).
+    let mut reference = Pipeline::new(
         &scene,
         CollisionConfig {
-            mode: Mode::Oracle,
+            mode: Mode::Reference,
             ..CollisionConfig::default()
         },
     );
+    let mut exact = Pipeline::new(&scene, CollisionConfig::default());
     for (k, f) in flights.iter().enumerate() {
         let promise_clear = f.name.starts_with("near-miss-")
             || f.name.starts_with("graze-concave-")
@@ -53,8 +55,18 @@ fn the_city_flight_set_is_deterministic_and_its_near_misses_are_near_misses() {
         if !(promise_clear || promise_hit) {
             continue;
         }
-        let (_, events) = run_samples(&mut oracle, &scene, k as u16 + 1, &f.samples, &f.traffic);
-        let hits = collisions(&events);
+        let (_, truth) = run_samples(&mut reference, &scene, k as u16 + 1, &f.samples, &f.traffic);
+        let hits = collisions(&truth);
+        let (_, events) = run_samples(&mut exact, &scene, k as u16 + 1, &f.samples, &f.traffic);
+        let found = collisions(&events);
+        assert_eq!(found.len(), hits.len(), "{}: {found:?} vs {hits:?}", f.name);
+        for (a, b) in found.iter().zip(&hits) {
+            assert!(
+                a.0 == b.0 && (a.1 - b.1).abs() <= 1e-3,
+                "{}: exact {a:?} against the reference {b:?}",
+                f.name
+            );
+        }
         let near = events
             .iter()
             .filter(|e| matches!(e.kind, EventKind::NearMiss { .. }))
@@ -108,17 +120,19 @@ fn bench_writes_a_report_json_and_a_chart() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(
-        stdout.contains("| adaptive |") && stdout.contains("### Goals"),
+        stdout.contains("| exact |") && stdout.contains("### Goals"),
         "{stdout}"
     );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let modes = report["scenes"][0]["modes"].as_array().unwrap();
     let names: Vec<&str> = modes.iter().map(|m| m["mode"].as_str().unwrap()).collect();
-    assert_eq!(names, ["box", "adaptive", "paper", "oracle"]);
-    let adaptive = &modes[1];
-    assert_eq!(adaptive["missed"], 0, "{adaptive}");
-    assert_eq!(adaptive["false_collisions"], 0, "{adaptive}");
+    // `adaptive` is the old name of `exact`.
+    assert_eq!(names, ["box", "exact", "paper", "reference"]);
+    let exact = &modes[1];
+    assert_eq!(exact["missed"], 0, "{exact}");
+    assert_eq!(exact["false_collisions"], 0, "{exact}");
+    assert!(exact["sensing_frames"].as_u64().unwrap() > 0, "{exact}");
     assert!(report["scenes"][0]["flights"].as_array().unwrap().len() >= 15);
     assert_eq!(report["scale"].as_array().unwrap().len(), 4);
     assert_eq!(report["fleets"].as_array().unwrap().len(), 2);

@@ -117,7 +117,7 @@ fn quad_nose_m() -> f64 {
 /// A 10 m cube on the ground 100 m east of the origin, a flight at 5 m up from 0 to 200 m east
 /// at 10 m/s: contact when the nose reaches x = 95, at t = 1000 + (95 - nose) / 10 s.
 fn expect_cube_hit(origin: Geodetic) {
-    for mode in [Mode::Adaptive, Mode::Oracle] {
+    for mode in [Mode::Exact, Mode::Reference] {
         let scene = scene_at(
             origin,
             "[[obstacle]]\nid = \"cube\"\nkind = \"building\"\nshape = { box = [10.0, 10.0, 10.0] }\nposition_enu_m = [100.0, 0.0, 0.0]\n",
@@ -171,7 +171,7 @@ fn an_obstacle_placed_by_latitude_and_longitude_across_the_antimeridian() {
     );
     let hits = fly_mavlink(
         scene,
-        Mode::Oracle,
+        Mode::Reference,
         DVec3::new(0.0, 0.0, 5.0 + centre.z),
         DVec3::new(300.0, 0.0, 5.0 + centre.z),
         10.0,
@@ -204,7 +204,7 @@ proptest! {
             let start = DVec3::new(100.0 - nose - speed * 2.0 - 1.0, 0.0, 10.0);
             straight(scene.origin, start, start + DVec3::X * speed * 4.0, speed, rate)
         };
-        for mode in [Mode::Adaptive, Mode::Oracle] {
+        for mode in [Mode::Exact, Mode::Reference] {
             let hits = fly(&scene, mode, &flight);
             if speed < 0.5 {
                 prop_assert!(hits.is_empty(), "{mode:?}: {hits:?}");
@@ -358,7 +358,7 @@ fn meshes_from_a_millimetre_to_ten_kilometres_with_bad_triangles() {
         let nose = 0.5;
         let start = DVec3::new(face_x - nose - 20.0, 0.0, z);
         let flight = straight(scene.origin, start, start + DVec3::X * 40.0, 10.0, 10.0);
-        for mode in [Mode::Adaptive, Mode::Oracle] {
+        for mode in [Mode::Exact, Mode::Reference] {
             let hits = fly(&scene, mode, &flight);
             assert_eq!(hits.len(), 1, "{size_m} m, {mode:?}: {hits:?}");
             let want = 1000.0 + 2.0;
@@ -384,7 +384,7 @@ fn coplanar_contact_counts_and_a_millimetre_above_does_not() {
         let flight: Vec<TrackSample> = (0..3)
             .map(|i| sample(scene.origin, 1000.0 + i as f64 * 0.1, p, DVec3::ZERO))
             .collect();
-        for mode in [Mode::Box, Mode::Mesh, Mode::Adaptive, Mode::Oracle] {
+        for mode in [Mode::Box, Mode::Mesh, Mode::Exact, Mode::Reference] {
             let hits = fly(&scene, mode, &flight);
             assert_eq!(!hits.is_empty(), touching, "z {z}, {mode:?}: {hits:?}");
         }
@@ -428,7 +428,7 @@ fn leaving_and_reentering_between_samples_is_two_collisions() {
             )
         })
         .collect();
-    for mode in [Mode::Mesh, Mode::Adaptive, Mode::Oracle] {
+    for mode in [Mode::Mesh, Mode::Exact, Mode::Reference] {
         let hits = fly(&scene, mode, &flight);
         assert_eq!(hits.len(), 2, "{mode:?}: {hits:?}");
     }

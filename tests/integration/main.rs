@@ -15,7 +15,10 @@
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
 //! - `cities`: CityJSON city models.
 //! - `cli`: the commands README.md gives.
-//! - `bench`: the bench's flight set against the oracle; `savsim bench`'s report, JSON, chart.
+//! - `issue_11_layers`: identities across ticks, the vehicle's clock, `--near-miss-m 0`,
+//!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
+//!   the reference.
+//! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
 //! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); SIGTERM
 //!   during a recorded replay.
 
@@ -28,6 +31,7 @@ mod extremes;
 mod faults;
 mod geo;
 mod ingest;
+mod issue_11_layers;
 mod live;
 mod properties;
 mod scenes;

@@ -170,10 +170,11 @@ fn sigterm_during_replay_leaves_complete_files() {
         .stdout(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    // Once events are being written (the scene is loaded and ticks run; the flight lasts 21 s
-    // at this speed), stop it.
+    // Once the recording or the events are being written (the scene is loaded and ticks run;
+    // the flight lasts 21 s at this speed), stop it.
     let started = std::time::Instant::now();
-    while std::fs::metadata(&events).map_or(0, |m| m.len()) == 0 {
+    let written = |p: &std::path::Path| std::fs::metadata(p).map_or(0, |m| m.len()) > 0;
+    while !(written(&events) || written(&rrd)) {
         assert!(started.elapsed().as_secs() < 120, "no events after 120 s");
         assert!(
             child.try_wait().unwrap().is_none(),
@@ -181,6 +182,12 @@ fn sigterm_during_replay_leaves_complete_files() {
         );
         std::thread::sleep(std::time::Duration::from_millis(100));
     }
+    // Two more seconds of ticks (20 s of flight at this speed), then the signal.
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "savsim ended before the signal"
+    );
     let killed = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()

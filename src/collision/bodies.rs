@@ -1,0 +1,289 @@
+//! Who is who across ticks, and where: stable identities of vehicles and moving obstacles, body
+//! poses, and the colliders placed for a query.
+//!
+//! Identities outlive a tick (rapier's generational handles): a moving obstacle is named by
+//! where it comes from (a scene track, a MAVLink (sysid, compid), an ICAO address) and by a
+//! generation that changes when its track restarts (reboot, expiry and return). A per-tick
+//! position in a `Vec` is never an identity. Imports no I/O, no tokio, no mavlink.
+
+use std::sync::Arc;
+
+use glam::{DQuat, DVec3, Vec3};
+use parry3d::shape::{Cuboid, Shape, SharedShape, TriMesh};
+
+use crate::collision::contact::Placed;
+use crate::scene::geometry::Geometry;
+use crate::scene::{Aabb64, Kind, Scene};
+use crate::world::TrackSample;
+
+/// Where a moving body comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum BodySource {
+    /// A moving obstacle declared in the scene (index into `Scene::dynamic`), or a bench track.
+    Scripted(u32),
+    /// A MAVLink vehicle.
+    Vehicle {
+        /// MAVLink system id.
+        system_id: u8,
+        /// MAVLink component id.
+        component_id: u8,
+    },
+    /// ADS-B traffic by ICAO address.
+    Traffic(u32),
+}
+
+/// A moving body's identity: its source and the generation of its track. A key whose track
+/// restarted (a reboot, an expiry and return) is a different key, so state kept for the old
+/// one is detectably stale, never silently another body's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct BodyKey {
+    /// Where it comes from.
+    pub source: BodySource,
+    /// The track's generation (0 for tracks that never restart).
+    pub generation: u32,
+}
+
+/// The vehicle a tick is for: the MAVLink (sysid, compid) it is keyed by in the world store, and
+/// its track's generation. Collision state is kept per (vehicle, component) and reset when the
+/// generation changes (a reboot, or the track expired and came back).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct VehicleKey {
+    /// The vehicle's number: its MAVLink system id in a session, a fleet index in the bench.
+    pub vehicle: u16,
+    /// MAVLink component id (1 when not from MAVLink).
+    pub component_id: u8,
+    /// The track's generation.
+    pub generation: u32,
+}
+
+impl VehicleKey {
+    /// Vehicle `vehicle`, component 1, generation 0.
+    ///
+    /// ```
+    /// use savsim::collision::bodies::VehicleKey;
+    /// let k = VehicleKey::new(7);
+    /// assert_eq!((k.vehicle, k.component_id, k.generation), (7, 1, 0));
+    /// ```
+    pub const fn new(vehicle: u16) -> Self {
+        Self {
+            vehicle,
+            component_id: 1,
+            generation: 0,
+        }
+    }
+}
+
+/// An obstacle: static (index into `Scene::obstacles`) or moving (by its key).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum ObstacleRef {
+    /// A static obstacle.
+    Static(u32),
+    /// A moving body.
+    Dynamic(BodyKey),
+}
+
+/// A rigid pose in the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyPose {
+    /// Reference point, scene ENU metres.
+    pub position_enu_m: DVec3,
+    /// Rotation from body FRD to ENU.
+    pub enu_from_body: DQuat,
+}
+
+impl BodyPose {
+    /// The pose of a track sample.
+    pub fn of(sample: &TrackSample) -> Self {
+        Self {
+            position_enu_m: sample.position_enu_m,
+            enu_from_body: sample.attitude.enu_from_frd,
+        }
+    }
+}
+
+/// A moving obstacle at this tick (another vehicle, ADS-B traffic, a scripted track).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynamicBody {
+    /// Its identity across ticks.
+    pub key: BodyKey,
+    /// Id for events (`vehicle:2`, `icao:4840D6`, or the scene's id); shared, so that filling
+    /// a tick's moving obstacles does not allocate.
+    pub id: Arc<str>,
+    /// Kind (threat class).
+    pub kind: Kind,
+    /// Threat T.
+    pub threat: f64,
+    /// Its model, an index into `Scene::geometries`.
+    pub geometry_index: usize,
+    /// Pose at the previous tick of the vehicle being checked.
+    pub previous: BodyPose,
+    /// Pose now.
+    pub current: BodyPose,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+}
+
+/// The world a stage looks at in one tick.
+pub(crate) struct World<'a> {
+    pub scene: &'a Scene,
+    pub dynamic: &'a [DynamicBody],
+    pub octree: &'a crate::collision::octree::Octree,
+    pub shapes: &'a crate::collision::shapes::ExactShapes,
+}
+
+/// Everything a stage needs to know about an obstacle at this tick.
+pub(crate) struct ObstacleView<'s> {
+    pub geometry: &'s Geometry,
+    pub geometry_index: usize,
+    pub kind: Kind,
+    pub threat: f64,
+    pub speed_mps: f64,
+    pub previous: BodyPose,
+    pub current: BodyPose,
+    pub aabb_enu_m: Aabb64,
+    pub id: &'s str,
+}
+
+/// The obstacle `o` at this tick; `None` for a moving body that is not in `dynamic` (its track
+/// ended): state that names it is stale.
+pub(crate) fn view<'s>(
+    scene: &'s Scene,
+    dynamic: &'s [DynamicBody],
+    o: ObstacleRef,
+) -> Option<ObstacleView<'s>> {
+    match o {
+        ObstacleRef::Static(i) => {
+            let s = scene.obstacles.get(i as usize)?;
+            let pose = BodyPose {
+                position_enu_m: s.placement.position_enu_m,
+                enu_from_body: s.placement.enu_from_local,
+            };
+            Some(ObstacleView {
+                geometry: &s.geometry,
+                geometry_index: s.geometry_index,
+                kind: s.kind,
+                threat: s.threat,
+                speed_mps: 0.0,
+                previous: pose,
+                current: pose,
+                aabb_enu_m: s.aabb_enu_m,
+                id: &s.id,
+            })
+        }
+        ObstacleRef::Dynamic(key) => {
+            // Sorted by key (as sessions and the bench fill it): a binary search; otherwise a
+            // scan. A key not there is a track that ended.
+            let d = match dynamic.binary_search_by_key(&key, |d| d.key) {
+                Ok(i) => &dynamic[i],
+                Err(_) => dynamic.iter().find(|d| d.key == key)?,
+            };
+            view_dynamic(scene, d)
+        }
+    }
+}
+
+/// The moving body `d` at this tick.
+pub(crate) fn view_dynamic<'s>(scene: &'s Scene, d: &'s DynamicBody) -> Option<ObstacleView<'s>> {
+    let g = scene.geometries.get(d.geometry_index)?;
+    let aabb = crate::scene::Placement {
+        position_enu_m: d.current.position_enu_m,
+        enu_from_local: d.current.enu_from_body,
+    }
+    .enu_aabb(&g.local_aabb);
+    Some(ObstacleView {
+        geometry: g,
+        geometry_index: d.geometry_index,
+        kind: d.kind,
+        threat: d.threat,
+        speed_mps: d.speed_mps,
+        previous: d.previous,
+        current: d.current,
+        aabb_enu_m: aabb,
+        id: &d.id,
+    })
+}
+
+/// A collider's shape, owned or shared.
+pub(crate) enum Holder {
+    /// The enclosing box (exact for a cuboid geometry).
+    Box(Cuboid),
+    /// A triangle mesh (surfaces only).
+    Mesh(Arc<TriMesh>),
+    /// An exact solid made of parts (a union of blocks as a parry `Compound`).
+    Solid(SharedShape),
+}
+
+/// A shape with its placement.
+pub(crate) struct Body {
+    holder: Holder,
+    position_enu_m: DVec3,
+    rotation: DQuat,
+    pivot_local_m: Vec3,
+}
+
+impl Body {
+    /// A body whose shape's frame is the geometry's frame, placed at `pose`.
+    pub fn new(holder: Holder, pose: BodyPose) -> Body {
+        Body {
+            holder,
+            position_enu_m: pose.position_enu_m,
+            rotation: pose.enu_from_body,
+            pivot_local_m: Vec3::ZERO,
+        }
+    }
+
+    /// The geometry's enclosing box, placed at `pose`.
+    pub fn boxed(geometry: &Geometry, pose: BodyPose) -> Body {
+        let (cuboid, centre) = geometry.box_collider();
+        Body {
+            holder: Holder::Box(cuboid),
+            position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
+            rotation: pose.enu_from_body,
+            pivot_local_m: -centre,
+        }
+    }
+
+    /// True when the body is a surface mesh (it holds no inside).
+    pub fn is_surface(&self) -> bool {
+        matches!(self.holder, Holder::Mesh(_))
+    }
+
+    /// The body where it was placed.
+    pub fn placed(&self) -> Placed<'_> {
+        Placed {
+            shape: match &self.holder {
+                Holder::Box(c) => c as &dyn Shape,
+                Holder::Mesh(m) => m.as_ref() as &dyn Shape,
+                Holder::Solid(s) => s.as_ref(),
+            },
+            position_enu_m: self.position_enu_m,
+            enu_from_shape: self.rotation,
+            pivot_local_m: self.pivot_local_m,
+        }
+    }
+
+    /// The same body moved so that its reference point has pose `pose`.
+    pub fn at(&self, pose: BodyPose) -> Placed<'_> {
+        let offset = -(pose.enu_from_body * self.pivot_local_m.as_dvec3());
+        self.placed()
+            .moved(pose.position_enu_m + offset, pose.enu_from_body)
+    }
+}
+
+/// True when `point` is inside the obstacle's solid (see [`Geometry::contains_local_point`]).
+pub(crate) fn inside_solid(geometry: &Geometry, pose: &BodyPose, point: DVec3) -> bool {
+    let local = pose.enu_from_body.inverse() * (point - pose.position_enu_m);
+    geometry.contains_local_point(local.as_vec3())
+}
+
+/// Radius of the sphere about a geometry's origin that holds it, metres.
+pub(crate) fn radius_m(geometry: &Geometry) -> f64 {
+    f64::from(
+        geometry
+            .local_aabb
+            .mins
+            .abs()
+            .max(geometry.local_aabb.maxs.abs())
+            .length(),
+    )
+}

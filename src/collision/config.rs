@@ -1,0 +1,112 @@
+//! Collision settings: the modes and every threshold, each with its default and unit.
+
+use crate::collision::octree::OctreeConfig;
+use crate::collision::threat::{AhpWeights, PAPER_MATRIX};
+
+/// How contacts are decided and how the sensing layer runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// No colliders at all.
+    None,
+    /// Every obstacle and the vehicle a box; checks at samples only.
+    Box,
+    /// Every obstacle and the vehicle a mesh (all built at start-up); checks at samples only.
+    Mesh,
+    /// The paper as written: current node only, six rays, the beta rule; contacts at samples
+    /// against whatever collider the paper's state holds.
+    Paper,
+    /// The contact layer: every obstacle the swept vehicle can reach, as its exact shape
+    /// (boxes and blocks as solids, terrain and loaded meshes as triangles), swept between
+    /// samples. The sensing layer (the paper's node, rays, beta, swaps) runs beside it at
+    /// `sensor_hz` and never decides a contact. The default (`adaptive` on the command line
+    /// is an alias).
+    Exact,
+    /// The ground truth: dense sub-stepping of every interval (at most 1 cm of travel and
+    /// 0.1 degree of turn a step) with exact intersection tests, sharing no code with the
+    /// contact layer's sweep. Slow; for the bench and tests.
+    Reference,
+}
+
+impl Mode {
+    /// Every mode, cheapest first.
+    pub const ALL: [Mode; 6] = [
+        Mode::None,
+        Mode::Box,
+        Mode::Mesh,
+        Mode::Paper,
+        Mode::Exact,
+        Mode::Reference,
+    ];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::None => "none",
+            Mode::Box => "box",
+            Mode::Mesh => "mesh",
+            Mode::Paper => "paper",
+            Mode::Exact => "exact",
+            Mode::Reference => "reference",
+        }
+    }
+}
+
+/// Collision settings. Every default and unit is in the field's doc.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CollisionConfig {
+    /// How contacts are decided. Default `exact`.
+    pub mode: Mode,
+    /// Length of each sensing ray, metres. Default 300 (the paper's mesh distance).
+    pub ray_length_m: f64,
+    /// Look-ahead time for the sensing region around the vehicle, seconds. Default 3.
+    pub look_ahead_s: f64,
+    /// Beta above which a seen obstacle gets a mesh. Default 50 (paper).
+    pub mesh_beta: f64,
+    /// ... if it is closer than this, metres. Default 300 (paper).
+    pub mesh_within_m: f64,
+    /// A mesh farther than this turns back into a box, metres. Default 800 (paper).
+    pub box_beyond_m: f64,
+    /// A collider keeps its state at least this long before it is downgraded, seconds.
+    /// Default 2 (ArduPilot's AP_Avoidance never lowers a threat faster). 0 in `paper` mode.
+    pub hold_s: f64,
+    /// Closer than this without contact is a near miss, metres. Default 10.
+    pub near_miss_m: f64,
+    /// A telemetry gap longer than this is reported and not swept, seconds. Default 1.
+    pub max_gap_s: f64,
+    /// A sample more than this far below the terrain surface is implausible (an altitude
+    /// reference not yet set, e.g. before the autopilot's EKF has an origin): it is counted
+    /// and skipped, and no sweep starts or ends at it. Metres. Default 50.
+    pub max_below_terrain_m: f64,
+    /// Sensing frames per second in `exact` mode (every sample when telemetry is slower).
+    /// Default 20. `paper` senses at every sample.
+    pub sensor_hz: f64,
+    /// Most memory the built triangle meshes may hold, MiB; the least recently used mesh
+    /// that no tick needs is evicted beyond it. Default 512. (`mesh` mode keeps all.)
+    pub mesh_budget_mib: f64,
+    /// AHP weights for beta. Default: the paper's Table 3.
+    pub ahp: AhpWeights,
+    /// Octree shape.
+    pub octree: OctreeConfig,
+}
+
+impl Default for CollisionConfig {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Exact,
+            ray_length_m: 300.0,
+            look_ahead_s: 3.0,
+            mesh_beta: 50.0,
+            mesh_within_m: 300.0,
+            box_beyond_m: 800.0,
+            hold_s: 2.0,
+            near_miss_m: 10.0,
+            max_gap_s: 1.0,
+            max_below_terrain_m: 50.0,
+            sensor_hz: 20.0,
+            mesh_budget_mib: 512.0,
+            ahp: AhpWeights::from_matrix(PAPER_MATRIX).expect("the paper's matrix is valid"),
+            octree: OctreeConfig::default(),
+        }
+    }
+}

@@ -1,0 +1,144 @@
+//! Episodes: turning one interval's contacts and near distances into events. A collision is
+//! the start of a contact; a near miss is a stay within the band without contact, reported when
+//! the obstacle leaves it (on the same exact distance that opened it).
+//!
+//! Pure and synchronous; imports no I/O, no tokio, no rerun.
+
+use std::sync::Arc;
+
+use crate::collision::bodies::{view, DynamicBody, ObstacleRef};
+use crate::collision::contacts::Touch;
+use crate::collision::events::{Event, EventKind};
+use crate::scene::Scene;
+
+#[derive(Debug, Clone)]
+struct Near {
+    obstacle: ObstacleRef,
+    /// The obstacle's id, kept so that a near miss can be reported after its track ended.
+    id: Arc<str>,
+    closest_m: f64,
+    closest_t_s: f64,
+    /// Touched while in the band: a collision, not a near miss.
+    touched: bool,
+}
+
+/// One vehicle's open contacts and near misses.
+#[derive(Debug, Clone, Default)]
+pub struct Episodes {
+    /// In contact at the last sample.
+    touching: Vec<ObstacleRef>,
+    near: Vec<Near>,
+}
+
+impl Episodes {
+    /// Obstacles in contact at the last sample.
+    pub fn touching(&self) -> &[ObstacleRef] {
+        &self.touching
+    }
+
+    /// Fold one interval (`t_before` to `t_s`) into the episodes, pushing what began or ended.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn update(
+        &mut self,
+        scene: &Scene,
+        dynamic: &[DynamicBody],
+        touching_now: &[(ObstacleRef, Touch)],
+        near_now: &[(ObstacleRef, f64)],
+        t_before: f64,
+        t_s: f64,
+        event: &dyn Fn(EventKind) -> Event,
+        events: &mut Vec<Event>,
+    ) {
+        // Collisions: contacts that were not there at the last sample.
+        for (o, touch) in touching_now {
+            if self.touching.contains(o) {
+                continue;
+            }
+            let Some(v) = view(scene, dynamic, *o) else {
+                continue;
+            };
+            events.push(event(EventKind::Collision {
+                obstacle: v.id.to_owned(),
+                obstacle_kind: v.kind.name(),
+                point_enu_m: touch.point_enu_m.to_array(),
+                normal_enu: touch.normal_enu.to_array(),
+                time_of_impact: t_before + (t_s - t_before) * touch.fraction,
+                swept: touch.swept,
+            }));
+        }
+        self.touching.clear();
+        self.touching.extend(
+            touching_now
+                .iter()
+                .filter(|(_, touch)| touch.holds_now)
+                .map(|(o, _)| *o),
+        );
+        for &(o, d) in near_now {
+            match self.near.iter_mut().find(|n| n.obstacle == o) {
+                Some(n) if d < n.closest_m => {
+                    n.closest_m = d;
+                    n.closest_t_s = t_s;
+                }
+                Some(_) => {}
+                None => {
+                    if let Some(v) = view(scene, dynamic, o) {
+                        self.near.push(Near {
+                            obstacle: o,
+                            id: Arc::from(v.id),
+                            closest_m: d,
+                            closest_t_s: t_s,
+                            touched: false,
+                        });
+                    }
+                }
+            }
+        }
+        for (o, _) in touching_now {
+            match self.near.iter_mut().find(|n| n.obstacle == *o) {
+                Some(n) => n.touched = true,
+                None => self.near.push(Near {
+                    obstacle: *o,
+                    id: Arc::from(""),
+                    closest_m: 0.0,
+                    closest_t_s: t_s,
+                    touched: true,
+                }),
+            }
+        }
+        // A near miss ends when the obstacle is no longer within the band (or no longer there).
+        let mut i = 0;
+        while i < self.near.len() {
+            let o = self.near[i].obstacle;
+            let stays = near_now.iter().any(|n| n.0 == o) || touching_now.iter().any(|n| n.0 == o);
+            if stays {
+                i += 1;
+                continue;
+            }
+            let n = self.near.swap_remove(i);
+            if !n.touched {
+                events.push(event(near_miss(&n)));
+            }
+        }
+    }
+
+    /// Close every open near miss (end of a run, or the vehicle's track restarted) and forget
+    /// the contacts.
+    pub(crate) fn close(&mut self, event: &dyn Fn(EventKind) -> Event, events: &mut Vec<Event>) {
+        for n in self.near.drain(..) {
+            if !n.touched {
+                let mut e = event(near_miss(&n));
+                e.t = n.closest_t_s;
+                events.push(e);
+            }
+        }
+        self.touching.clear();
+    }
+}
+
+fn near_miss(n: &Near) -> EventKind {
+    EventKind::NearMiss {
+        obstacle: n.id.to_string(),
+        closest_m: n.closest_m,
+        closest_t: n.closest_t_s,
+    }
+}

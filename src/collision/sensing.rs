@@ -1,0 +1,516 @@
+//! The sensing layer: the paper's algorithm (Li et al. 2019) as what the vehicle perceives.
+//! Octree node, six body-axis rays, beta from the AHP weights, and the box <-> mesh state with
+//! its swaps and hold. In `exact` mode it runs at the sensor rate and never decides a contact;
+//! its threat decides which triangle meshes are made resident before a contact could need
+//! them. In `paper` mode its colliders are what contacts are tested against.
+//!
+//! Pure and synchronous; imports no I/O, no tokio, no rerun.
+
+use glam::{DVec3, Vec3};
+
+use crate::collision::bodies::{view, view_dynamic, Body, ObstacleRef, World};
+use crate::collision::config::CollisionConfig;
+use crate::collision::contact;
+use crate::collision::events::{Event, EventKind};
+use crate::collision::meshes::MeshCache;
+use crate::collision::octree::{NodeId, OctreeWorkspace};
+use crate::collision::shapes::ExactShapes;
+use crate::collision::ColliderKind;
+use crate::scene::Aabb64;
+use crate::world::TrackSample;
+
+/// The six body axes, in FRD: forward, back, right, left, down, up.
+pub const RAY_AXES_FRD: [Vec3; 6] = [
+    Vec3::X,
+    Vec3::NEG_X,
+    Vec3::Y,
+    Vec3::NEG_Y,
+    Vec3::Z,
+    Vec3::NEG_Z,
+];
+
+/// The nearest hit of one ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayHit {
+    /// What it hit.
+    pub obstacle: ObstacleRef,
+    /// How far, metres.
+    pub distance_m: f64,
+    /// Where, scene ENU metres.
+    pub point_enu_m: DVec3,
+}
+
+/// Which rules the layer follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Rules {
+    /// The paper as written: the node's obstacles only, no hold, every activation reported.
+    Paper,
+    /// savsim's sensor: the node plus the rays' reach, the hold, swaps reported only for what
+    /// the rays (threat) and distance (far) changed; rays test meshes as exact shapes.
+    Sensor,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Active {
+    pub obstacle: ObstacleRef,
+    pub collider: ColliderKind,
+    pub since_t_s: f64,
+    pub beta: f64,
+}
+
+/// What one vehicle perceives, kept across frames.
+#[derive(Debug, Clone, Default)]
+pub struct SensingState {
+    node: Option<NodeId>,
+    /// The region the static obstacles were last queried for.
+    queried: Option<Aabb64>,
+    pub(crate) active: Vec<Active>,
+    /// The rays' nearest hits at the last frame (order of [`RAY_AXES_FRD`]).
+    pub rays: [Option<RayHit>; 6],
+    /// Time of the last frame, seconds.
+    pub(crate) last_frame_t_s: Option<f64>,
+}
+
+impl SensingState {
+    /// The octree leaf the vehicle was in at the last frame.
+    pub fn node(&self) -> Option<NodeId> {
+        self.node
+    }
+
+    /// Obstacles with a collider, which one, and their beta at the last frame.
+    pub fn colliders(&self) -> impl Iterator<Item = (ObstacleRef, ColliderKind, f64)> + '_ {
+        self.active.iter().map(|a| (a.obstacle, a.collider, a.beta))
+    }
+
+    /// The collider the sensing layer holds for `o` (the active list is sorted by obstacle).
+    pub(crate) fn collider_of(&self, o: ObstacleRef) -> Option<ColliderKind> {
+        self.active
+            .binary_search_by_key(&o, |a| a.obstacle)
+            .ok()
+            .map(|i| self.active[i].collider)
+    }
+}
+
+/// What a frame did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct FrameCounts {
+    pub active_box: usize,
+    pub active_mesh: usize,
+    pub active_triangles: usize,
+    pub ray_tests: usize,
+}
+
+/// The layer's scratch buffers; the state comes in per vehicle.
+#[derive(Debug, Default)]
+pub(crate) struct Sensing {
+    ws: OctreeWorkspace,
+    desired: Vec<ObstacleRef>,
+    merged: Vec<Active>,
+}
+
+impl Sensing {
+    /// One sensing frame for a vehicle at `current`. Swaps are pushed through `event`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn frame(
+        &mut self,
+        world: &World<'_>,
+        meshes: &mut MeshCache,
+        cfg: &CollisionConfig,
+        rules: Rules,
+        state: &mut SensingState,
+        current: &TrackSample,
+        event: &dyn Fn(EventKind) -> Event,
+        events: &mut Vec<Event>,
+    ) -> FrameCounts {
+        let t = current.t_s;
+        state.last_frame_t_s = Some(t);
+        let mut counts = FrameCounts::default();
+        self.activate(world, cfg, rules, state, current, event, events);
+        self.cast_rays(world, meshes, cfg, rules, state, current, &mut counts);
+        rate_and_swap(world, meshes, cfg, rules, state, current, event, events);
+        for act in &state.active {
+            let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
+                continue;
+            };
+            match act.collider {
+                ColliderKind::Box => counts.active_box += 1,
+                ColliderKind::Mesh => {
+                    counts.active_mesh += 1;
+                    counts.active_triangles += v.geometry.triangle_count();
+                    meshes.touch(v.geometry_index);
+                }
+                ColliderKind::None => {}
+            }
+        }
+        counts
+    }
+
+    /// Steps 1-2: which obstacles have colliders. The paper: the node's. The sensor: the node's
+    /// and what the rays or the look-ahead can reach; meshes stay until they are far.
+    #[allow(clippy::too_many_arguments)]
+    fn activate(
+        &mut self,
+        world: &World<'_>,
+        cfg: &CollisionConfig,
+        rules: Rules,
+        state: &mut SensingState,
+        current: &TrackSample,
+        event: &dyn Fn(EventKind) -> Event,
+        events: &mut Vec<Event>,
+    ) {
+        let (scene, dynamic, octree) = (world.scene, world.dynamic, world.octree);
+        let t = current.t_s;
+        let position = current.position_enu_m;
+        let node = octree.leaf_at(position);
+        let required = match rules {
+            Rules::Sensor => {
+                let speed = current.velocity_enu_mps.length();
+                let reach = cfg.ray_length_m.max(speed * cfg.look_ahead_s);
+                Aabb64::around(position, DVec3::splat(reach))
+            }
+            Rules::Paper => node.map_or(Aabb64::around(position, DVec3::ONE), |n| {
+                octree.node_aabb(n)
+            }),
+        };
+        let hold = if rules == Rules::Paper {
+            0.0
+        } else {
+            cfg.hold_s
+        };
+        // Static obstacles are queried with a margin and the answer reused while the required
+        // region stays inside it (and the node is the same). Moving ones are re-checked.
+        let reuse_static = state.node == node
+            && state
+                .queried
+                .is_some_and(|q| q.contains(required.min) && q.contains(required.max));
+        let any_dynamic = !dynamic.is_empty()
+            || state
+                .active
+                .iter()
+                .any(|a| matches!(a.obstacle, ObstacleRef::Dynamic(_)));
+        if reuse_static && !any_dynamic {
+            return;
+        }
+        let region = match state.queried {
+            Some(q) if reuse_static => q,
+            _ if rules == Rules::Sensor => {
+                let margin = (0.25 * (required.max.x - required.min.x)).max(10.0);
+                required.inflated(margin)
+            }
+            _ => required,
+        };
+        state.queried = Some(region);
+        self.desired.clear();
+        let desired = &mut self.desired;
+        if reuse_static {
+            desired.extend(
+                state
+                    .active
+                    .iter()
+                    .map(|a| a.obstacle)
+                    .filter(|o| matches!(o, ObstacleRef::Static(_))),
+            );
+        } else {
+            if let Some(node) = node {
+                desired.extend(
+                    octree
+                        .leaf_items(node)
+                        .iter()
+                        .map(|&i| ObstacleRef::Static(i)),
+                );
+            }
+            if rules == Rules::Sensor {
+                octree.query_aabb(&region, &mut self.ws, |i| {
+                    desired.push(ObstacleRef::Static(i))
+                });
+            }
+        }
+        for d in dynamic {
+            let o = ObstacleRef::Dynamic(d.key);
+            let Some(v) = view_dynamic(scene, d) else {
+                continue;
+            };
+            let lead = if rules == Rules::Sensor {
+                d.speed_mps * cfg.look_ahead_s
+            } else {
+                0.0
+            };
+            if v.aabb_enu_m.inflated(lead).intersects(&region) {
+                desired.push(o);
+            }
+        }
+        desired.sort_unstable();
+        desired.dedup();
+        state.node = node;
+        // Merge the active list (sorted) with the desired one.
+        self.merged.clear();
+        let (mut a, mut d) = (0, 0);
+        while a < state.active.len() || d < self.desired.len() {
+            let next_active = state.active.get(a).map(|x| x.obstacle);
+            let next_desired = self.desired.get(d).copied();
+            match (next_active, next_desired) {
+                (Some(x), Some(y)) if x == y => {
+                    self.merged.push(state.active[a]);
+                    a += 1;
+                    d += 1;
+                }
+                (Some(x), y) if y.is_none_or(|y| x < y) => {
+                    let act = state.active[a];
+                    a += 1;
+                    let Some(v) = view(scene, dynamic, act.obstacle) else {
+                        continue; // its track ended: nothing to report
+                    };
+                    let distance_m = v.aabb_enu_m.distance_to(position);
+                    let keep = act.collider == ColliderKind::Mesh
+                        && match rules {
+                            Rules::Paper => t - act.since_t_s < hold,
+                            // A mesh stays resident until it is far (the paper's 800 m rule,
+                            // applied in `rate_and_swap`), not merely out of reach.
+                            Rules::Sensor => true,
+                        };
+                    if keep {
+                        self.merged.push(act);
+                    } else if rules == Rules::Paper {
+                        events.push(event(EventKind::ColliderSwap {
+                            obstacle: v.id.to_owned(),
+                            from: act.collider,
+                            to: ColliderKind::None,
+                            beta: act.beta,
+                            distance_m,
+                            reason: "left",
+                        }));
+                    }
+                }
+                (_, Some(y)) => {
+                    d += 1;
+                    let Some(v) = view(scene, dynamic, y) else {
+                        continue;
+                    };
+                    if rules == Rules::Paper {
+                        events.push(event(EventKind::ColliderSwap {
+                            obstacle: v.id.to_owned(),
+                            from: ColliderKind::None,
+                            to: ColliderKind::Box,
+                            beta: 0.0,
+                            distance_m: v.aabb_enu_m.distance_to(position),
+                            reason: "node",
+                        }));
+                    }
+                    self.merged.push(Active {
+                        obstacle: y,
+                        collider: ColliderKind::Box,
+                        since_t_s: t,
+                        beta: 0.0,
+                    });
+                }
+                _ => break,
+            }
+        }
+        std::mem::swap(&mut state.active, &mut self.merged);
+    }
+
+    /// Step 3: six rays along the body axes against the active colliders: static ones front to
+    /// back through the octree (stopping at the nearest hit), moving ones by a scan.
+    #[allow(clippy::too_many_arguments)]
+    fn cast_rays(
+        &mut self,
+        world: &World<'_>,
+        meshes: &mut MeshCache,
+        cfg: &CollisionConfig,
+        rules: Rules,
+        state: &mut SensingState,
+        current: &TrackSample,
+        counts: &mut FrameCounts,
+    ) {
+        let (scene, dynamic) = (world.scene, world.dynamic);
+        let position = current.position_enu_m;
+        for (k, axis) in RAY_AXES_FRD.iter().enumerate() {
+            let dir = current.attitude.enu_from_frd * axis.as_dvec3();
+            let active = &state.active;
+            let mut tests = 0;
+            // `bounds_checked`: the caller already knows the ray meets the obstacle's bounds.
+            let mut ray_test = |o: ObstacleRef, limit: f64, bounds_checked: bool| {
+                let i = active.binary_search_by_key(&o, |a| a.obstacle).ok()?;
+                let act = active[i];
+                let v = view(scene, dynamic, o)?;
+                if !bounds_checked && !v.aabb_enu_m.ray_hits(position, dir, limit) {
+                    return None;
+                }
+                tests += 1;
+                if act.collider == ColliderKind::Box {
+                    // A box collider is an oriented box: a slab test in its frame.
+                    let (cuboid, centre) = v.geometry.box_collider();
+                    let to_local = v.current.enu_from_body.inverse();
+                    let origin =
+                        to_local * (position - v.current.position_enu_m) - centre.as_dvec3();
+                    let half = cuboid.half_extents.as_dvec3();
+                    return Aabb64::new(-half, half).ray_entry(origin, to_local * dir, limit);
+                }
+                let body = match rules {
+                    Rules::Paper => Body::new(
+                        crate::collision::bodies::Holder::Mesh(
+                            meshes.get(v.geometry_index, v.geometry),
+                        ),
+                        v.current,
+                    ),
+                    Rules::Sensor => {
+                        world
+                            .shapes
+                            .body(v.geometry_index, v.geometry, meshes, v.current, false)
+                    }
+                };
+                contact::ray_distance_m(position, dir, limit, &body.placed())
+            };
+            // The obstacle this ray hit last frame usually still is the nearest: its distance
+            // bounds the octree walk (same answer, far fewer nodes).
+            let seed = state.rays[k]
+                .and_then(|h| Some((h.obstacle, ray_test(h.obstacle, cfg.ray_length_m, false)?)));
+            let seed_static = seed.filter(|(o, _)| matches!(o, ObstacleRef::Static(_)));
+            let mut best = world
+                .octree
+                .cast_ray(
+                    position,
+                    dir,
+                    seed_static.map_or(cfg.ray_length_m, |s| s.1),
+                    &mut self.ws,
+                    |i, limit| ray_test(ObstacleRef::Static(i), limit, true),
+                )
+                .map(|(i, d)| (ObstacleRef::Static(i), d))
+                .or(seed_static);
+            for a in active
+                .iter()
+                .filter(|a| matches!(a.obstacle, ObstacleRef::Dynamic(_)))
+            {
+                let limit = best.map_or(cfg.ray_length_m, |b| b.1);
+                if let Some(d) = ray_test(a.obstacle, limit, false).filter(|&d| d < limit) {
+                    best = Some((a.obstacle, d));
+                }
+            }
+            counts.ray_tests += tests;
+            state.rays[k] = best.map(|(obstacle, d)| RayHit {
+                obstacle,
+                distance_m: d,
+                point_enu_m: position + dir * d,
+            });
+        }
+    }
+}
+
+/// Steps 4-5: the threat of what the rays see, and the box <-> mesh rule with the hold.
+#[allow(clippy::too_many_arguments)]
+fn rate_and_swap(
+    world: &World<'_>,
+    meshes: &mut MeshCache,
+    cfg: &CollisionConfig,
+    rules: Rules,
+    state: &mut SensingState,
+    current: &TrackSample,
+    event: &dyn Fn(EventKind) -> Event,
+    events: &mut Vec<Event>,
+) {
+    let (scene, dynamic) = (world.scene, world.dynamic);
+    let t = current.t_s;
+    let position = current.position_enu_m;
+    let forward = current.attitude.forward_enu();
+    let hold = if rules == Rules::Paper {
+        0.0
+    } else {
+        cfg.hold_s
+    };
+    // beta is this frame's: the largest over the rays that see the obstacle now.
+    for act in state.active.iter_mut() {
+        act.beta = 0.0;
+    }
+    for k in 0..6 {
+        let Some(hit) = state.rays[k] else { continue };
+        let Ok(i) = state
+            .active
+            .binary_search_by_key(&hit.obstacle, |a| a.obstacle)
+        else {
+            continue;
+        };
+        let Some(v) = view(scene, dynamic, hit.obstacle) else {
+            continue;
+        };
+        let act = &mut state.active[i];
+        let angle_deg = forward
+            .angle_between(hit.point_enu_m - position)
+            .to_degrees();
+        let beta = cfg.ahp.beta(v.threat, v.speed_mps, angle_deg);
+        act.beta = act.beta.max(beta);
+        if act.collider == ColliderKind::Box
+            && beta > cfg.mesh_beta
+            && hit.distance_m < cfg.mesh_within_m
+        {
+            // Residency: the mesh is built now, by the sensing layer, before a contact needs it.
+            if rules == Rules::Paper || ExactShapes::needs_mesh(v.geometry) {
+                meshes.get(v.geometry_index, v.geometry);
+            }
+            swap(
+                act,
+                ColliderKind::Mesh,
+                t,
+                v.id,
+                beta,
+                hit.distance_m,
+                "threat",
+                event,
+                events,
+            );
+        }
+    }
+    let mut i = 0;
+    while i < state.active.len() {
+        let act = &mut state.active[i];
+        i += 1;
+        if act.collider != ColliderKind::Mesh || t - act.since_t_s < hold {
+            continue;
+        }
+        let Some(v) = view(scene, dynamic, act.obstacle) else {
+            continue;
+        };
+        let distance_m = v.aabb_enu_m.distance_to(position);
+        if distance_m > cfg.box_beyond_m {
+            swap(
+                act,
+                ColliderKind::Box,
+                t,
+                v.id,
+                act.beta,
+                distance_m,
+                "far",
+                event,
+                events,
+            );
+            if rules == Rules::Sensor {
+                // Far: it leaves the sensor's set (its mesh becomes evictable).
+                i -= 1;
+                state.active.remove(i);
+            }
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn swap(
+    act: &mut Active,
+    to: ColliderKind,
+    t: f64,
+    id: &str,
+    beta: f64,
+    distance_m: f64,
+    reason: &'static str,
+    event: &dyn Fn(EventKind) -> Event,
+    events: &mut Vec<Event>,
+) {
+    events.push(event(EventKind::ColliderSwap {
+        obstacle: id.to_owned(),
+        from: act.collider,
+        to,
+        beta,
+        distance_m,
+        reason,
+    }));
+    act.collider = to;
+    act.since_t_s = t;
+}
