@@ -444,7 +444,7 @@ fn fill_dynamic(
         out.push(DynamicBody {
             key: BodyKey {
                 source: BodySource::Vehicle {
-                    system_id: v.id.system_id,
+                    vehicle: u16::from(v.id.system_id),
                     component_id: v.id.component_id,
                 },
                 generation: v.generation,

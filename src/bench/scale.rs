@@ -9,7 +9,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
+use crate::collision::pipeline::{
+    BodyPose, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
+};
 use crate::geo::LocalTangentPlane;
 use crate::scene::geometry::Geometry;
 use crate::scene::{Kind, Placement, Scene, StaticObstacle};
@@ -163,8 +165,9 @@ pub fn sizes(sizes: &[usize], modes: &[Mode], config: CollisionConfig) -> Vec<Si
     rows
 }
 
-/// Ticks per second for fleets of each size flying in `scene` (each vehicle against the static
-/// scene), in `mode`.
+/// Ticks per second for fleets of each size flying in `scene`, in `mode`: each vehicle against
+/// the static scene and against every other vehicle of the fleet (a swarm: they are obstacles
+/// to each other).
 pub fn fleets(scene: &Scene, fleet_sizes: &[usize], config: CollisionConfig) -> Vec<FleetRow> {
     let seconds = 20.0;
     fleet_sizes
@@ -176,17 +179,35 @@ pub fn fleets(scene: &Scene, fleet_sizes: &[usize], config: CollisionConfig) -> 
             let mut events = Vec::new();
             let mut costs = Vec::with_capacity(n * flights[0].len());
             let mut busy_ns = 0u64;
-            // Time steps in order, every vehicle at each: as a live fleet arrives.
+            let model = scene.vehicle_model(1);
+            let mut bodies: Vec<DynamicBody> = Vec::with_capacity(n);
+            let ids: Vec<Arc<str>> = (0..n).map(|k| format!("vehicle:{k}").into()).collect();
+            // Time steps in order, every vehicle at each: as a live fleet arrives. The fleet's
+            // poses are gathered once a step (what a world store holds), outside the timing.
             for i in 0..flights[0].len() {
+                bodies.clear();
+                bodies.extend(flights.iter().enumerate().map(|(k, f)| {
+                    let pose = |s: &TrackSample| BodyPose::of(s);
+                    DynamicBody {
+                        key: VehicleKey::new(k as u16).as_body(),
+                        id: ids[k].clone(),
+                        kind: Kind::Dji,
+                        threat: scene.threat_of(Kind::Dji),
+                        geometry_index: model,
+                        previous: pose(&f[i.saturating_sub(1)]),
+                        current: pose(&f[i]),
+                        speed_mps: f[i].velocity_enu_mps.length(),
+                    }
+                }));
                 for (k, f) in flights.iter().enumerate() {
                     let previous = i.checked_sub(1).map(|p| &f[p]);
                     let started = Instant::now();
                     pipeline.step(
                         scene,
-                        crate::collision::pipeline::VehicleKey::new(k as u16),
+                        VehicleKey::new(k as u16),
                         previous,
                         &f[i],
-                        &[],
+                        &bodies,
                         &mut events,
                     );
                     let ns = started.elapsed().as_nanos() as u64;

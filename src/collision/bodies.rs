@@ -21,10 +21,11 @@ use crate::world::TrackSample;
 pub enum BodySource {
     /// A moving obstacle declared in the scene (index into `Scene::dynamic`), or a bench track.
     Scripted(u32),
-    /// A MAVLink vehicle.
+    /// A vehicle: its MAVLink (sysid, compid), or a fleet number in the bench (as
+    /// [`VehicleKey`] numbers it).
     Vehicle {
-        /// MAVLink system id.
-        system_id: u8,
+        /// MAVLink system id (or fleet number).
+        vehicle: u16,
         /// MAVLink component id.
         component_id: u8,
     },
@@ -57,6 +58,22 @@ pub struct VehicleKey {
 }
 
 impl VehicleKey {
+    /// This vehicle as a moving body of other vehicles' ticks.
+    pub const fn source(&self) -> BodySource {
+        BodySource::Vehicle {
+            vehicle: self.vehicle,
+            component_id: self.component_id,
+        }
+    }
+
+    /// This vehicle's key as a moving body.
+    pub const fn as_body(&self) -> BodyKey {
+        BodyKey {
+            source: self.source(),
+            generation: self.generation,
+        }
+    }
+
     /// Vehicle `vehicle`, component 1, generation 0.
     ///
     /// ```
@@ -126,7 +143,10 @@ pub struct DynamicBody {
 /// The world a stage looks at in one tick.
 pub(crate) struct World<'a> {
     pub scene: &'a Scene,
+    /// The moving bodies; the ticking vehicle's own body, if listed, is skipped.
     pub dynamic: &'a [DynamicBody],
+    /// The ticking vehicle as a moving body.
+    pub own: BodySource,
     pub octree: &'a crate::collision::octree::Octree,
     pub shapes: &'a crate::collision::shapes::ExactShapes,
 }
@@ -180,6 +200,24 @@ pub(crate) fn view<'s>(
             view_dynamic(scene, d)
         }
     }
+}
+
+/// True when moving body `d` may come within `margin_m` of `region` in this interval (a cheap
+/// sphere test before its bounds are computed), and is not the ticking vehicle itself.
+pub(crate) fn may_reach(
+    world: &World<'_>,
+    d: &DynamicBody,
+    region: &Aabb64,
+    margin_m: f64,
+) -> bool {
+    if d.key.source == world.own {
+        return false;
+    }
+    let Some(g) = world.scene.geometries.get(d.geometry_index) else {
+        return false;
+    };
+    let moved_m = d.current.position_enu_m.distance(d.previous.position_enu_m);
+    region.distance_to(d.current.position_enu_m) <= radius_m(g) + moved_m + margin_m
 }
 
 /// The moving body `d` at this tick.

@@ -13,7 +13,8 @@
 use glam::DVec3;
 
 use crate::collision::bodies::{
-    inside_solid, view, view_dynamic, Body, BodyPose, Holder, ObstacleRef, ObstacleView, World,
+    inside_solid, may_reach, view, view_dynamic, Body, BodyPose, Holder, ObstacleRef, ObstacleView,
+    World,
 };
 use crate::collision::config::Mode;
 use crate::collision::contact::{self, SweepHit};
@@ -103,6 +104,9 @@ impl Contacts {
             candidates.push(ObstacleRef::Static(i))
         });
         for d in world.dynamic {
+            if !may_reach(world, d, &query, 0.0) {
+                continue;
+            }
             let size = d.current.position_enu_m.distance(d.previous.position_enu_m);
             let Some(v) = view_dynamic(world.scene, d) else {
                 continue;

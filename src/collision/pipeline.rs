@@ -332,6 +332,7 @@ impl Pipeline {
         let world = World {
             scene,
             dynamic,
+            own: key.source(),
             octree: &self.octree,
             shapes: &self.shapes,
         };

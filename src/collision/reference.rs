@@ -220,7 +220,7 @@ impl Reference {
                 });
             }
         }
-        for d in dynamic {
+        for d in dynamic.iter().filter(|d| d.key.source != key.source()) {
             let g = &scene.geometries[d.geometry_index];
             let r = radius_of(g);
             let (b, n) = if previous.is_some() {

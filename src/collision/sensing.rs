@@ -8,7 +8,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::collision::bodies::{view, view_dynamic, Body, ObstacleRef, World};
+use crate::collision::bodies::{may_reach, view, view_dynamic, Body, ObstacleRef, World};
 use crate::collision::config::CollisionConfig;
 use crate::collision::contact;
 use crate::collision::events::{Event, EventKind};
@@ -128,6 +128,9 @@ impl Sensing {
         self.activate(world, cfg, rules, state, current, event, events);
         self.cast_rays(world, meshes, cfg, rules, state, current, &mut counts);
         rate_and_swap(world, meshes, cfg, rules, state, current, event, events);
+        if rules == Rules::Sensor {
+            make_resident_ahead(world, meshes, cfg, state, current);
+        }
         for act in &state.active {
             let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
                 continue;
@@ -226,14 +229,17 @@ impl Sensing {
             }
         }
         for d in dynamic {
-            let o = ObstacleRef::Dynamic(d.key);
-            let Some(v) = view_dynamic(scene, d) else {
-                continue;
-            };
             let lead = if rules == Rules::Sensor {
                 d.speed_mps * cfg.look_ahead_s
             } else {
                 0.0
+            };
+            if !may_reach(world, d, &region, lead) {
+                continue;
+            }
+            let o = ObstacleRef::Dynamic(d.key);
+            let Some(v) = view_dynamic(scene, d) else {
+                continue;
             };
             if v.aabb_enu_m.inflated(lead).intersects(&region) {
                 desired.push(o);
@@ -487,6 +493,29 @@ fn rate_and_swap(
                 i -= 1;
                 state.active.remove(i);
             }
+        }
+    }
+}
+
+/// Residency: the triangle meshes the contact layer may need before the next frames (terrain
+/// and loaded meshes within the look-ahead reach) are built now, in the sensing layer, so that
+/// a contact rarely has to build one on the tick path.
+fn make_resident_ahead(
+    world: &World<'_>,
+    meshes: &mut MeshCache,
+    cfg: &CollisionConfig,
+    state: &SensingState,
+    current: &TrackSample,
+) {
+    let reach_m = current.velocity_enu_mps.length() * cfg.look_ahead_s + cfg.near_miss_m.max(1.0);
+    for act in &state.active {
+        let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
+            continue;
+        };
+        if ExactShapes::needs_mesh(v.geometry)
+            && v.aabb_enu_m.distance_to(current.position_enu_m) <= reach_m
+        {
+            meshes.get(v.geometry_index, v.geometry);
         }
     }
 }

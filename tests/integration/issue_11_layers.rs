@@ -146,7 +146,7 @@ fn moving_bodies_appearing_expiring_and_reordering_keep_their_identity() {
         body(
             "vehicle:5",
             BodySource::Vehicle {
-                system_id: 5,
+                vehicle: 5,
                 component_id: 1,
             },
             generation,
