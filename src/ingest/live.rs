@@ -226,11 +226,24 @@ pub struct LinkState {
     pub stream_requests: u64,
 }
 
-/// UNIX time now, seconds.
+/// Receive time now, UNIX seconds, on a monotonic clock: the system clock read once, at the
+/// first call, plus the monotonic time elapsed since. A system clock stepped by NTP or by hand
+/// during a run moves no stamp backwards or forwards.
+///
+/// ```
+/// let a = savsim::ingest::live::unix_now_s();
+/// let b = savsim::ingest::live::unix_now_s();
+/// assert!(b >= a && a > 1.6e9);
+/// ```
 pub fn unix_now_s() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
+    static START: std::sync::OnceLock<(std::time::Instant, f64)> = std::sync::OnceLock::new();
+    let (instant, unix_s) = START.get_or_init(|| {
+        let unix_s = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        (std::time::Instant::now(), unix_s)
+    });
+    unix_s + instant.elapsed().as_secs_f64()
 }
 
 /// Encodes savsim's outgoing messages as a GCS.

@@ -2,6 +2,7 @@
 //!
 //! - [`geometry`]: shapes kept as descriptions, triangles on demand.
 //! - [`format`]: the TOML scene file (documented in scenes/README.md) and its loader.
+//! - [`mesh_files`]: OBJ, STL, glTF/GLB and COLLADA readers.
 //! - [`models`]: built-in models (the default quadcopter, airliners, balloons).
 //! - [`gen`]: the deterministic `city` and `mountain` generators.
 //!
@@ -13,6 +14,7 @@ pub mod format;
 pub mod gen;
 pub mod geometry;
 pub mod info;
+pub mod mesh_files;
 pub mod models;
 pub mod terrain;
 
