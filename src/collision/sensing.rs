@@ -205,15 +205,16 @@ impl Sensing {
         state.queried = Some(region);
         self.desired.clear();
         let desired = &mut self.desired;
-        if reuse_static {
-            desired.extend(
-                state
-                    .active
-                    .iter()
-                    .map(|a| a.obstacle)
-                    .filter(|o| matches!(o, ObstacleRef::Static(_))),
-            );
+        // With the static answer reused, only the moving bodies (the tail of the sorted active
+        // list) are merged again.
+        let from = if reuse_static {
+            state
+                .active
+                .partition_point(|a| matches!(a.obstacle, ObstacleRef::Static(_)))
         } else {
+            0
+        };
+        if !reuse_static {
             if let Some(node) = node {
                 desired.extend(
                     octree
@@ -248,9 +249,9 @@ impl Sensing {
         desired.sort_unstable();
         desired.dedup();
         state.node = node;
-        // Merge the active list (sorted) with the desired one.
+        // Merge the active list (sorted) from `from` on with the desired one.
         self.merged.clear();
-        let (mut a, mut d) = (0, 0);
+        let (mut a, mut d) = (from, 0);
         while a < state.active.len() || d < self.desired.len() {
             let next_active = state.active.get(a).map(|x| x.obstacle);
             let next_desired = self.desired.get(d).copied();
@@ -312,7 +313,8 @@ impl Sensing {
                 _ => break,
             }
         }
-        std::mem::swap(&mut state.active, &mut self.merged);
+        state.active.truncate(from);
+        state.active.extend_from_slice(&self.merged);
     }
 
     /// Step 3: six rays along the body axes against the active colliders: static ones front to
