@@ -286,6 +286,11 @@ impl Body {
         matches!(self.holder, Holder::Mesh(_))
     }
 
+    /// True when the body is a solid of several convex parts (a compound of blocks).
+    pub fn is_compound(&self) -> bool {
+        matches!(self.holder, Holder::Solid(_))
+    }
+
     /// The body where it was placed.
     pub fn placed(&self) -> Placed<'_> {
         Placed {

@@ -16,12 +16,35 @@ use parry3d::query::{
     self, ClosestPoints, Contact, DefaultQueryDispatcher, NonlinearRigidMotion, QueryDispatcher,
     Ray, ShapeCastHit, ShapeCastOptions, ShapeDistance, ShapeIntersection, Unsupported,
 };
-use parry3d::shape::Shape;
+use parry3d::shape::{Cuboid, Shape};
 
-/// parry's default dispatcher, except for the distance of two cuboids, which goes through GJK:
-/// parry 0.31's cuboid-cuboid routine can return a separation for boxes that touch (an edge
-/// of a turned box against a face), and compounds of blocks reach it for every pair of parts.
+/// parry's default dispatcher, except for the distance of two cuboids ([`cuboid_distance`]),
+/// which compounds of blocks reach for every pair of parts.
 struct Dispatcher;
+
+/// The distance of two cuboids, robust to two failures of parry 0.31 seen on real sweeps: its
+/// cuboid-cuboid routine (SAT and clipping) can report a separation for boxes that touch (an
+/// edge of a turned box against a face), and GJK can report 0 for boxes a few millimetres
+/// apart. Overlap is decided by the exact separating-axis test and GJK's distance is taken when
+/// it is positive; where GJK wrongly says 0, the separating-axis test of one box grown by the
+/// contact tolerance decides: touching (0), or farther than the tolerance (which is returned:
+/// a lower bound, as conservative advancement needs).
+fn cuboid_distance(pos12: &Pose, c1: &Cuboid, c2: &Cuboid) -> f32 {
+    if query::details::intersection_test_cuboid_cuboid(pos12, c1, c2) {
+        return 0.0;
+    }
+    let gjk = distance_support_map_support_map(pos12, c1, c2);
+    if gjk > 0.0 {
+        return gjk;
+    }
+    let tolerance = CONTACT_TOLERANCE_M as f32;
+    let grown = Cuboid::new(c1.half_extents + Vector::splat(tolerance));
+    if query::details::intersection_test_cuboid_cuboid(pos12, &grown, c2) {
+        0.0
+    } else {
+        tolerance * 1.0001
+    }
+}
 
 impl QueryDispatcher for Dispatcher {
     fn intersection_test(
@@ -40,7 +63,7 @@ impl QueryDispatcher for Dispatcher {
         g2: &dyn Shape,
     ) -> Result<ShapeDistance, Unsupported> {
         if let (Some(c1), Some(c2)) = (g1.as_cuboid(), g2.as_cuboid()) {
-            return Ok(distance_support_map_support_map(pos12, c1, c2).into());
+            return Ok(cuboid_distance(pos12, c1, c2).into());
         }
         if let Some(c1) = g1.as_composite_shape() {
             return Ok(distance_composite_shape_shape(self, pos12, c1, g2));
@@ -143,6 +166,11 @@ impl<'a> Placed<'a> {
         }
     }
 
+    /// Where the body's pivot is, scene ENU metres.
+    fn pivot_enu_m(&self) -> DVec3 {
+        self.position_enu_m + self.enu_from_shape * self.pivot_local_m.as_dvec3()
+    }
+
     fn pose_about(&self, anchor: DVec3) -> Pose {
         Pose::from_parts(
             (self.position_enu_m - anchor).as_vec3(),
@@ -206,12 +234,14 @@ pub fn contact_point(a: &Placed<'_>, b: &Placed<'_>) -> Option<(DVec3, DVec3)> {
     ))
 }
 
+/// The screw motion from `from` to `to`: the pivot (the body's reference point) moves in a
+/// straight line while the body turns about it at a constant rate.
 fn motion(anchor: DVec3, from: &Placed<'_>, to: &Placed<'_>) -> NonlinearRigidMotion {
     let delta = rotation_between(from, to);
     NonlinearRigidMotion::new(
         from.pose_about(anchor),
         from.pivot_local_m,
-        (to.position_enu_m - from.position_enu_m).as_vec3(),
+        (to.pivot_enu_m() - from.pivot_enu_m()).as_vec3(),
         delta.to_scaled_axis().as_vec3(),
     )
 }
@@ -236,12 +266,17 @@ pub const CONTACT_TOLERANCE_M: f64 = 1e-4;
 /// Casts restarted after a hit that an exact distance query does not confirm (parry's
 /// conservative advancement can stop short of a contact on a near-grazing pass, and lose
 /// precision on very large triangles).
-const MAX_RECASTS: usize = 16;
+const MAX_RECASTS: usize = 64;
 
 /// The contact tolerance for two shapes: [`CONTACT_TOLERANCE_M`], grown with the shapes' size
 /// where f32 loses it (a 10 km mesh has vertices 5 km from the anchor).
 fn tolerance_m(a: &dyn Shape, b: &dyn Shape) -> f32 {
-    let size = |s: &dyn Shape| s.compute_local_aabb().half_extents().length();
+    // Only triangle meshes reach sizes where f32 matters (boxes and blocks are tested part by
+    // part, in the frame of the part).
+    let size = |s: &dyn Shape| {
+        s.as_trimesh()
+            .map_or(0.0, |m| m.local_aabb().half_extents().length())
+    };
     CONTACT_TOLERANCE_M as f32 + 1e-6 * size(a).max(size(b))
 }
 
@@ -286,9 +321,56 @@ pub fn sweep(
     let closing = (mb.linvel - ma.linvel).length()
         + ma.angvel.length() * (reach(a0.shape) + a0.pivot_local_m.length())
         + mb.angvel.length() * (reach(b0.shape) + b0.pivot_local_m.length());
+    let gap_at = |t: f32| {
+        shape_distance(
+            &ma.position_at_time(t),
+            a0.shape,
+            &mb.position_at_time(t),
+            b0.shape,
+        )
+    };
+    // The first touching time between a time known to be clear and one known to touch.
+    let first_touch = |mut clear: f32, mut touching: f32| {
+        for _ in 0..24 {
+            let mid = 0.5 * (clear + touching);
+            if gap_at(mid) <= tolerance {
+                touching = mid;
+            } else {
+                clear = mid;
+            }
+        }
+        touching
+    };
+    let hit_at = |toi: f32, witness: Option<&ShapeCastHit>| {
+        let (pose_a, pose_b) = (ma.position_at_time(toi), mb.position_at_time(toi));
+        // The contact at the confirmed poses (a cast that stopped in penetration reports no
+        // witness of its own).
+        let (point_enu_m, normal_enu) = match (
+            query::contact(&pose_a, a0.shape, &pose_b, b0.shape, tolerance),
+            witness,
+        ) {
+            (Ok(Some(c)), _) => (
+                anchor + c.point2.as_dvec3(),
+                (-c.normal1.as_dvec3()).normalize_or_zero(),
+            ),
+            (_, Some(hit)) => (
+                anchor + (pose_b * hit.witness2).as_dvec3(),
+                (pose_b.rotation * hit.normal2)
+                    .as_dvec3()
+                    .normalize_or_zero(),
+            ),
+            _ => (anchor + pose_a.translation.as_dvec3(), DVec3::Z),
+        };
+        SweepHit {
+            fraction: f64::from(toi),
+            point_enu_m,
+            normal_enu,
+        }
+    };
+    // `start` is always a time known to be clear.
     let mut start = 0.0f32;
     for _ in 0..MAX_RECASTS {
-        let hit = if linear {
+        let cast = if linear {
             let pa = ma.position_at_time(start);
             let pb = mb.position_at_time(start);
             let options = ShapeCastOptions {
@@ -297,31 +379,133 @@ pub fn sweep(
                 ..ShapeCastOptions::default()
             };
             query::cast_shapes(&pa, ma.linvel, a0.shape, &pb, mb.linvel, b0.shape, options)
-                .ok()??
-                .transform_toi(start)
+                .ok()
+                .flatten()
+                .map(|hit| hit.transform_toi(start))
         } else {
-            query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, start, 1.0, true).ok()??
+            query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, start, 1.0, true)
+                .ok()
+                .flatten()
         };
+        let Some(hit) = cast else { break };
         let toi = hit.time_of_impact.clamp(0.0, 1.0);
-        let (pose_a, pose_b) = (ma.position_at_time(toi), mb.position_at_time(toi));
-        let gap = shape_distance(&pose_a, a0.shape, &pose_b, b0.shape);
+        let gap = gap_at(toi);
         if gap <= tolerance {
-            return Some(SweepHit {
-                fraction: f64::from(toi),
-                point_enu_m: anchor + (pose_b * hit.witness2).as_dvec3(),
-                normal_enu: (pose_b.rotation * hit.normal2)
-                    .as_dvec3()
-                    .normalize_or_zero(),
-            });
+            // A linear cast's time is exact; conservative advancement can stop past the touch.
+            let toi = if linear { toi } else { first_touch(start, toi) };
+            return Some(hit_at(toi, Some(&hit)));
         }
         // Not touching there: no contact can come sooner than the gap closes.
         let advance = if closing > 0.0 { gap / closing } else { 1.0 };
         start = toi + advance.max(1e-5);
         if start >= 1.0 {
-            return None;
+            break;
         }
     }
-    None
+    // The cast found nothing (or gave up): a contact that holds at the end of the interval
+    // still began in it. Its start is bisected on the exact overlap test (distances lose
+    // precision against very large triangles); a touch only within the tolerance is at the end.
+    if gap_at(1.0) > tolerance {
+        return None;
+    }
+    let overlaps_at = |t: f32| {
+        query::intersection_test(
+            &ma.position_at_time(t),
+            a0.shape,
+            &mb.position_at_time(t),
+            b0.shape,
+        )
+        .is_ok_and(|i| i.intersecting)
+    };
+    let mut toi = 1.0f32;
+    if overlaps_at(1.0) {
+        let mut clear = start.min(1.0);
+        for _ in 0..24 {
+            let mid = 0.5 * (clear + toi);
+            if overlaps_at(mid) {
+                toi = mid;
+            } else {
+                clear = mid;
+            }
+        }
+    }
+    Some(hit_at(toi, None))
+}
+
+/// The convex parts of a placed shape: a compound's parts, or the shape itself.
+fn convex_parts<'a>(p: &Placed<'a>) -> smallvec::SmallVec<[Placed<'a>; 8]> {
+    match p.shape.as_compound() {
+        Some(compound) => compound
+            .shapes()
+            .iter()
+            .map(|(pose, part)| Placed {
+                shape: part.as_ref(),
+                position_enu_m: p.position_enu_m + p.enu_from_shape * pose.translation.as_dvec3(),
+                enu_from_shape: p.enu_from_shape * pose.rotation.as_dquat(),
+                // The body still turns about its own pivot: where it is in the part's frame.
+                pivot_local_m: pose.inverse() * p.pivot_local_m,
+            })
+            .collect(),
+        None => smallvec::smallvec![*p],
+    }
+}
+
+/// Every contact of the interval, not only the first: the times (fractions) during which body
+/// `a` (from `a0` to `a1`) touches body `b` (from `b0` to `b1`), as disjoint spans, each with
+/// the hit that opens it. Compounds are split into their convex parts; a pair of convex parts
+/// touches over one span, found by a sweep forwards (entry) and one backwards (exit). Costly
+/// (two sweeps a pair of parts): for intervals in which a first sweep already found contact,
+/// so that leaving a wing of a building and entering the next within one interval is two
+/// collisions.
+pub fn contact_spans(
+    a0: &Placed<'_>,
+    a1: &Placed<'_>,
+    b0: &Placed<'_>,
+    b1: &Placed<'_>,
+) -> smallvec::SmallVec<[(SweepHit, f64); 2]> {
+    let (pa0, pa1, pb0, pb1) = (
+        convex_parts(a0),
+        convex_parts(a1),
+        convex_parts(b0),
+        convex_parts(b1),
+    );
+    // Each part's bounds over the interval (about one anchor; a turning part's bounds at the
+    // two ends, grown by how far its corners can swing in between).
+    let anchor = a0.position_enu_m;
+    let reach = |p0: &Placed<'_>, p1: &Placed<'_>| {
+        let (b0, b1) = (
+            p0.shape.compute_aabb(&p0.pose_about(anchor)),
+            p1.shape.compute_aabb(&p1.pose_about(anchor)),
+        );
+        let swing = rotation_between(p0, p1).to_scaled_axis().length() as f32
+            * (b0.half_extents().length() + p0.pivot_local_m.length());
+        b0.merged(&b1).loosened(swing + CONTACT_TOLERANCE_M as f32)
+    };
+    let reach_a: smallvec::SmallVec<[_; 8]> =
+        pa0.iter().zip(&pa1).map(|(p0, p1)| reach(p0, p1)).collect();
+    let reach_b: smallvec::SmallVec<[_; 8]> =
+        pb0.iter().zip(&pb1).map(|(p0, p1)| reach(p0, p1)).collect();
+    let mut spans: smallvec::SmallVec<[(SweepHit, f64); 8]> = smallvec::SmallVec::new();
+    for (i, j) in (0..pa0.len()).flat_map(|i| (0..pb0.len()).map(move |j| (i, j))) {
+        if !reach_a[i].intersects(&reach_b[j]) {
+            continue;
+        }
+        let Some(enter) = sweep(&pa0[i], &pa1[i], &pb0[j], &pb1[j]) else {
+            continue;
+        };
+        let exit = sweep(&pa1[i], &pa0[i], &pb1[j], &pb0[j])
+            .map_or(enter.fraction, |back| 1.0 - back.fraction);
+        spans.push((enter, exit.max(enter.fraction)));
+    }
+    spans.sort_by(|x, y| x.0.fraction.total_cmp(&y.0.fraction));
+    let mut merged: smallvec::SmallVec<[(SweepHit, f64); 2]> = smallvec::SmallVec::new();
+    for (hit, exit) in spans {
+        match merged.last_mut() {
+            Some(last) if hit.fraction <= last.1 + 1e-9 => last.1 = last.1.max(exit),
+            _ => merged.push((hit, exit)),
+        }
+    }
+    merged
 }
 
 /// A time of impact found from `start` on, as a fraction of the whole interval.

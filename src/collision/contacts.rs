@@ -11,6 +11,7 @@
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
 
 use glam::DVec3;
+use smallvec::SmallVec;
 
 use crate::collision::bodies::{
     inside_solid, may_reach, view, view_dynamic, Body, BodyPose, Holder, ObstacleRef, ObstacleView,
@@ -169,17 +170,21 @@ impl Contacts {
                     v.current,
                 ),
             };
-            let touch = if !could_touch {
-                None
+            let touches: SmallVec<[Touch; 2]> = if !could_touch {
+                SmallVec::new()
             } else if swept {
                 tests += 2;
-                sweep_touch(&vehicle, motion, &body, &v, vehicle_geometry)
+                sweep_touches(&vehicle, motion, &body, &v, vehicle_geometry)
             } else {
                 tests += 1;
                 discrete_touch(&vehicle, motion, &body, &v, vehicle_geometry, mode)
+                    .into_iter()
+                    .collect()
             };
-            match touch {
-                Some(touch) => self.touching.push((o, touch)),
+            match touches.first() {
+                Some(_) => self
+                    .touching
+                    .extend(touches.into_iter().map(|touch| (o, touch))),
                 // Terrain is not a near miss: its closeness is the clearance (summary).
                 None if near_box && !v.geometry.is_terrain() => {
                     tests += 1;
@@ -226,38 +231,66 @@ fn discrete_touch(
     })
 }
 
-/// The first contact in the interval (sweep), and whether it still holds at the sample.
-fn sweep_touch(
+/// The contacts in the interval (sweep), and whether the last still holds at the sample.
+fn sweep_touches(
     vehicle: &Body,
     motion: &Motion,
     body: &Body,
     v: &ObstacleView<'_>,
     vehicle_geometry: &Geometry,
-) -> Option<Touch> {
-    let before = motion.before?;
-    let hit: Option<SweepHit> = contact::sweep(
-        &vehicle.at(before),
-        &vehicle.at(motion.now),
-        &body.at(v.previous),
-        &body.at(v.current),
+) -> SmallVec<[Touch; 2]> {
+    let mut touches = SmallVec::new();
+    let Some(before) = motion.before else {
+        return touches;
+    };
+    let (a0, a1, b0, b1) = (
+        vehicle.at(before),
+        vehicle.at(motion.now),
+        body.at(v.previous),
+        body.at(v.current),
     );
+    let hit: Option<SweepHit> = contact::sweep(&a0, &a1, &b0, &b1);
     match hit {
         Some(h) => {
             let holds_now = contact::intersects(&vehicle.placed(), &body.placed())
                 || solid_overlap(motion, body, v, vehicle_geometry, Mode::Exact).is_some();
-            Some(Touch {
-                point_enu_m: h.point_enu_m,
-                normal_enu: h.normal_enu,
-                fraction: h.fraction,
-                swept: true,
-                holds_now,
-            })
+            // A compound can be left and entered again within one interval (the wings of a
+            // building at speed): every span of contact is a contact.
+            let spans = if vehicle.is_compound() || body.is_compound() {
+                contact::contact_spans(&a0, &a1, &b0, &b1)
+            } else {
+                SmallVec::new()
+            };
+            if spans.len() > 1 {
+                let last = spans.len() - 1;
+                for (k, (start, _)) in spans.into_iter().enumerate() {
+                    touches.push(Touch {
+                        point_enu_m: start.point_enu_m,
+                        normal_enu: start.normal_enu,
+                        fraction: start.fraction,
+                        swept: true,
+                        holds_now: holds_now && k == last,
+                    });
+                }
+            } else {
+                touches.push(Touch {
+                    point_enu_m: h.point_enu_m,
+                    normal_enu: h.normal_enu,
+                    fraction: h.fraction,
+                    swept: true,
+                    holds_now,
+                });
+            }
+            touches
         }
         // No surface crossed: still, the vehicle may have gone under terrain (from another
         // patch's ground: a patch's mesh is open at its edges) or sit under it. When the
         // reference point went under during the interval, bisect for when.
         None => {
-            let point_enu_m = solid_overlap(motion, body, v, vehicle_geometry, Mode::Exact)?;
+            let Some(point_enu_m) = solid_overlap(motion, body, v, vehicle_geometry, Mode::Exact)
+            else {
+                return touches;
+            };
             let under = |u: f64| {
                 let p = before.position_enu_m.lerp(motion.now.position_enu_m, u);
                 inside_solid(v.geometry, &v.current, p)
@@ -276,13 +309,14 @@ fn sweep_touch(
                 }
                 (true, hi)
             };
-            Some(Touch {
+            touches.push(Touch {
                 point_enu_m,
                 normal_enu: DVec3::Z,
                 fraction,
                 swept,
                 holds_now: true,
-            })
+            });
+            touches
         }
     }
 }

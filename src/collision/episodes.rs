@@ -49,9 +49,11 @@ impl Episodes {
         event: &dyn Fn(EventKind) -> Event,
         events: &mut Vec<Event>,
     ) {
-        // Collisions: contacts that were not there at the last sample.
-        for (o, touch) in touching_now {
-            if self.touching.contains(o) {
+        // Collisions: contacts that were not there at the last sample, and every further span
+        // of contact with the same obstacle within the interval.
+        for (k, (o, touch)) in touching_now.iter().enumerate() {
+            let again = touching_now[..k].iter().any(|(p, _)| p == o);
+            if self.touching.contains(o) && !again {
                 continue;
             }
             let Some(v) = view(scene, dynamic, *o) else {
@@ -73,6 +75,7 @@ impl Episodes {
                 .filter(|(_, touch)| touch.holds_now)
                 .map(|(o, _)| *o),
         );
+        self.touching.dedup();
         for &(o, d) in near_now {
             match self.near.iter_mut().find(|n| n.obstacle == o) {
                 Some(n) if d < n.closest_m => {

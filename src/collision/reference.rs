@@ -357,23 +357,43 @@ fn overlap(a: &Parts, pa: BodyPose, b: &Parts, pb: BodyPose) -> bool {
             if query::intersection_test(&poa, sa, &pob, sb).is_ok_and(|i| i.intersecting) {
                 return true;
             }
-            // Touching counts: within 0.1 mm, plus the f32 resolution of the larger part.
-            let size = |s: &dyn Shape| s.compute_local_aabb().half_extents().length();
+            // Touching counts: within 0.1 mm, plus the f32 resolution of a large triangle mesh.
+            let size = |s: &dyn Shape| {
+                s.as_trimesh()
+                    .map_or(0.0, |m| m.local_aabb().half_extents().length())
+            };
             let touch_m = 1e-4 + 1e-6 * size(sa).max(size(sb));
             sa.compute_aabb(&poa)
                 .loosened(touch_m)
                 .intersects(&sb.compute_aabb(&pob))
-                && part_distance(&poa, sa, &pob, sb) <= touch_m
+                && part_distance(&poa, sa, &pob, sb, touch_m) <= touch_m
         })
     })
 }
 
-/// Distance of two parts: two cuboids through GJK (parry 0.31's cuboid-cuboid routine can
-/// report a separation for touching boxes), anything else through parry's dispatcher.
-fn part_distance(pa: &Pose, a: &dyn Shape, pb: &Pose, b: &dyn Shape) -> f32 {
+/// Distance of two parts, anything through parry's dispatcher except two cuboids: parry 0.31's
+/// cuboid-cuboid routine can report a separation for touching boxes and its GJK can report 0
+/// for boxes millimetres apart, so the separating-axis test decides overlap, GJK's positive
+/// distance is taken, and where GJK says 0 the separating-axis test of one box grown by
+/// `touch_m` decides between touching (0) and not (`touch_m` and a little).
+fn part_distance(pa: &Pose, a: &dyn Shape, pb: &Pose, b: &dyn Shape, touch_m: f32) -> f32 {
     match (a.as_cuboid(), b.as_cuboid()) {
         (Some(ca), Some(cb)) => {
-            query::details::distance_support_map_support_map(&pa.inv_mul(pb), ca, cb)
+            let pos12 = pa.inv_mul(pb);
+            if query::details::intersection_test_cuboid_cuboid(&pos12, ca, cb) {
+                return 0.0;
+            }
+            match query::details::distance_support_map_support_map(&pos12, ca, cb) {
+                d if d > 0.0 => d,
+                _ => {
+                    let grown = Cuboid::new(ca.half_extents + Vec3::splat(touch_m));
+                    if query::details::intersection_test_cuboid_cuboid(&pos12, &grown, cb) {
+                        0.0
+                    } else {
+                        touch_m * 1.0001
+                    }
+                }
+            }
         }
         _ => query::distance(pa, a, pb, b).map_or(f32::MAX, |d| d.distance),
     }
