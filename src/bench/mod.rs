@@ -792,7 +792,7 @@ pub fn markdown(report: &BenchReport) -> String {
     if !report.fleets.is_empty() {
         let _ = writeln!(
             out,
-            "### Fleets: vehicles at 50 Hz in the first scene, exact, one core\n\n\
+            "### Fleets: vehicles at 50 Hz in the first scene, exact, every vehicle an obstacle to the others, one core\n\n\
              | vehicles | ticks | ticks/s | × real time | median µs | p99 µs |\n|--:|--:|--:|--:|--:|--:|"
         );
         for f in &report.fleets {

@@ -128,16 +128,16 @@ impl Sensing {
         self.activate(world, cfg, rules, state, current, event, events);
         self.cast_rays(world, meshes, cfg, rules, state, current, &mut counts);
         rate_and_swap(world, meshes, cfg, rules, state, current, event, events);
-        if rules == Rules::Sensor {
+        if rules == Rules::Sensor && world.shapes.has_meshes() {
             make_resident_ahead(world, meshes, cfg, state, current);
         }
         for act in &state.active {
-            let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
-                continue;
-            };
             match act.collider {
                 ColliderKind::Box => counts.active_box += 1,
                 ColliderKind::Mesh => {
+                    let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
+                        continue;
+                    };
                     counts.active_mesh += 1;
                     counts.active_triangles += v.geometry.triangle_count();
                     meshes.touch(v.geometry_index);

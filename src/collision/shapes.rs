@@ -15,6 +15,8 @@ use crate::scene::geometry::{Geometry, GeometrySource};
 #[derive(Default)]
 pub struct ExactShapes {
     solids: Vec<Option<SharedShape>>,
+    /// Some geometry's exact shape is a triangle mesh (terrain, a loaded mesh).
+    has_meshes: bool,
 }
 
 impl std::fmt::Debug for ExactShapes {
@@ -49,7 +51,13 @@ impl ExactShapes {
                 _ => None,
             })
             .collect();
-        Self { solids }
+        let has_meshes = geometries.iter().any(|g| Self::needs_mesh(g));
+        Self { solids, has_meshes }
+    }
+
+    /// True when some geometry's exact shape is a triangle mesh.
+    pub(crate) fn has_meshes(&self) -> bool {
+        self.has_meshes
     }
 
     /// True when geometry `index`'s exact shape is a triangle mesh (built on demand).
