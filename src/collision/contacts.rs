@@ -249,25 +249,58 @@ fn sweep_touches(
         body.at(v.previous),
         body.at(v.current),
     );
-    let hit: Option<SweepHit> = contact::sweep(&a0, &a1, &b0, &b1);
+    let mut hit: Option<SweepHit> = contact::sweep(&a0, &a1, &b0, &b1);
+    // Terrain: the vehicle may have gone under this patch from its neighbour's ground (a
+    // patch's mesh is open at its edges) before it touches this patch's surface.
+    let under = |u: f64| {
+        let p = before.position_enu_m.lerp(motion.now.position_enu_m, u);
+        v.geometry.is_terrain() && inside_solid(v.geometry, &v.current, p)
+    };
+    let went_under = |upto: f64| {
+        let (mut lo, mut hi) = (0.0, upto);
+        for _ in 0..30 {
+            let mid = 0.5 * (lo + hi);
+            if under(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        hi
+    };
+    if let Some(h) = &mut hit {
+        if h.fraction > 0.0 && !under(0.0) && under(h.fraction) {
+            h.fraction = went_under(h.fraction);
+        }
+    }
     match hit {
         Some(h) => {
             let holds_now = contact::intersects(&vehicle.placed(), &body.placed())
                 || solid_overlap(motion, body, v, vehicle_geometry, Mode::Exact).is_some();
             // A compound can be left and entered again within one interval (the wings of a
-            // building at speed): every span of contact is a contact.
-            let spans = if vehicle.is_compound() || body.is_compound() {
-                contact::contact_spans(&a0, &a1, &b0, &b1)
+            // building at speed), and so can a surface when the vehicle travels more than its
+            // size (the ground of a ridge): every span of contact is a contact.
+            let travel_m = before.position_enu_m.distance(motion.now.position_enu_m);
+            let spans = if vehicle.is_compound()
+                || body.is_compound()
+                || (body.is_surface() && travel_m > 2.0 * motion.radius_m)
+            {
+                contact::contact_spans(&a0, &a1, &b0, &b1, &under)
             } else {
                 SmallVec::new()
             };
             if spans.len() > 1 {
                 let last = spans.len() - 1;
                 for (k, (start, _)) in spans.into_iter().enumerate() {
+                    let fraction = if k == 0 && !under(0.0) && under(start.fraction) {
+                        went_under(start.fraction)
+                    } else {
+                        start.fraction
+                    };
                     touches.push(Touch {
                         point_enu_m: start.point_enu_m,
                         normal_enu: start.normal_enu,
-                        fraction: start.fraction,
+                        fraction,
                         swept: true,
                         holds_now: holds_now && k == last,
                     });
@@ -291,23 +324,10 @@ fn sweep_touches(
             else {
                 return touches;
             };
-            let under = |u: f64| {
-                let p = before.position_enu_m.lerp(motion.now.position_enu_m, u);
-                inside_solid(v.geometry, &v.current, p)
-            };
             let (swept, fraction) = if under(0.0) {
                 (false, 1.0)
             } else {
-                let (mut lo, mut hi) = (0.0, 1.0);
-                for _ in 0..30 {
-                    let mid = 0.5 * (lo + hi);
-                    if under(mid) {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                (true, hi)
+                (true, went_under(1.0))
             };
             touches.push(Touch {
                 point_enu_m,

@@ -533,3 +533,40 @@ proptest! {
         }
     }
 }
+
+/// 250 m/s at 5 Hz (50 m between samples) low over hills: the vehicle leaves the ground and
+/// enters it again within one interval; each entry is a collision, as in the reference.
+#[test]
+fn a_fast_low_pass_counts_every_reentry_into_the_ground() {
+    let s = scene(
+        "[[terrain]]\nid = \"hills\"\ngenerated = { seed = 9, size_m = [3000.0, 3000.0], cell_m = 20.0, relief_m = 200.0 }\npatch_cells = 16\nposition_enu_m = [-1500.0, -1500.0, 0.0]\n",
+    );
+    let ground = |x: f64, y: f64| s.ground_height_enu_m(x, y).unwrap();
+    let z = ground(0.0, 0.0) + 5.0;
+    let flight = straight(
+        ORIGIN,
+        DVec3::new(-1400.0, 0.0, z),
+        DVec3::new(1400.0, 0.0, z),
+        250.0,
+        5.0,
+    );
+    let run = |mode| {
+        let mut p = Pipeline::new(&s, config(mode));
+        let events = run_samples(&mut p, &s, 1, &flight, &[]).1;
+        collisions(&events)
+            .into_iter()
+            .map(|(o, t)| (o.to_owned(), t))
+            .collect::<Vec<_>>()
+    };
+    let truth = run(Mode::Reference);
+    let exact = run(Mode::Exact);
+    assert!(
+        truth.len() >= 3,
+        "the pass must enter the ground often: {truth:?}"
+    );
+    assert_eq!(exact.len(), truth.len(), "{exact:?} vs {truth:?}");
+    for (a, b) in exact.iter().zip(&truth) {
+        assert_eq!(a.0, b.0);
+        assert!((a.1 - b.1).abs() <= 1e-3, "{a:?} vs {b:?}");
+    }
+}
