@@ -7,132 +7,10 @@
 use glam::{DQuat, DVec3, Vec3};
 use parry3d::bounding_volume::BoundingVolume;
 use parry3d::math::Pose;
-use parry3d::math::{Real, Vector};
-use parry3d::query::details::{
-    distance_composite_shape_shape, distance_shape_composite_shape,
-    distance_support_map_support_map,
-};
-use parry3d::query::{
-    self, ClosestPoints, Contact, DefaultQueryDispatcher, NonlinearRigidMotion, QueryDispatcher,
-    Ray, ShapeCastHit, ShapeCastOptions, ShapeDistance, ShapeIntersection, Unsupported,
-};
-use parry3d::shape::{Cuboid, Shape};
+use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastHit, ShapeCastOptions};
+use parry3d::shape::Shape;
 
-/// parry's default dispatcher, except for the distance of two cuboids ([`cuboid_distance`]),
-/// which compounds of blocks reach for every pair of parts.
-struct Dispatcher;
-
-/// The distance of two cuboids, robust to two failures of parry 0.31 seen on real sweeps: its
-/// cuboid-cuboid routine (SAT and clipping) can report a separation for boxes that touch (an
-/// edge of a turned box against a face), and GJK can report 0 for boxes a few millimetres
-/// apart. Overlap is decided by the exact separating-axis test and GJK's distance is taken when
-/// it is positive; where GJK wrongly says 0, the separating-axis test of one box grown by the
-/// contact tolerance decides: touching (0), or farther than the tolerance (which is returned:
-/// a lower bound, as conservative advancement needs).
-fn cuboid_distance(pos12: &Pose, c1: &Cuboid, c2: &Cuboid) -> f32 {
-    if query::details::intersection_test_cuboid_cuboid(pos12, c1, c2) {
-        return 0.0;
-    }
-    let gjk = distance_support_map_support_map(pos12, c1, c2);
-    if gjk > 0.0 {
-        return gjk;
-    }
-    let tolerance = CONTACT_TOLERANCE_M as f32;
-    let grown = Cuboid::new(c1.half_extents + Vector::splat(tolerance));
-    if query::details::intersection_test_cuboid_cuboid(pos12, &grown, c2) {
-        0.0
-    } else {
-        tolerance * 1.0001
-    }
-}
-
-impl QueryDispatcher for Dispatcher {
-    fn intersection_test(
-        &self,
-        pos12: &Pose,
-        g1: &dyn Shape,
-        g2: &dyn Shape,
-    ) -> Result<ShapeIntersection, Unsupported> {
-        DefaultQueryDispatcher.intersection_test(pos12, g1, g2)
-    }
-
-    fn distance(
-        &self,
-        pos12: &Pose,
-        g1: &dyn Shape,
-        g2: &dyn Shape,
-    ) -> Result<ShapeDistance, Unsupported> {
-        if let (Some(c1), Some(c2)) = (g1.as_cuboid(), g2.as_cuboid()) {
-            return Ok(cuboid_distance(pos12, c1, c2).into());
-        }
-        if let Some(c1) = g1.as_composite_shape() {
-            return Ok(distance_composite_shape_shape(self, pos12, c1, g2));
-        }
-        if let Some(c2) = g2.as_composite_shape() {
-            return Ok(distance_shape_composite_shape(self, pos12, g1, c2));
-        }
-        DefaultQueryDispatcher.distance(pos12, g1, g2)
-    }
-
-    fn contact(
-        &self,
-        pos12: &Pose,
-        g1: &dyn Shape,
-        g2: &dyn Shape,
-        prediction: Real,
-    ) -> Result<Option<Contact>, Unsupported> {
-        DefaultQueryDispatcher.contact(pos12, g1, g2, prediction)
-    }
-
-    fn closest_points(
-        &self,
-        pos12: &Pose,
-        g1: &dyn Shape,
-        g2: &dyn Shape,
-        max_dist: Real,
-    ) -> Result<ClosestPoints, Unsupported> {
-        DefaultQueryDispatcher.closest_points(pos12, g1, g2, max_dist)
-    }
-
-    fn cast_shapes(
-        &self,
-        pos12: &Pose,
-        local_vel12: Vector,
-        g1: &dyn Shape,
-        g2: &dyn Shape,
-        options: ShapeCastOptions,
-    ) -> Result<Option<ShapeCastHit>, Unsupported> {
-        DefaultQueryDispatcher.cast_shapes(pos12, local_vel12, g1, g2, options)
-    }
-
-    fn cast_shapes_nonlinear(
-        &self,
-        motion1: &NonlinearRigidMotion,
-        g1: &dyn Shape,
-        motion2: &NonlinearRigidMotion,
-        g2: &dyn Shape,
-        start_time: Real,
-        end_time: Real,
-        stop_at_penetration: bool,
-    ) -> Result<Option<ShapeCastHit>, Unsupported> {
-        DefaultQueryDispatcher.cast_shapes_nonlinear(
-            motion1,
-            g1,
-            motion2,
-            g2,
-            start_time,
-            end_time,
-            stop_at_penetration,
-        )
-    }
-}
-
-/// The distance of two posed shapes, metres (0 when they overlap).
-fn shape_distance(pos1: &Pose, g1: &dyn Shape, pos2: &Pose, g2: &dyn Shape) -> f32 {
-    Dispatcher
-        .distance(&pos1.inv_mul(pos2), g1, g2)
-        .map_or(f32::MAX, |d| d.distance)
-}
+use crate::collision::distance::shape_distance;
 
 /// A shape placed in the scene.
 #[derive(Clone, Copy)]
@@ -171,7 +49,7 @@ impl<'a> Placed<'a> {
         self.position_enu_m + self.enu_from_shape * self.pivot_local_m.as_dvec3()
     }
 
-    fn pose_about(&self, anchor: DVec3) -> Pose {
+    pub(crate) fn pose_about(&self, anchor: DVec3) -> Pose {
         Pose::from_parts(
             (self.position_enu_m - anchor).as_vec3(),
             self.enu_from_shape.as_quat().normalize(),
@@ -249,7 +127,7 @@ fn motion(anchor: DVec3, from: &Placed<'_>, to: &Placed<'_>) -> NonlinearRigidMo
 /// Rotations smaller than this over one interval (radians) are swept as pure translations.
 const LINEAR_SWEEP_MAX_ROTATION_RAD: f64 = 1e-4;
 
-fn rotation_between(from: &Placed<'_>, to: &Placed<'_>) -> DQuat {
+pub(crate) fn rotation_between(from: &Placed<'_>, to: &Placed<'_>) -> DQuat {
     let delta = to.enu_from_shape * from.enu_from_shape.inverse();
     if delta.w < 0.0 {
         -delta
@@ -430,141 +308,6 @@ pub fn sweep(
         }
     }
     Some(hit_at(toi, None))
-}
-
-/// The convex parts of a placed shape: a compound's parts, or the shape itself.
-fn convex_parts<'a>(p: &Placed<'a>) -> smallvec::SmallVec<[Placed<'a>; 8]> {
-    match p.shape.as_compound() {
-        Some(compound) => compound
-            .shapes()
-            .iter()
-            .map(|(pose, part)| Placed {
-                shape: part.as_ref(),
-                position_enu_m: p.position_enu_m + p.enu_from_shape * pose.translation.as_dvec3(),
-                enu_from_shape: p.enu_from_shape * pose.rotation.as_dquat(),
-                // The body still turns about its own pivot: where it is in the part's frame.
-                pivot_local_m: pose.inverse() * p.pivot_local_m,
-            })
-            .collect(),
-        None => smallvec::smallvec![*p],
-    }
-}
-
-/// Most triangles of a mesh tested for the spans of one interval (those nearest the path's
-/// bounds come first in the mesh's BVH order; a path that meets more is rare and slow).
-const MAX_SPAN_TRIANGLES: usize = 512;
-
-/// Every contact of the interval, not only the first: the times (fractions) during which body
-/// `a` (from `a0` to `a1`) touches body `b` (from `b0` to `b1`), as disjoint spans, each with
-/// the hit that opens it. Compounds are split into their convex parts, a triangle mesh into
-/// the triangles near the path; a pair of convex parts touches over one span, found by a sweep
-/// forwards (entry) and one backwards (exit). Between two spans, `inside(fraction)` (terrain:
-/// the vehicle under the surface) says whether the contact went on. Costly (two sweeps a pair
-/// of parts): for intervals in which a first sweep already found contact, so that leaving a
-/// wing of a building (or the ground) and entering the next within one interval is two
-/// collisions.
-pub fn contact_spans(
-    a0: &Placed<'_>,
-    a1: &Placed<'_>,
-    b0: &Placed<'_>,
-    b1: &Placed<'_>,
-    inside: &dyn Fn(f64) -> bool,
-) -> smallvec::SmallVec<[(SweepHit, f64); 2]> {
-    let (pa0, pa1) = (convex_parts(a0), convex_parts(a1));
-    let anchor = a0.position_enu_m;
-    let mut spans = match b0.shape.as_trimesh() {
-        Some(mesh) => {
-            // The triangles near the path, in the mesh's frame (at both ends of its motion).
-            let path = pa0
-                .iter()
-                .zip(&pa1)
-                .map(|(p0, p1)| part_reach(anchor, p0, p1))
-                .reduce(|x, y| x.merged(&y));
-            let Some(path) = path else {
-                return smallvec::SmallVec::new();
-            };
-            let near = |b: &Placed<'_>| path.transform_by(&b.pose_about(anchor).inverse());
-            let query = near(b0).merged(&near(b1));
-            let triangles: Vec<parry3d::shape::Triangle> = mesh
-                .bvh()
-                .intersect_aabb(&query)
-                .take(MAX_SPAN_TRIANGLES)
-                .map(|i| mesh.triangle(i))
-                .collect();
-            let as_parts = |b: &Placed<'_>| -> Vec<Placed<'_>> {
-                triangles
-                    .iter()
-                    .map(|t| Placed {
-                        shape: t,
-                        position_enu_m: b.position_enu_m,
-                        enu_from_shape: b.enu_from_shape,
-                        pivot_local_m: b.pivot_local_m,
-                    })
-                    .collect()
-            };
-            let (pb0, pb1) = (as_parts(b0), as_parts(b1));
-            pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
-        }
-        None => {
-            let (pb0, pb1) = (convex_parts(b0), convex_parts(b1));
-            pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
-        }
-    };
-    spans.sort_by(|x, y| x.0.fraction.total_cmp(&y.0.fraction));
-    let mut merged: smallvec::SmallVec<[(SweepHit, f64); 2]> = smallvec::SmallVec::new();
-    for (hit, exit) in spans {
-        match merged.last_mut() {
-            Some(last)
-                if hit.fraction <= last.1 + 1e-9 || inside(0.5 * (last.1 + hit.fraction)) =>
-            {
-                last.1 = last.1.max(exit)
-            }
-            _ => merged.push((hit, exit)),
-        }
-    }
-    merged
-}
-
-/// A convex part's bounds over the interval (about `anchor`; a turning part's bounds at the two
-/// ends, grown by how far its corners can swing in between).
-fn part_reach(anchor: DVec3, p0: &Placed<'_>, p1: &Placed<'_>) -> parry3d::bounding_volume::Aabb {
-    let (b0, b1) = (
-        p0.shape.compute_aabb(&p0.pose_about(anchor)),
-        p1.shape.compute_aabb(&p1.pose_about(anchor)),
-    );
-    let swing = rotation_between(p0, p1).to_scaled_axis().length() as f32
-        * (b0.half_extents().length() + p0.pivot_local_m.length());
-    b0.merged(&b1).loosened(swing + CONTACT_TOLERANCE_M as f32)
-}
-
-/// The span of contact of every pair of convex parts whose bounds over the interval meet.
-fn pair_spans(
-    anchor: DVec3,
-    pa0: &[Placed<'_>],
-    pa1: &[Placed<'_>],
-    pb0: &[Placed<'_>],
-    pb1: &[Placed<'_>],
-) -> smallvec::SmallVec<[(SweepHit, f64); 8]> {
-    let reach_a: smallvec::SmallVec<[_; 8]> = pa0
-        .iter()
-        .zip(pa1)
-        .map(|(p0, p1)| part_reach(anchor, p0, p1))
-        .collect();
-    let mut spans = smallvec::SmallVec::new();
-    for (j, (b0, b1)) in pb0.iter().zip(pb1).enumerate() {
-        let reach_b = part_reach(anchor, b0, b1);
-        for (i, (a0, a1)) in pa0.iter().zip(pa1).enumerate() {
-            if !reach_a[i].intersects(&reach_b) {
-                continue;
-            }
-            let Some(enter) = sweep(a0, a1, &pb0[j], &pb1[j]) else {
-                continue;
-            };
-            let exit = sweep(a1, a0, b1, b0).map_or(enter.fraction, |back| 1.0 - back.fraction);
-            spans.push((enter, exit.max(enter.fraction)));
-        }
-    }
-    spans
 }
 
 /// A time of impact found from `start` on, as a fraction of the whole interval.

@@ -285,7 +285,7 @@ fn sweep_touches(
                 || body.is_compound()
                 || (body.is_surface() && travel_m > 2.0 * motion.radius_m)
             {
-                contact::contact_spans(&a0, &a1, &b0, &b1, &under)
+                crate::collision::spans::contact_spans(&a0, &a1, &b0, &b1, &under)
             } else {
                 SmallVec::new()
             };

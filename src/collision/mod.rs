@@ -15,6 +15,8 @@
 //! - [`octree`]: the static scene's octree.
 //! - [`shapes`]: the contact layer's exact shapes (cuboids, compounds, meshes).
 //! - [`contact`]: exact f64-anchored queries (intersection, distance, sweep, ray).
+//! - [`distance`]: distances through parry, with cuboid pairs repaired.
+//! - [`spans`]: every span of contact within an interval (part by part).
 //! - [`meshes`]: the triangle meshes, built on demand, resident within a budget.
 //! - [`contacts`]: the contact layer, one strategy per mode.
 //! - [`sensing`]: the sensing layer (the paper's algorithm).
@@ -28,6 +30,7 @@ pub mod bodies;
 pub mod config;
 pub mod contact;
 pub mod contacts;
+pub mod distance;
 pub mod episodes;
 pub mod events;
 pub mod meshes;
@@ -36,6 +39,7 @@ pub mod pipeline;
 pub mod reference;
 pub mod sensing;
 pub mod shapes;
+pub mod spans;
 pub mod threat;
 
 /// Which collider an obstacle currently has.
