@@ -23,7 +23,7 @@ use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::octree::{Octree, OctreeWorkspace};
 use crate::collision::reference::Reference;
-use crate::collision::sensing::{Rules, Sensing};
+use crate::collision::sensing::{Frame, Rules, Sensing};
 use crate::collision::shapes::ExactShapes;
 use crate::scene::{Aabb64, Scene};
 use crate::world::TrackSample;
@@ -358,16 +358,16 @@ impl Pipeline {
                 .is_none_or(|last| t - last >= period_s - 1e-9 || t < last);
             if due {
                 let started = Instant::now();
-                let counts = self.sensing.frame(
-                    &world,
-                    &mut self.meshes,
-                    &cfg,
+                let frame = Frame {
+                    world: &world,
+                    cfg: &cfg,
                     rules,
-                    &mut state.sensing,
                     current,
-                    &event,
-                    events,
-                );
+                    event: &event,
+                };
+                let counts =
+                    self.sensing
+                        .frame(&frame, &mut self.meshes, &mut state.sensing, events);
                 report.sensing_ns = elapsed_ns(started);
                 report.sensed = true;
                 report.ray_tests = counts.ray_tests;

@@ -100,6 +100,17 @@ pub(crate) struct FrameCounts {
     pub ray_tests: usize,
 }
 
+/// What one frame looks at: the world, the settings, the rules, the vehicle's sample, and how
+/// an event is stamped.
+#[derive(Clone, Copy)]
+pub(crate) struct Frame<'a> {
+    pub world: &'a World<'a>,
+    pub cfg: &'a CollisionConfig,
+    pub rules: Rules,
+    pub current: &'a TrackSample,
+    pub event: &'a dyn Fn(EventKind) -> Event,
+}
+
 /// The layer's scratch buffers; the state comes in per vehicle.
 #[derive(Debug, Default)]
 pub(crate) struct Sensing {
@@ -109,27 +120,28 @@ pub(crate) struct Sensing {
 }
 
 impl Sensing {
-    /// One sensing frame for a vehicle at `current`. Swaps are pushed through `event`.
-    #[allow(clippy::too_many_arguments)]
+    /// One sensing frame for a vehicle at `f.current`. Swaps are pushed to `events`.
     pub fn frame(
         &mut self,
-        world: &World<'_>,
+        f: &Frame<'_>,
         meshes: &mut MeshCache,
-        cfg: &CollisionConfig,
-        rules: Rules,
         state: &mut SensingState,
-        current: &TrackSample,
-        event: &dyn Fn(EventKind) -> Event,
         events: &mut Vec<Event>,
     ) -> FrameCounts {
+        let Frame {
+            world,
+            rules,
+            current,
+            ..
+        } = *f;
         let t = current.t_s;
         state.last_frame_t_s = Some(t);
         let mut counts = FrameCounts::default();
-        self.activate(world, cfg, rules, state, current, event, events);
-        self.cast_rays(world, meshes, cfg, rules, state, current, &mut counts);
-        rate_and_swap(world, meshes, cfg, rules, state, current, event, events);
+        self.activate(f, state, events);
+        self.cast_rays(f, meshes, state, &mut counts);
+        rate_and_swap(f, meshes, state, events);
         if rules == Rules::Sensor && world.shapes.has_meshes() {
-            make_resident_ahead(world, meshes, cfg, state, current);
+            make_resident_ahead(f, meshes, state);
         }
         for act in &state.active {
             match act.collider {
@@ -150,17 +162,14 @@ impl Sensing {
 
     /// Steps 1-2: which obstacles have colliders. The paper: the node's. The sensor: the node's
     /// and what the rays or the look-ahead can reach; meshes stay until they are far.
-    #[allow(clippy::too_many_arguments)]
-    fn activate(
-        &mut self,
-        world: &World<'_>,
-        cfg: &CollisionConfig,
-        rules: Rules,
-        state: &mut SensingState,
-        current: &TrackSample,
-        event: &dyn Fn(EventKind) -> Event,
-        events: &mut Vec<Event>,
-    ) {
+    fn activate(&mut self, f: &Frame<'_>, state: &mut SensingState, events: &mut Vec<Event>) {
+        let Frame {
+            world,
+            cfg,
+            rules,
+            current,
+            event,
+        } = *f;
         let (scene, dynamic, octree) = (world.scene, world.dynamic, world.octree);
         let t = current.t_s;
         let position = current.position_enu_m;
@@ -319,17 +328,20 @@ impl Sensing {
 
     /// Step 3: six rays along the body axes against the active colliders: static ones front to
     /// back through the octree (stopping at the nearest hit), moving ones by a scan.
-    #[allow(clippy::too_many_arguments)]
     fn cast_rays(
         &mut self,
-        world: &World<'_>,
+        f: &Frame<'_>,
         meshes: &mut MeshCache,
-        cfg: &CollisionConfig,
-        rules: Rules,
         state: &mut SensingState,
-        current: &TrackSample,
         counts: &mut FrameCounts,
     ) {
+        let Frame {
+            world,
+            cfg,
+            rules,
+            current,
+            ..
+        } = *f;
         let (scene, dynamic) = (world.scene, world.dynamic);
         let position = current.position_enu_m;
         for (k, axis) in RAY_AXES_FRD.iter().enumerate() {
@@ -405,17 +417,19 @@ impl Sensing {
 }
 
 /// Steps 4-5: the threat of what the rays see, and the box <-> mesh rule with the hold.
-#[allow(clippy::too_many_arguments)]
 fn rate_and_swap(
-    world: &World<'_>,
+    f: &Frame<'_>,
     meshes: &mut MeshCache,
-    cfg: &CollisionConfig,
-    rules: Rules,
     state: &mut SensingState,
-    current: &TrackSample,
-    event: &dyn Fn(EventKind) -> Event,
     events: &mut Vec<Event>,
 ) {
+    let Frame {
+        world,
+        cfg,
+        rules,
+        current,
+        event,
+    } = *f;
     let (scene, dynamic) = (world.scene, world.dynamic);
     let t = current.t_s;
     let position = current.position_enu_m;
@@ -502,13 +516,13 @@ fn rate_and_swap(
 /// Residency: the triangle meshes the contact layer may need before the next frames (terrain
 /// and loaded meshes within the look-ahead reach) are built now, in the sensing layer, so that
 /// a contact rarely has to build one on the tick path.
-fn make_resident_ahead(
-    world: &World<'_>,
-    meshes: &mut MeshCache,
-    cfg: &CollisionConfig,
-    state: &SensingState,
-    current: &TrackSample,
-) {
+fn make_resident_ahead(f: &Frame<'_>, meshes: &mut MeshCache, state: &SensingState) {
+    let Frame {
+        world,
+        cfg,
+        current,
+        ..
+    } = *f;
     let reach_m = current.velocity_enu_mps.length() * cfg.look_ahead_s + cfg.near_miss_m.max(1.0);
     for act in &state.active {
         let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
