@@ -1,5 +1,5 @@
 //! `savsim bench`: the flight set is deterministic and does what its descriptions say (checked
-//! by the oracle), and the command writes a report, JSON and a PNG.
+//! by the reference, and `exact` equals it), and the command writes a report, JSON and a PNG.
 
 use std::process::Command;
 
