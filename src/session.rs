@@ -40,7 +40,7 @@ pub struct Session {
     pub pipeline: Option<Pipeline>,
     events_out: Option<(PathBuf, BufWriter<File>)>,
     events: Vec<Event>,
-    /// Collisions and near misses (the first [`NOTABLE_KEPT`]), for the printed report.
+    /// Collisions and near misses (the first `NOTABLE_KEPT`, 1000), for the printed report.
     pub notable: Vec<Event>,
     /// Per-tick collision cost, nanoseconds.
     pub tick_cost_ns: Vec<u64>,

@@ -22,7 +22,7 @@
 //! - [`sensing`]: the sensing layer (the paper's algorithm).
 //! - [`threat`]: AHP weights and beta.
 //! - [`episodes`]: contacts and near misses into events.
-//! - [`reference`]: the independent ground truth (dense sub-stepping).
+//! - [`reference`](mod@reference): the independent ground truth (dense sub-stepping).
 //! - [`pipeline`]: the per-tick orchestrator.
 //! - [`events`]: what is reported.
 

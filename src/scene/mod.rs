@@ -1,7 +1,7 @@
 //! Scenes: a geodetic origin, static obstacles, dynamic obstacles and vehicle models.
 //!
 //! - [`geometry`]: shapes kept as descriptions, triangles on demand.
-//! - [`format`]: the TOML scene file (documented in scenes/README.md) and its loader.
+//! - [`format`](mod@format): the TOML scene file (documented in scenes/README.md) and its loader.
 //! - [`mesh_files`]: OBJ, STL, glTF/GLB and COLLADA readers.
 //! - [`models`]: built-in models (the default quadcopter, airliners, balloons).
 //! - [`gen`]: the deterministic `city` and `mountain` generators.
