@@ -207,18 +207,6 @@ pub fn sweep(
             b0.shape,
         )
     };
-    // The first touching time between a time known to be clear and one known to touch.
-    let first_touch = |mut clear: f32, mut touching: f32| {
-        for _ in 0..24 {
-            let mid = 0.5 * (clear + touching);
-            if gap_at(mid) <= tolerance {
-                touching = mid;
-            } else {
-                clear = mid;
-            }
-        }
-        touching
-    };
     let hit_at = |toi: f32, witness: Option<&ShapeCastHit>| {
         let (pose_a, pose_b) = (ma.position_at_time(toi), mb.position_at_time(toi));
         // The contact at the confirmed poses (a cast that stopped in penetration reports no
@@ -270,7 +258,11 @@ pub fn sweep(
         let gap = gap_at(toi);
         if gap <= tolerance {
             // A linear cast's time is exact; conservative advancement can stop past the touch.
-            let toi = if linear { toi } else { first_touch(start, toi) };
+            let toi = if linear {
+                toi
+            } else {
+                bisect_first(start, toi, 24, |t| gap_at(t) <= tolerance)
+            };
             return Some(hit_at(toi, Some(&hit)));
         }
         // Not touching there: no contact can come sooner than the gap closes.
@@ -295,19 +287,32 @@ pub fn sweep(
         )
         .is_ok_and(|i| i.intersecting)
     };
-    let mut toi = 1.0f32;
-    if overlaps_at(1.0) {
-        let mut clear = start.min(1.0);
-        for _ in 0..24 {
-            let mid = 0.5 * (clear + toi);
-            if overlaps_at(mid) {
-                toi = mid;
-            } else {
-                clear = mid;
-            }
+    let toi = if overlaps_at(1.0) {
+        bisect_first(start.min(1.0), 1.0, 24, overlaps_at)
+    } else {
+        1.0
+    };
+    Some(hit_at(toi, None))
+}
+
+/// The first instant at which `holds` becomes true, between `clear` (false there) and `hit`
+/// (true there), by `rounds` halvings of the span (one change between them assumed).
+pub(crate) fn bisect_first<T: num_traits::Float>(
+    mut clear: T,
+    mut hit: T,
+    rounds: u32,
+    holds: impl Fn(T) -> bool,
+) -> T {
+    let two = T::one() + T::one();
+    for _ in 0..rounds {
+        let mid = (clear + hit) / two;
+        if holds(mid) {
+            hit = mid;
+        } else {
+            clear = mid;
         }
     }
-    Some(hit_at(toi, None))
+    hit
 }
 
 /// A time of impact found from `start` on, as a fraction of the whole interval.

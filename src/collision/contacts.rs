@@ -256,18 +256,7 @@ fn sweep_touches(
         let p = before.position_enu_m.lerp(motion.now.position_enu_m, u);
         v.geometry.is_terrain() && inside_solid(v.geometry, &v.current, p)
     };
-    let went_under = |upto: f64| {
-        let (mut lo, mut hi) = (0.0, upto);
-        for _ in 0..30 {
-            let mid = 0.5 * (lo + hi);
-            if under(mid) {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
-        }
-        hi
-    };
+    let went_under = |upto: f64| contact::bisect_first(0.0, upto, 30, under);
     if let Some(h) = &mut hit {
         if h.fraction > 0.0 && !under(0.0) && under(h.fraction) {
             h.fraction = went_under(h.fraction);

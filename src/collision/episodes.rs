@@ -10,6 +10,31 @@ use crate::collision::bodies::{view, DynamicBody, ObstacleRef};
 use crate::collision::contacts::Touch;
 use crate::collision::events::{Event, EventKind};
 use crate::scene::Scene;
+use crate::world::TrackSample;
+
+/// The sample an interval to `current` starts from, if the interval can be swept: none after a
+/// gap longer than `max_gap_s` (reported as a `telemetry_gap`: a straight sweep across it
+/// would invent a path), and none when `previous` is not earlier than `current`.
+pub(crate) fn sweepable_from<'a>(
+    previous: Option<&'a TrackSample>,
+    current: &TrackSample,
+    max_gap_s: f64,
+    event: &dyn Fn(EventKind) -> Event,
+    events: &mut Vec<Event>,
+) -> Option<&'a TrackSample> {
+    let t = current.t_s;
+    match previous {
+        Some(p) if t - p.t_s > max_gap_s => {
+            events.push(event(EventKind::TelemetryGap {
+                gap_s: t - p.t_s,
+                moved_m: (current.position_enu_m - p.position_enu_m).length(),
+            }));
+            None
+        }
+        Some(p) if t > p.t_s => Some(p),
+        _ => None,
+    }
+}
 
 #[derive(Debug, Clone)]
 struct Near {

@@ -18,7 +18,7 @@ pub use crate::collision::sensing::{RayHit, SensingState, RAY_AXES_FRD};
 
 use crate::collision::bodies::{radius_m, World};
 use crate::collision::contacts::{Contacts, Motion};
-use crate::collision::episodes::Episodes;
+use crate::collision::episodes::{sweepable_from, Episodes};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::octree::{Octree, OctreeWorkspace};
@@ -300,18 +300,7 @@ impl Pipeline {
             };
             self.totals.state_resets += 1;
         }
-        // A gap: report it and do not sweep across it.
-        let previous = match previous {
-            Some(p) if t - p.t_s > cfg.max_gap_s => {
-                events.push(event(EventKind::TelemetryGap {
-                    gap_s: t - p.t_s,
-                    moved_m: (current.position_enu_m - p.position_enu_m).length(),
-                }));
-                None
-            }
-            Some(p) if t > p.t_s => Some(p),
-            _ => None,
-        };
+        let previous = sweepable_from(previous, current, cfg.max_gap_s, &event, events);
         // Terrain under the vehicle; a sample far below it is implausible.
         if self.has_terrain {
             report.terrain_clearance_m =

@@ -17,8 +17,9 @@ use parry3d::math::Pose;
 use parry3d::query;
 use parry3d::shape::{Cuboid, Shape, TriMesh};
 
-use crate::collision::bodies::{BodyPose, DynamicBody, ObstacleRef, VehicleKey};
+use crate::collision::bodies::{self, BodyPose, DynamicBody, ObstacleRef, VehicleKey};
 use crate::collision::config::CollisionConfig;
+use crate::collision::episodes::sweepable_from;
 use crate::collision::events::{Event, EventKind};
 use crate::scene::geometry::{Geometry, GeometrySource};
 use crate::scene::{Aabb64, Scene};
@@ -160,25 +161,9 @@ impl Reference {
                 generation: key.generation,
                 ..VehicleTruth::default()
             });
-        let mut previous = match previous {
-            Some(p) if t - p.t_s > cfg.max_gap_s => {
-                events.push(event(EventKind::TelemetryGap {
-                    gap_s: t - p.t_s,
-                    moved_m: (current.position_enu_m - p.position_enu_m).length(),
-                }));
-                None
-            }
-            Some(p) if t > p.t_s => Some(p),
-            _ => None,
-        };
+        let mut previous = sweepable_from(previous, current, cfg.max_gap_s, &event, events);
         // Implausible: far below the terrain (found by a scan of the terrain patches).
-        let ground = scene
-            .obstacles
-            .iter()
-            .filter_map(|o| {
-                o.terrain_height_enu_m(current.position_enu_m.x, current.position_enu_m.y)
-            })
-            .fold(None, |g: Option<f64>, z| Some(g.map_or(z, |g| g.max(z))));
+        let ground = scene.ground_height_enu_m(current.position_enu_m.x, current.position_enu_m.y);
         let implausible =
             ground.is_some_and(|g| current.position_enu_m.z < g - cfg.max_below_terrain_m);
         if std::mem::replace(&mut state.last_implausible, implausible) {
@@ -191,7 +176,7 @@ impl Reference {
         let vehicle_index = scene.vehicle_model(u8::try_from(key.vehicle).unwrap_or(0));
         let vehicle_geometry = &scene.geometries[vehicle_index];
         let vehicle_parts = self.parts(vehicle_index, vehicle_geometry);
-        let radius_m = radius_of(vehicle_geometry);
+        let radius_m = bodies::radius_m(vehicle_geometry);
         let now = BodyPose::of(current);
         let before = previous.map_or(now, BodyPose::of);
         let t_before = previous.map_or(t, |p| p.t_s);
@@ -222,7 +207,7 @@ impl Reference {
         }
         for d in dynamic.iter().filter(|d| d.key.source != key.source()) {
             let g = &scene.geometries[d.geometry_index];
-            let r = radius_of(g);
+            let r = bodies::radius_m(g);
             let (b, n) = if previous.is_some() {
                 (d.previous, d.current)
             } else {
@@ -328,16 +313,6 @@ fn collision(c: &Candidate, point: DVec3, t_before: f64, t: f64, u: f64) -> Even
         time_of_impact: t_before + (t - t_before) * u,
         swept: u < 1.0,
     }
-}
-
-fn radius_of(g: &Geometry) -> f64 {
-    f64::from(
-        g.local_aabb
-            .mins
-            .abs()
-            .max(g.local_aabb.maxs.abs())
-            .length(),
-    )
 }
 
 /// True when any part of `a` at `pa` overlaps any part of `b` at `pb` (poses taken about

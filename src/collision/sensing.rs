@@ -111,6 +111,16 @@ pub(crate) struct Frame<'a> {
     pub event: &'a dyn Fn(EventKind) -> Event,
 }
 
+impl Frame<'_> {
+    /// Least time a mesh is held before a downgrade, seconds: none in the paper.
+    fn hold_s(&self) -> f64 {
+        match self.rules {
+            Rules::Paper => 0.0,
+            Rules::Sensor => self.cfg.hold_s,
+        }
+    }
+}
+
 /// The layer's scratch buffers; the state comes in per vehicle.
 #[derive(Debug, Default)]
 pub(crate) struct Sensing {
@@ -184,11 +194,7 @@ impl Sensing {
                 octree.node_aabb(n)
             }),
         };
-        let hold = if rules == Rules::Paper {
-            0.0
-        } else {
-            cfg.hold_s
-        };
+        let hold = f.hold_s();
         // Static obstacles are queried with a margin and the answer reused while the required
         // region stays inside it (and the node is the same). Moving ones are re-checked.
         let reuse_static = state.node == node
@@ -434,11 +440,7 @@ fn rate_and_swap(
     let t = current.t_s;
     let position = current.position_enu_m;
     let forward = current.attitude.forward_enu();
-    let hold = if rules == Rules::Paper {
-        0.0
-    } else {
-        cfg.hold_s
-    };
+    let hold = f.hold_s();
     // beta is this frame's: the largest over the rays that see the obstacle now.
     for act in state.active.iter_mut() {
         act.beta = 0.0;
