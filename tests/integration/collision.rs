@@ -1,8 +1,6 @@
 //! Golden scenarios, one per step of the algorithm, run through `Pipeline::step` with
 //! synthetic flights (tests/integration/common.rs).
 
-use std::path::Path;
-
 use glam::DVec3;
 use savsim::bench::collisions;
 use savsim::collision::events::{Event, EventKind};
@@ -12,19 +10,15 @@ use savsim::collision::pipeline::{
 use savsim::collision::threat::{AhpWeights, PAPER_MATRIX};
 use savsim::collision::ColliderKind;
 use savsim::geo::Geodetic;
-use savsim::scene::{format::parse, Scene};
+use savsim::scene::Scene;
 use savsim::world::TrackSample;
 
-use crate::common::{sample, straight};
+use crate::common::{sample, scene_at, straight};
 
 const ORIGIN: Geodetic = Geodetic::new(-35.363261, 149.165230, 584.0);
 
 fn scene(body: &str) -> Scene {
-    let text = format!(
-        "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n{body}",
-        ORIGIN.lat_deg, ORIGIN.lon_deg, ORIGIN.alt_m
-    );
-    parse(&text, Path::new("golden.toml"), "golden").unwrap()
+    scene_at(ORIGIN, body)
 }
 
 fn obstacle(id: &str, shape: &str, at: [f64; 3]) -> String {

@@ -4,7 +4,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use glam::{DQuat, DVec3};
+use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
+use mavlink::{MavHeader, MavlinkVersion};
 use savsim::geo::{Geodetic, LocalTangentPlane};
+use savsim::ingest::frame::{scan, Scan};
+use savsim::scene::{format::parse, Scene};
+use savsim::session::Session;
 use savsim::world::{Attitude, TrackSample};
 
 /// The crate's root.
@@ -120,4 +125,71 @@ pub fn replay_into_session(
     .unwrap();
     replay_session(path, &mut session);
     session
+}
+
+/// A scene from the body of a scene file (obstacles, terrain, ...) at `origin`.
+pub fn scene_at(origin: Geodetic, body: &str) -> Scene {
+    let text = format!(
+        "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n{body}",
+        origin.lat_deg, origin.lon_deg, origin.alt_m
+    );
+    parse(&text, Path::new("test.toml"), "test").unwrap()
+}
+
+/// A MAVLink GLOBAL_POSITION_INT (+ ATTITUDE, nose east) frame pair for `sysid` at ENU `p`.
+pub fn position_frames(
+    plane: &LocalTangentPlane,
+    sysid: u8,
+    seq: &mut u8,
+    time_boot_ms: u32,
+    p: DVec3,
+    v: DVec3,
+) -> Vec<u8> {
+    let g = plane.geodetic_from_enu_m(p);
+    let mut bytes = Vec::new();
+    for message in [
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms,
+            roll: 0.0,
+            pitch: 0.0,
+            yaw: std::f32::consts::FRAC_PI_2,
+            rollspeed: 0.0,
+            pitchspeed: 0.0,
+            yawspeed: 0.0,
+        }),
+        MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            time_boot_ms,
+            lat: (g.lat_deg * 1e7).round() as i32,
+            lon: (g.lon_deg * 1e7).round() as i32,
+            alt: (g.alt_m * 1e3).round() as i32,
+            relative_alt: 0,
+            vx: (v.y * 100.0).round() as i16,
+            vy: (v.x * 100.0).round() as i16,
+            vz: (-v.z * 100.0).round() as i16,
+            hdg: 9000,
+        }),
+    ] {
+        let header = MavHeader {
+            system_id: u32::from(sysid),
+            component_id: 1,
+            sequence: *seq,
+        };
+        *seq = seq.wrapping_add(1);
+        mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, &message).unwrap();
+    }
+    bytes
+}
+
+/// Feed every frame in `bytes` to `session` as received at `t_s`.
+pub fn feed(session: &mut Session, t_s: f64, bytes: &[u8]) {
+    let mut rest = bytes;
+    while let Scan::Frame(frame) = scan(rest) {
+        let used = frame.len;
+        session.on_frame(t_s, &frame).unwrap();
+        rest = &rest[used..];
+    }
+    assert!(
+        rest.is_empty(),
+        "savsim reads every frame the mavlink crate wrote"
+    );
 }

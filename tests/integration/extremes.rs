@@ -2,11 +2,7 @@
 //! (or none) and when, within a stated tolerance. Positions go through MAVLink where the case is
 //! about geodesy (poles, antimeridian, altitude), so the whole ingest path is exercised.
 
-use std::path::Path;
-
 use glam::{DQuat, DVec3};
-use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
-use mavlink::{MavHeader, MavlinkVersion};
 use proptest::prelude::*;
 use savsim::bench::{collisions, run_samples};
 use savsim::collision::contact::{ray_distance_m, Placed};
@@ -14,20 +10,11 @@ use savsim::collision::events::Event;
 use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
 use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::frame::{scan, Scan};
-use savsim::scene::{format::parse, Aabb64, Scene};
+use savsim::scene::{Aabb64, Scene};
 use savsim::session::Session;
 use savsim::world::{Attitude, TrackSample};
 
-use crate::common::{sample, straight};
-
-fn scene_at(origin: Geodetic, body: &str) -> Scene {
-    let text = format!(
-        "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n{body}",
-        origin.lat_deg, origin.lon_deg, origin.alt_m
-    );
-    parse(&text, Path::new("extremes.toml"), "extremes").unwrap()
-}
+use crate::common::{feed, position_frames, sample, scene_at, straight};
 
 fn fly(scene: &Scene, mode: Mode, flight: &[TrackSample]) -> Vec<(String, f64)> {
     let mut pipeline = Pipeline::new(
@@ -64,45 +51,16 @@ fn fly_mavlink(scene: Scene, mode: Mode, a: DVec3, b: DVec3, speed_mps: f64) -> 
     let flight = straight(plane.origin(), a, b, speed_mps, 10.0);
     let mut seq = 0u8;
     for s in &flight {
-        let g = plane.geodetic_from_enu_m(s.position_enu_m);
         // Velocity in the local NED frame at the vehicle (ENU of the plane ~ local here).
-        let v = s.velocity_enu_mps;
-        let yaw = std::f32::consts::FRAC_PI_2; // nose east
-        for message in [
-            MavMessage::ATTITUDE(ATTITUDE_DATA {
-                time_boot_ms: s.time_boot_ms,
-                roll: 0.0,
-                pitch: 0.0,
-                yaw,
-                rollspeed: 0.0,
-                pitchspeed: 0.0,
-                yawspeed: 0.0,
-            }),
-            MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-                time_boot_ms: s.time_boot_ms,
-                lat: (g.lat_deg * 1e7).round() as i32,
-                lon: (g.lon_deg * 1e7).round() as i32,
-                alt: (g.alt_m * 1e3).round() as i32,
-                relative_alt: 0,
-                vx: (v.y * 100.0).round() as i16,
-                vy: (v.x * 100.0).round() as i16,
-                vz: (-v.z * 100.0).round() as i16,
-                hdg: 9000,
-            }),
-        ] {
-            let mut bytes = Vec::new();
-            let header = MavHeader {
-                system_id: 1,
-                component_id: 1,
-                sequence: seq,
-            };
-            seq = seq.wrapping_add(1);
-            mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, &message).unwrap();
-            let Scan::Frame(frame) = scan(&bytes) else {
-                panic!("savsim reads the mavlink crate's frame")
-            };
-            session.on_frame(s.t_s, &frame).unwrap();
-        }
+        let frames = position_frames(
+            &plane,
+            1,
+            &mut seq,
+            s.time_boot_ms,
+            s.position_enu_m,
+            s.velocity_enu_mps,
+        );
+        feed(&mut session, s.t_s, &frames);
     }
     session.finish().unwrap();
     owned(&session.notable)

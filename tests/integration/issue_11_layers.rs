@@ -1,14 +1,11 @@
 //! Issue 11: exact contacts as a layer of their own, sensing beside them, stable identities and
 //! the vehicle's own clock. Each test names what it guards against.
 
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
 use glam::{DQuat, DVec3};
-use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
-use mavlink::{MavHeader, MavlinkVersion};
 use proptest::prelude::*;
 use savsim::bench::{collisions, run_samples};
 use savsim::collision::events::{Event, EventKind};
@@ -16,82 +13,23 @@ use savsim::collision::pipeline::{
     BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
 };
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::frame::{scan, Scan};
 use savsim::ingest::live::{run_link, ConnectAddress, Link, LiveOptions};
-use savsim::scene::{format::parse, Kind, Scene};
+use savsim::scene::{Kind, Scene};
 use savsim::session::Session;
 use savsim::world::TrackSample;
 
-use crate::common::{sample, straight};
+use crate::common::{feed, position_frames, sample, scene_at, straight};
 
 const ORIGIN: Geodetic = Geodetic::new(-35.363261, 149.165230, 584.0);
 
 fn scene(body: &str) -> Scene {
-    let text = format!(
-        "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n{body}",
-        ORIGIN.lat_deg, ORIGIN.lon_deg, ORIGIN.alt_m
-    );
-    parse(&text, Path::new("issue11.toml"), "issue11").unwrap()
+    scene_at(ORIGIN, body)
 }
 
 fn config(mode: Mode) -> CollisionConfig {
     CollisionConfig {
         mode,
         ..CollisionConfig::default()
-    }
-}
-
-/// A MAVLink GLOBAL_POSITION_INT (+ ATTITUDE, nose east) frame pair for `sysid` at ENU `p`.
-fn position_frames(
-    plane: &LocalTangentPlane,
-    sysid: u8,
-    seq: &mut u8,
-    time_boot_ms: u32,
-    p: DVec3,
-    v: DVec3,
-) -> Vec<u8> {
-    let g = plane.geodetic_from_enu_m(p);
-    let mut bytes = Vec::new();
-    for message in [
-        MavMessage::ATTITUDE(ATTITUDE_DATA {
-            time_boot_ms,
-            roll: 0.0,
-            pitch: 0.0,
-            yaw: std::f32::consts::FRAC_PI_2,
-            rollspeed: 0.0,
-            pitchspeed: 0.0,
-            yawspeed: 0.0,
-        }),
-        MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-            time_boot_ms,
-            lat: (g.lat_deg * 1e7).round() as i32,
-            lon: (g.lon_deg * 1e7).round() as i32,
-            alt: (g.alt_m * 1e3).round() as i32,
-            relative_alt: 0,
-            vx: (v.y * 100.0).round() as i16,
-            vy: (v.x * 100.0).round() as i16,
-            vz: (-v.z * 100.0).round() as i16,
-            hdg: 9000,
-        }),
-    ] {
-        let header = MavHeader {
-            system_id: u32::from(sysid),
-            component_id: 1,
-            sequence: *seq,
-        };
-        *seq = seq.wrapping_add(1);
-        mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, &message).unwrap();
-    }
-    bytes
-}
-
-/// Feed every frame in `bytes` to `session` as received at `t_s`.
-fn feed(session: &mut Session, t_s: f64, bytes: &[u8]) {
-    let mut rest = bytes;
-    while let Scan::Frame(frame) = scan(rest) {
-        let used = frame.len;
-        session.on_frame(t_s, &frame).unwrap();
-        rest = &rest[used..];
     }
 }
 
