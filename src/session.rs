@@ -182,8 +182,7 @@ impl Session {
         if let Some(viz) = &mut self.viz {
             let sensing = pipeline
                 .vehicle(key.vehicle, key.component_id)
-                .map(|v| v.sensing.clone())
-                .unwrap_or_default();
+                .map(|v| &v.sensing);
             viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
                 tick: self.ticks,
                 t_s: current.t_s,
@@ -191,10 +190,12 @@ impl Session {
                 system_id: sender.system_id,
                 pose: BodyPose::of(&current),
                 model: scene.vehicle_model(sender.system_id),
-                rays_m: sensing.rays.map(|r| r.map(|h| h.distance_m)),
+                rays_m: sensing.map_or([None; 6], |s| s.rays.map(|r| r.map(|h| h.distance_m))),
                 ray_length_m: pipeline.config.ray_length_m,
-                node: sensing.node().map(|n| pipeline.octree.node_aabb(n)),
-                colliders: sensing.colliders().collect(),
+                node: sensing
+                    .and_then(|s| s.node())
+                    .map(|n| pipeline.octree.node_aabb(n)),
+                colliders: sensing.map_or_else(Vec::new, |s| s.colliders().collect()),
                 dynamic: self
                     .dynamic
                     .iter()

@@ -190,11 +190,8 @@ pub fn sweep(
     // How fast the gap can close, metres per interval: relative travel plus the turn of the
     // farthest point of each shape.
     let reach = |s: &dyn Shape| {
-        s.compute_local_aabb()
-            .maxs
-            .abs()
-            .max(s.compute_local_aabb().mins.abs())
-            .length()
+        let local = s.compute_local_aabb();
+        local.maxs.abs().max(local.mins.abs()).length()
     };
     let closing = (mb.linvel - ma.linvel).length()
         + ma.angvel.length() * (reach(a0.shape) + a0.pivot_local_m.length())

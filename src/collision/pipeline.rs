@@ -360,18 +360,12 @@ impl Pipeline {
                 report.sensing_ns = elapsed_ns(started);
                 report.sensed = true;
                 report.ray_tests = counts.ray_tests;
-                report.active_box = counts.active_box;
-                report.active_mesh = counts.active_mesh;
-                report.active_triangles = counts.active_triangles;
-            } else {
-                for (_, collider, _) in state.sensing.colliders() {
-                    match collider {
-                        crate::collision::ColliderKind::Box => report.active_box += 1,
-                        crate::collision::ColliderKind::Mesh => report.active_mesh += 1,
-                        crate::collision::ColliderKind::None => {}
-                    }
-                }
             }
+            // Between frames the colliders are the last frame's.
+            let counts = state.sensing.counts;
+            report.active_box = counts.active_box;
+            report.active_mesh = counts.active_mesh;
+            report.active_triangles = counts.active_triangles;
         }
 
         // The contact layer and the episodes.

@@ -69,6 +69,8 @@ pub struct SensingState {
     pub rays: [Option<RayHit>; 6],
     /// Time of the last frame, seconds.
     pub(crate) last_frame_t_s: Option<f64>,
+    /// What the last frame counted (the colliders change only at frames).
+    pub(crate) counts: FrameCounts,
 }
 
 impl SensingState {
@@ -167,6 +169,7 @@ impl Sensing {
                 ColliderKind::None => {}
             }
         }
+        state.counts = counts;
         counts
     }
 
