@@ -155,7 +155,9 @@ impl Contacts {
             };
             let could_touch = v.aabb_enu_m.inflated(moved_m).intersects(&reach)
                 && !above_terrain(v.geometry, &v.current, &reach);
-            if !(could_touch || near_box) {
+            // Terrain is not a near miss: its closeness is the clearance (summary).
+            let near_miss_candidate = near_box && !v.geometry.is_terrain();
+            if !(could_touch || near_miss_candidate) {
                 continue;
             }
             let body = match (mode, collider) {
@@ -185,8 +187,7 @@ impl Contacts {
                 Some(_) => self
                     .touching
                     .extend(touches.into_iter().map(|touch| (o, touch))),
-                // Terrain is not a near miss: its closeness is the clearance (summary).
-                None if near_box && !v.geometry.is_terrain() => {
+                None if near_miss_candidate => {
                     tests += 1;
                     let d = contact::distance_m(&vehicle.placed(), &body.placed());
                     if d < band_m {
