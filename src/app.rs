@@ -129,18 +129,18 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
     let scene = load_scene(args.scene.as_deref())?;
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
     if let Some(target) = &args.rerun {
-        start_viz(&mut session, target)?;
+        start_viz(&mut session, target, args.rerun_octree)?;
     }
     Ok(session)
 }
 
 #[cfg(feature = "viz")]
-fn start_viz(session: &mut Session, target: &str) -> Result<()> {
-    session.start_viz(&target.parse()?)
+fn start_viz(session: &mut Session, target: &str, whole_octree: bool) -> Result<()> {
+    session.start_viz(&target.parse()?, crate::viz::VizOptions { whole_octree })
 }
 
 #[cfg(not(feature = "viz"))]
-fn start_viz(_: &mut Session, _: &str) -> Result<()> {
+fn start_viz(_: &mut Session, _: &str, _: bool) -> Result<()> {
     Err(Error::Usage(
         "this savsim was built without the `viz` feature: rebuild with it for --rerun".into(),
     ))
@@ -177,7 +177,8 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Scene(SceneCommand::Show { scene, rerun }) => {
             let s = Arc::new(scene::load(&scene)?);
             let mut session = Session::new(Some(s), CollisionConfig::default(), None)?;
-            start_viz(&mut session, &rerun)?;
+            // No flight: the whole octree is what there is to see of it.
+            start_viz(&mut session, &rerun, true)?;
             session.finish()
         }
         Command::Scene(SceneCommand::Info { scene }) => {
@@ -241,6 +242,7 @@ fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
         &args.flight,
         speed,
         !args.no_progress,
+        args.until_s,
         &mut session,
         shutdown,
     );
@@ -271,11 +273,13 @@ fn write_summary(
     }
 }
 
-/// Replay a tlog into a session, paced by its timestamps.
+/// Replay a tlog into a session, paced by its timestamps; with `until_s`, stop at the first
+/// record more than that many seconds after the first message (the report's "+N s").
 pub fn replay(
     path: &Path,
     speed: Speed,
     progress: bool,
+    until_s: Option<f64>,
     session: &mut Session,
     shutdown: &AtomicBool,
 ) -> Result<()> {
@@ -299,6 +303,11 @@ pub fn replay(
             .map_err(|e| Error::file(path, e))?;
         let Some(record) = record else { break };
         let t_s = record.timestamp_us as f64 * 1e-6;
+        if let (Some(until_s), Some(elapsed_s)) = (until_s, session.elapsed_s(t_s)) {
+            if elapsed_s > until_s {
+                break;
+            }
+        }
         if let Speed::Factor(factor) = speed {
             let t0 = *first_t_s.get_or_insert(t_s);
             if t_s - last_t_s > MAX_REPLAY_PAUSE_S && last_t_s.is_finite() {
@@ -345,6 +354,7 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
             speed: args.speed,
             collision: args.collision,
             no_progress: false,
+            until_s: args.until_s,
         },
         shutdown,
     )
@@ -377,7 +387,7 @@ pub fn print_report(session: &Session) {
         "tick cost median {median_us:.1} us, p99 {p99_us:.1} us; {} meshes built ({} triangles)",
         p.meshes.built, p.meshes.triangles
     );
-    // Times relative to the first message, as a person reads a flight.
+    // Times relative to the first message, as a person reads a flight (`Session::elapsed_s`).
     let t0 = stats.time_span_s.map_or(0.0, |(first, _)| first);
     for e in &session.notable {
         match &e.kind {

@@ -124,6 +124,10 @@ pub struct CollisionArgs {
     /// Stream to rerun: save=OUT.rrd, connect[=URL] (a running viewer) or spawn.
     #[arg(long)]
     pub rerun: Option<String>,
+    /// With --rerun: draw every octree leaf (default: each vehicle's node and the leaves
+    /// touching it).
+    #[arg(long)]
+    pub rerun_octree: bool,
     /// AHP judgment matrix for T, V, A: nine numbers row by row, fractions allowed
     /// (default: the paper's Table 3, "1,7/3,3/2,3/7,1,5/4,2/3,4/5,1").
     #[arg(long)]
@@ -139,6 +143,9 @@ pub struct DemoArgs {
     /// Replay speed: a factor of real time, or `max`.
     #[arg(long, default_value = "max")]
     pub speed: String,
+    /// Stop this many seconds after the first message (the clock of the report's "+N s").
+    #[arg(long)]
+    pub until_s: Option<f64>,
 }
 
 /// `savsim replay`.
@@ -155,6 +162,10 @@ pub struct ReplayArgs {
     /// Never draw a progress bar.
     #[arg(long)]
     pub no_progress: bool,
+    /// Stop this many seconds after the first message (the clock of the report's "+N s"): for
+    /// a recording that ends at a moment of interest.
+    #[arg(long)]
+    pub until_s: Option<f64>,
 }
 
 /// `savsim live`.

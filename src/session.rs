@@ -96,22 +96,44 @@ impl Session {
 
     /// Stream this run to rerun. Needs a scene.
     #[cfg(feature = "viz")]
-    pub fn start_viz(&mut self, target: &crate::viz::RerunTarget) -> Result<()> {
+    pub fn start_viz(
+        &mut self,
+        target: &crate::viz::RerunTarget,
+        options: crate::viz::VizOptions,
+    ) -> Result<()> {
         if self.pipeline.is_none() {
             return Err(Error::Usage("--rerun needs --scene".into()));
         }
-        self.start_viz_stream(crate::viz::open(target)?)
+        self.start_viz_stream(crate::viz::open(target)?, options)
     }
 
     /// Stream this run into an already open rerun stream (tests use a memory stream).
     #[cfg(feature = "viz")]
-    pub fn start_viz_stream(&mut self, rec: rerun::RecordingStream) -> Result<()> {
+    pub fn start_viz_stream(
+        &mut self,
+        rec: rerun::RecordingStream,
+        options: crate::viz::VizOptions,
+    ) -> Result<()> {
         let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
             return Err(Error::Usage("--rerun needs --scene".into()));
         };
         let leaves = pipeline.octree.leaves().map(|(_, b, _)| b).collect();
-        self.viz = Some(crate::viz::Logger::with_stream(rec, scene.clone(), leaves)?);
+        self.viz = Some(crate::viz::Logger::with_stream(
+            rec,
+            scene.clone(),
+            leaves,
+            options,
+        )?);
         Ok(())
+    }
+
+    /// Seconds from the first message to `t_s`: the clock of the printed report's "+N s" and of
+    /// the viewer's labels. `None` before the first message.
+    pub fn elapsed_s(&self, t_s: f64) -> Option<f64> {
+        self.ingestor
+            .stats
+            .time_span_s
+            .map(|(first, _)| t_s - first)
     }
 
     /// Take one complete frame received (or recorded) at `t_s` (UNIX seconds).
@@ -186,6 +208,11 @@ impl Session {
             viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
                 tick: self.ticks,
                 t_s: current.t_s,
+                t0_s: self
+                    .ingestor
+                    .stats
+                    .time_span_s
+                    .map_or(current.t_s, |(first, _)| first),
                 time_boot_ms: current.time_boot_ms,
                 system_id: sender.system_id,
                 pose: BodyPose::of(&current),

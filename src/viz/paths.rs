@@ -4,10 +4,12 @@
 pub const WORLD: &str = "world";
 /// Static obstacles, one entity per kind: `world/obstacles/building`, ...
 pub const OBSTACLES: &str = "world/obstacles";
-/// The octree's leaves (static).
+/// The octree's leaves (static; only with `--rerun-octree`).
 pub const OCTREE: &str = "world/octree";
-/// Collision markers (all so far).
+/// Collision markers (all so far), labelled.
 pub const COLLISIONS: &str = "world/events/collisions";
+/// The contact normal at each collision marker.
+pub const COLLISION_NORMALS: &str = "world/events/collision_normals";
 /// Near-miss markers (all so far).
 pub const NEAR_MISSES: &str = "world/events/near_misses";
 /// Metrics root.
@@ -23,15 +25,32 @@ pub fn body(system_id: u8) -> String {
     format!("world/vehicles/{system_id}/body")
 }
 
-/// Something below a vehicle: `track`, `rays`, `rays/hits`, `node`.
+/// The chase frame (Transform3D: the vehicle's position and heading, no roll or pitch): the
+/// origin of the vehicle's chase view.
+pub fn chase(system_id: u8) -> String {
+    format!("world/vehicles/{system_id}/chase")
+}
+
+/// One segment of a vehicle's track: `world/vehicles/{sysid}/track/{k}`.
+pub fn track_segment(system_id: u8, k: u32) -> String {
+    format!("world/vehicles/{system_id}/track/{k}")
+}
+
+/// Something below a vehicle: `rays`, `rays/hits`, `node`, `node/neighbours`.
 pub fn vehicle_part(system_id: u8, part: &str) -> String {
     format!("world/vehicles/{system_id}/{part}")
 }
 
-/// The collider a vehicle's pipeline currently gives an obstacle.
-pub fn collider(system_id: u8, obstacle_id: &str) -> String {
+/// A vehicle's colliders of one group (`boxes`, `seen`, `moving`; see
+/// `viz::colliders`): `world/vehicles/{sysid}/colliders/{group}`.
+pub fn colliders(system_id: u8, group: &str) -> String {
+    format!("world/vehicles/{system_id}/colliders/{group}")
+}
+
+/// One mesh collider: `world/vehicles/{sysid}/colliders/meshes/{obstacle}`.
+pub fn mesh_collider(system_id: u8, obstacle_id: &str) -> String {
     format!(
-        "world/vehicles/{system_id}/colliders/{}",
+        "world/vehicles/{system_id}/colliders/meshes/{}",
         sanitize(obstacle_id)
     )
 }

@@ -108,7 +108,15 @@ pub fn straight(
 /// Replay a tlog as fast as possible into `session` and finish it.
 pub fn replay_session(path: &Path, session: &mut savsim::session::Session) {
     let shutdown = std::sync::atomic::AtomicBool::new(false);
-    savsim::app::replay(path, savsim::app::Speed::Max, false, session, &shutdown).unwrap();
+    savsim::app::replay(
+        path,
+        savsim::app::Speed::Max,
+        false,
+        None,
+        session,
+        &shutdown,
+    )
+    .unwrap();
     session.finish().unwrap();
 }
 

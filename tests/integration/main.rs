@@ -19,8 +19,10 @@
 //!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
 //!   the reference.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
-//! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); SIGTERM
-//!   during a recorded replay.
+//! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); the
+//!   default layout; SIGTERM during a recorded replay.
+//! - `viz_render`: the demo's recording rendered headless by rerun's own viewer, the vehicle
+//!   found in the picture.
 
 mod bench;
 mod cities;
@@ -39,3 +41,5 @@ mod shared_fixtures;
 mod terrain;
 #[cfg(feature = "viz")]
 mod viz;
+#[cfg(feature = "viz")]
+mod viz_render;

@@ -10,18 +10,24 @@ use savsim::session::Session;
 use crate::common::root;
 
 /// Paths every replay over the bundled city must log (docs/rerun.md).
-const PATHS: [&str; 12] = [
+const PATHS: [&str; 18] = [
     "world/obstacles/building",
-    "world/octree",
     "world/vehicles/1/body",
     "world/vehicles/1/body/model",
     "world/vehicles/1/body/axes",
-    "world/vehicles/1/track",
+    "world/vehicles/1/chase",
+    "world/vehicles/1/track/0",
+    "world/vehicles/1/track/19",
     "world/vehicles/1/rays",
     "world/vehicles/1/rays/hits",
     "world/vehicles/1/node",
-    "world/vehicles/1/colliders/b2150",
+    "world/vehicles/1/node/neighbours",
+    "world/vehicles/1/colliders/boxes",
+    "world/vehicles/1/colliders/seen",
+    "world/vehicles/1/colliders/meshes/b2150",
     "world/events/collisions",
+    "world/events/collision_normals",
+    "world/events/near_misses",
     "metrics/cost_us/1",
 ];
 
@@ -108,7 +114,9 @@ fn a_run_logs_into_the_memory_sink() {
     let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
         .memory()
         .unwrap();
-    session.start_viz_stream(rec).unwrap();
+    session
+        .start_viz_stream(rec, savsim::viz::VizOptions::default())
+        .unwrap();
     crate::common::replay_session(
         &root().join("scenes/flights/copter_square_10ms.tlog"),
         &mut session,
@@ -119,6 +127,41 @@ fn a_run_logs_into_the_memory_sink() {
     for path in PATHS {
         assert!(text.contains(path), "{path} is not in the memory sink");
     }
+    // The whole octree is drawn only on request.
+    assert!(!text.contains("world/octree"));
+    // The layout: a chase view whose origin is the vehicle's chase frame and whose eye is set,
+    // an overview, the time series, and the first collision selected on the time panel.
+    for part in [
+        "EyeControls3D",
+        "space_origin",
+        "time_selection",
+        "TimeSeries",
+        "overview",
+        "vehicle 1 (chase)",
+    ] {
+        assert!(text.contains(part), "{part} is not in the layout");
+    }
+}
+
+/// `--rerun-octree` draws every leaf.
+#[test]
+fn the_whole_octree_is_drawn_on_request() {
+    let scene = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    let mut session = Session::new(
+        Some(std::sync::Arc::new(scene)),
+        CollisionConfig::default(),
+        None,
+    )
+    .unwrap();
+    let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
+        .memory()
+        .unwrap();
+    session
+        .start_viz_stream(rec, savsim::viz::VizOptions { whole_octree: true })
+        .unwrap();
+    session.finish().unwrap();
+    let text = format!("{:?}", storage.take());
+    assert!(text.contains("world/octree"));
 }
 
 #[test]

@@ -1,0 +1,542 @@
+//! The logger thread: turns each [`TickFrame`] into rerun entities (docs/rerun.md lists them)
+//! and keeps the layout ([`blueprint`]) in step with the vehicles and the flown area.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use glam::{DQuat, DVec3, Vec3};
+use rerun::components::FillMode;
+use rerun::{
+    Arrows3D, Clear, Color, LineStrips3D, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
+    Scalars, Transform3D, ViewCoordinates,
+};
+
+use super::blueprint::{self, Layout, MAX_CHASE_VIEWS};
+use super::colliders::{obstacle_name, ColliderView};
+use super::draw::{
+    box_of_geometry, boxes_of, kind_color, local, pose_of_static, viz_offset, LocalBox,
+};
+use super::rows::Rows;
+use super::{paths, TickFrame, VizMsg, VizOptions};
+use crate::collision::bodies::BodySource;
+use crate::collision::events::EventKind;
+use crate::collision::pipeline::RAY_AXES_FRD;
+use crate::scene::{Aabb64, Kind, Scene};
+
+/// Static scenes with at most this many triangles are drawn as meshes, larger ones as boxes.
+const STATIC_MESH_BUDGET: usize = 500_000;
+/// Points per track segment entity (`track/{k}`): each tick re-logs only the open segment.
+const TRACK_SEGMENT: usize = 100;
+/// Recent positions kept per vehicle to place near-miss markers at their closest time.
+const RECENT_LEN: usize = 6000;
+/// The time selection around the first collision: seconds before and after.
+const FOCUS_BEFORE_S: f64 = 4.0;
+const FOCUS_AFTER_S: f64 = 2.0;
+/// Vehicle colours, by order of appearance (the first is the pink the render check looks for).
+pub const VEHICLE_COLORS: [[u8; 3]; 4] =
+    [[255, 80, 200], [255, 170, 0], [0, 200, 255], [150, 255, 60]];
+
+#[derive(Default)]
+struct Vehicle {
+    color: [u8; 3],
+    model: Option<usize>,
+    colliders: ColliderView,
+    segment: u32,
+    open_segment: Vec<[f32; 3]>,
+    recent: VecDeque<(f64, Vec3)>,
+    node: Option<Aabb64>,
+    had_hits: bool,
+    /// Box colliders, mesh colliders, mesh triangles, as last logged.
+    counts: [Option<f64>; 3],
+    previous_time: Option<rerun::TimePoint>,
+}
+
+struct Marker {
+    at: Vec3,
+    label: String,
+    normal: Vec3,
+}
+
+struct State<'s> {
+    scene: &'s Scene,
+    options: &'s VizOptions,
+    leaves: &'s [Aabb64],
+    offset: DVec3,
+    vehicles: BTreeMap<u8, Vehicle>,
+    layout: Layout,
+    collisions: Vec<Marker>,
+    near_misses: Vec<Marker>,
+    traffic: BTreeMap<String, bool>,
+    rows: Rows,
+}
+
+/// The thread's body: the scene, then every tick, then the final layout.
+pub fn run(
+    rec: RecordingStream,
+    rx: std::sync::mpsc::Receiver<VizMsg>,
+    scene: &Scene,
+    leaves: &[Aabb64],
+    options: &VizOptions,
+) -> Result<(), String> {
+    let mut state = State {
+        scene,
+        options,
+        leaves,
+        offset: viz_offset(scene),
+        vehicles: BTreeMap::new(),
+        layout: Layout::default(),
+        collisions: Vec::new(),
+        near_misses: Vec::new(),
+        traffic: BTreeMap::new(),
+        rows: Rows::default(),
+    };
+    let text = |e: rerun::RecordingStreamError| e.to_string();
+    blueprint::send(&rec, &state.layout).map_err(text)?;
+    log_scene(&rec, &state).map_err(text)?;
+    for msg in rx {
+        match msg {
+            VizMsg::Tick(frame) => log_tick(&rec, &mut state, &frame).map_err(text)?,
+        }
+    }
+    state.rows.flush(&rec).map_err(text)?;
+    blueprint::send(&rec, &state.layout).map_err(text)?;
+    rec.flush_blocking().map_err(|e| e.to_string())
+}
+
+fn log_scene(rec: &RecordingStream, state: &State<'_>) -> RecordingStreamResult<()> {
+    rec.log_static(paths::WORLD, &ViewCoordinates::RIGHT_HAND_Z_UP())?;
+    let scene = state.scene;
+    // A scene small enough is drawn with its real shapes; a big one (a generated city of
+    // millions of triangles) with boxes.
+    let triangles: usize = scene
+        .obstacles
+        .iter()
+        .map(|o| o.geometry.triangle_count())
+        .sum();
+    let as_meshes = triangles <= STATIC_MESH_BUDGET;
+    for kind in Kind::ALL {
+        let of_kind = || {
+            scene
+                .obstacles
+                .iter()
+                .enumerate()
+                .filter(move |(_, o)| o.kind == kind)
+        };
+        if of_kind().next().is_none() {
+            continue;
+        }
+        let path = format!("{}/{}", paths::OBSTACLES, kind.name());
+        if as_meshes {
+            let mut positions: Vec<[f32; 3]> = Vec::new();
+            let mut indices: Vec<rerun::TriangleIndices> = Vec::new();
+            for (i, o) in of_kind() {
+                let pose = pose_of_static(scene, i as u32);
+                let (vertices, tris) = o.geometry.triangles();
+                let base = positions.len() as u32;
+                positions.extend(vertices.iter().map(|v| {
+                    local(
+                        state.offset,
+                        pose.position_enu_m + pose.enu_from_body * v.as_dvec3(),
+                    )
+                    .to_array()
+                }));
+                indices.extend(tris.iter().map(|t| {
+                    rerun::TriangleIndices([base + t[0], base + t[1], base + t[2]].into())
+                }));
+            }
+            rec.log_static(
+                path,
+                &Mesh3D::new(positions)
+                    .with_triangle_indices(indices)
+                    .with_albedo_factor(see_through(kind_color(kind), 170).0),
+            )?;
+        } else {
+            let items = of_kind().map(|(i, o)| {
+                (
+                    box_of_geometry(&o.geometry, &pose_of_static(scene, i as u32)),
+                    see_through(kind_color(kind), 170),
+                )
+            });
+            rec.log_static(path, &boxes_of(state.offset, FillMode::Solid, items))?;
+        }
+    }
+    if state.options.whole_octree {
+        let leaf_boxes = state.leaves.iter().map(|b| {
+            (
+                LocalBox::aligned(b),
+                Color::from_unmultiplied_rgba(200, 200, 255, 60),
+            )
+        });
+        rec.log_static(
+            paths::OCTREE,
+            &boxes_of(state.offset, FillMode::MajorWireframe, leaf_boxes),
+        )?;
+    }
+    Ok(())
+}
+
+/// A colour with some transparency: solid things the vehicle may be inside of.
+fn see_through(c: Color, alpha: u8) -> Color {
+    let [r, g, b, _] = c.to_array();
+    Color::from_unmultiplied_rgba(r, g, b, alpha)
+}
+
+/// Every marker so far at `path`: labelled points of a fixed size on screen, so they read in
+/// the chase views and the overview alike (labels on screen, or on hover only).
+fn log_markers(
+    rec: &RecordingStream,
+    path: &str,
+    markers: &[Marker],
+    radius_ui: f32,
+    color: Color,
+    show_labels: bool,
+) -> RecordingStreamResult<()> {
+    rec.log(
+        path,
+        &Points3D::new(markers.iter().map(|m| m.at.to_array()))
+            .with_radii([-radius_ui])
+            .with_colors([color])
+            .with_labels(markers.iter().map(|m| m.label.as_str()))
+            .with_show_labels(show_labels),
+    )
+}
+
+/// The distance a chase eye keeps from a vehicle of this model: ten model radii, at least 5 m.
+fn chase_distance_m(scene: &Scene, model: usize) -> f32 {
+    let (cuboid, _) = scene.geometries[model].box_collider();
+    (10.0 * cuboid.half_extents.length()).max(5.0)
+}
+
+fn grow(area: &mut Option<(Vec3, Vec3)>, p: Vec3) {
+    *area = Some(match *area {
+        Some((min, max)) => (min.min(p), max.max(p)),
+        None => (p, p),
+    });
+}
+
+fn log_tick(
+    rec: &RecordingStream,
+    state: &mut State<'_>,
+    f: &TickFrame,
+) -> RecordingStreamResult<()> {
+    let scene = state.scene;
+    rec.set_time_sequence("tick", f.tick as i64);
+    rec.set_duration_secs("vehicle_time", f64::from(f.time_boot_ms) / 1000.0);
+    rec.set_timestamp_secs_since_epoch("tlog_time", f.t_s);
+    state
+        .rows
+        .set_time(f.tick, f64::from(f.time_boot_ms) / 1000.0, f.t_s);
+    let id = f.system_id;
+    let t0 = f.t0_s;
+    let position = local(state.offset, f.pose.position_enu_m);
+    grow(&mut state.layout.overview, position);
+
+    // A new vehicle: its colour, and a chase view of its own (the layout is sent again).
+    if !state.vehicles.contains_key(&id) {
+        let n = state.vehicles.len();
+        state.layout.vehicles.push(id);
+        state.vehicles.insert(
+            id,
+            Vehicle {
+                color: VEHICLE_COLORS[n % VEHICLE_COLORS.len()],
+                ..Vehicle::default()
+            },
+        );
+        if state.layout.chased.len() < MAX_CHASE_VIEWS {
+            state
+                .layout
+                .chased
+                .push((id, chase_distance_m(scene, f.model)));
+        }
+        // Until the flight is over, the overview frames a kilometre around what is known.
+        let mut live = state.layout.clone();
+        live.overview = live
+            .overview
+            .map(|(min, max)| (min - Vec3::splat(500.0), max + Vec3::splat(500.0)));
+        blueprint::send(rec, &live)?;
+    }
+    let Some(v) = state.vehicles.get_mut(&id) else {
+        return Ok(());
+    };
+    let color = Color::from_rgb(v.color[0], v.color[1], v.color[2]);
+
+    // Body, its model (once), axes; the chase frame (position and heading only).
+    let q = f.pose.enu_from_body.as_quat();
+    state.rows.log(
+        rec,
+        paths::body(id),
+        &Transform3D::from_translation_rotation(
+            position.to_array(),
+            rerun::Quaternion::from_xyzw([q.x, q.y, q.z, q.w]),
+        ),
+    )?;
+    let forward = f.pose.enu_from_body * DVec3::X;
+    let heading = DQuat::from_rotation_z(forward.y.atan2(forward.x)).as_quat();
+    state.rows.log(
+        rec,
+        paths::chase(id),
+        &Transform3D::from_translation_rotation(
+            position.to_array(),
+            rerun::Quaternion::from_xyzw([heading.x, heading.y, heading.z, heading.w]),
+        ),
+    )?;
+    if v.model != Some(f.model) {
+        let model = &scene.geometries[f.model];
+        let (vertices, indices) = model.triangles();
+        rec.log_static(
+            format!("{}/model", paths::body(id)),
+            &Mesh3D::new(vertices.iter().map(|v| v.to_array()))
+                .with_triangle_indices(
+                    indices
+                        .into_iter()
+                        .map(|t| rerun::TriangleIndices(t.into())),
+                )
+                .with_albedo_factor(color.0),
+        )?;
+        let axis_m = (3.0 * model.box_collider().0.half_extents.length()).max(1.0);
+        rec.log_static(
+            format!("{}/axes", paths::body(id)),
+            &Arrows3D::from_vectors([[axis_m, 0.0, 0.0], [0.0, axis_m, 0.0], [0.0, 0.0, axis_m]])
+                .with_colors([
+                    Color::from_rgb(255, 0, 0),
+                    Color::from_rgb(0, 255, 0),
+                    Color::from_rgb(0, 0, 255),
+                ]),
+        )?;
+        v.model = Some(f.model);
+    }
+
+    // Track: one open segment re-logged per tick; closed segments stay as they were.
+    if v.open_segment.len() > TRACK_SEGMENT {
+        let last = v.open_segment[v.open_segment.len() - 1];
+        v.open_segment.clear();
+        v.open_segment.push(last);
+        v.segment += 1;
+    }
+    v.open_segment.push(position.to_array());
+    state.rows.log(
+        rec,
+        paths::track_segment(id, v.segment),
+        &LineStrips3D::new([v.open_segment.as_slice()]).with_colors([Color::from_rgb(
+            v.color[0] / 2 + 40,
+            v.color[1] / 2 + 40,
+            v.color[2] / 2 + 40,
+        )]),
+    )?;
+    if v.recent.len() == RECENT_LEN {
+        v.recent.pop_front();
+    }
+    v.recent.push_back((f.t_s, position));
+
+    // Rays and their hits.
+    let mut vectors = Vec::new();
+    let mut colors = Vec::new();
+    let mut hits = Vec::new();
+    for (axis, hit) in RAY_AXES_FRD.iter().zip(f.rays_m) {
+        let dir = f.pose.enu_from_body * axis.as_dvec3();
+        let length = hit.unwrap_or(f.ray_length_m);
+        vectors.push((dir * length).as_vec3().to_array());
+        colors.push(if hit.is_some() {
+            Color::from_rgb(255, 60, 60)
+        } else {
+            Color::from_unmultiplied_rgba(160, 160, 160, 120)
+        });
+        if let Some(d) = hit {
+            hits.push(local(state.offset, f.pose.position_enu_m + dir * d).to_array());
+        }
+    }
+    state.rows.log(
+        rec,
+        paths::vehicle_part(id, "rays"),
+        &Arrows3D::from_vectors(vectors)
+            .with_origins(vec![position.to_array(); 6])
+            .with_radii([-1.0])
+            .with_colors(colors),
+    )?;
+    if !hits.is_empty() || v.had_hits {
+        v.had_hits = !hits.is_empty();
+        state.rows.log(
+            rec,
+            paths::vehicle_part(id, "rays/hits"),
+            &Points3D::new(hits)
+                .with_radii([-4.0])
+                .with_colors([Color::from_rgb(255, 60, 60)]),
+        )?;
+    }
+
+    // The current node and the leaves that touch it, logged when the node changes.
+    if f.node != v.node {
+        match f.node {
+            Some(n) => {
+                rec.log(
+                    paths::vehicle_part(id, "node"),
+                    &boxes_of(
+                        state.offset,
+                        FillMode::MajorWireframe,
+                        std::iter::once((LocalBox::aligned(&n), Color::from_rgb(255, 220, 0))),
+                    ),
+                )?;
+                let touching = Aabb64 {
+                    min: n.min - DVec3::splat(0.01),
+                    max: n.max + DVec3::splat(0.01),
+                };
+                let neighbours = state
+                    .leaves
+                    .iter()
+                    .filter(|b| **b != n && b.intersects(&touching))
+                    .map(|b| {
+                        (
+                            LocalBox::aligned(b),
+                            Color::from_unmultiplied_rgba(200, 200, 255, 90),
+                        )
+                    });
+                rec.log(
+                    paths::vehicle_part(id, "node/neighbours"),
+                    &boxes_of(state.offset, FillMode::MajorWireframe, neighbours),
+                )?;
+            }
+            None => rec.log(paths::vehicle_part(id, "node"), &Clear::recursive())?,
+        }
+        v.node = f.node;
+    }
+
+    // Colliders (what changed), and the beta of each one a ray sees.
+    v.colliders.log(rec, scene, state.offset, f)?;
+    for &(o, _, beta) in &f.colliders {
+        if beta > 0.0 {
+            if let Some(name) = obstacle_name(scene, f, o) {
+                state
+                    .rows
+                    .log(rec, paths::beta(id, name), &Scalars::single(beta))?;
+            }
+        }
+    }
+
+    // Traffic (other vehicles are drawn by their own ticks, as vehicles).
+    let mut seen = BTreeMap::new();
+    for (_, name, kind, model, pose) in f
+        .dynamic
+        .iter()
+        .filter(|d| !matches!(d.0.source, BodySource::Vehicle { .. }))
+    {
+        let b = box_of_geometry(&scene.geometries[*model], pose);
+        state.rows.log(
+            rec,
+            paths::traffic(name),
+            &boxes_of(
+                state.offset,
+                FillMode::Solid,
+                std::iter::once((b, kind_color(*kind))),
+            ),
+        )?;
+        seen.insert(name.clone(), true);
+    }
+    for name in state.traffic.keys() {
+        if !seen.contains_key(name) {
+            rec.log(paths::traffic(name), &Clear::flat())?;
+        }
+    }
+    state.traffic = seen;
+
+    // Collision and near-miss markers, labelled.
+    for e in &f.events {
+        match &e.kind {
+            EventKind::Collision {
+                obstacle,
+                point_enu_m,
+                normal_enu,
+                time_of_impact,
+                ..
+            } => {
+                state.collisions.push(Marker {
+                    at: local(state.offset, DVec3::from(*point_enu_m)),
+                    label: format!("COLLISION v{id} {obstacle} +{:.2} s", time_of_impact - t0),
+                    normal: DVec3::from(*normal_enu).as_vec3(),
+                });
+                state.layout.focus_s.get_or_insert((
+                    time_of_impact - FOCUS_BEFORE_S,
+                    time_of_impact + FOCUS_AFTER_S,
+                ));
+                log_markers(
+                    rec,
+                    paths::COLLISIONS,
+                    &state.collisions,
+                    10.0,
+                    Color::from_rgb(255, 0, 0),
+                    true,
+                )?;
+                let normal_m = chase_distance_m(scene, f.model) / 4.0;
+                rec.log(
+                    paths::COLLISION_NORMALS,
+                    &Arrows3D::from_vectors(
+                        state
+                            .collisions
+                            .iter()
+                            .map(|m| (m.normal * normal_m).to_array()),
+                    )
+                    .with_origins(state.collisions.iter().map(|m| m.at.to_array()))
+                    .with_colors([Color::from_rgb(255, 0, 0)]),
+                )?;
+            }
+            EventKind::NearMiss {
+                obstacle,
+                closest_m,
+                closest_t,
+            } => {
+                // Where the vehicle was when it was closest (or now, if that is no longer kept).
+                let at = v
+                    .recent
+                    .iter()
+                    .min_by(|a, b| (a.0 - closest_t).abs().total_cmp(&(b.0 - closest_t).abs()))
+                    .map_or(position, |r| r.1);
+                state.near_misses.push(Marker {
+                    at,
+                    label: format!("near miss v{id} {obstacle} {closest_m:.1} m"),
+                    normal: Vec3::ZERO,
+                });
+                log_markers(
+                    rec,
+                    paths::NEAR_MISSES,
+                    &state.near_misses,
+                    6.0,
+                    Color::from_rgb(255, 160, 0),
+                    false,
+                )?;
+            }
+            _ => {}
+        }
+    }
+
+    // Scalars: the cost every tick; the counts as steps, logged when they change (the old
+    // value at the previous tick, then the new one).
+    state
+        .rows
+        .log(rec, paths::cost(id), &Scalars::single(f.cost_us))?;
+    let counts = [
+        f.report.active_box as f64,
+        f.report.active_mesh as f64,
+        f.report.active_triangles as f64,
+    ];
+    for (i, path) in [
+        paths::colliders_count(id, "box"),
+        paths::colliders_count(id, "mesh"),
+        paths::triangles(id),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        match (v.counts[i], &v.previous_time) {
+            (Some(old), _) if old == counts[i] => continue,
+            (Some(old), Some(before)) => {
+                let before = before.clone();
+                state
+                    .rows
+                    .log_at(rec, path.clone(), before, &Scalars::single(old))?;
+            }
+            _ => {}
+        }
+        state.rows.log(rec, path, &Scalars::single(counts[i]))?;
+        v.counts[i] = Some(counts[i]);
+    }
+    v.previous_time = Some(state.rows.time().clone());
+    Ok(())
+}
