@@ -29,6 +29,9 @@ type Shown = Vec<(ObstacleRef, u8)>;
 /// The last logged state of one vehicle's collider entities.
 #[derive(Default)]
 pub struct ColliderView {
+    /// Every collider as last seen: (obstacle, kind, beta step). Most ticks match it, and
+    /// then nothing is logged or built.
+    last: Vec<(ObstacleRef, ColliderKind, u8)>,
     boxes: Shown,
     seen: Shown,
     meshes: Vec<ObstacleRef>,
@@ -84,6 +87,21 @@ impl ColliderView {
         f: &TickFrame,
     ) -> RecordingStreamResult<()> {
         let id = f.system_id;
+        let unchanged = self.last.len() == f.colliders.len()
+            && self
+                .last
+                .iter()
+                .zip(&f.colliders)
+                .all(|(a, b)| a.0 == b.0 && a.1 == b.1 && a.2 == step(b.2));
+        if unchanged && !self.moving {
+            return Ok(());
+        }
+        self.last.clear();
+        self.last.extend(
+            f.colliders
+                .iter()
+                .map(|&(o, kind, beta)| (o, kind, step(beta))),
+        );
         let (mut boxes, mut seen, mut meshes, mut moving) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for &(o, kind, beta) in &f.colliders {

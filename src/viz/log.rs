@@ -7,7 +7,7 @@ use glam::{DQuat, DVec3, Vec3};
 use rerun::components::FillMode;
 use rerun::{
     Arrows3D, Clear, Color, LineStrips3D, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
-    Scalars, Transform3D, ViewCoordinates,
+    Scalars, ViewCoordinates,
 };
 
 use super::blueprint::{self, Layout, MAX_CHASE_VIEWS};
@@ -45,6 +45,8 @@ struct Vehicle {
     recent: VecDeque<(f64, Vec3)>,
     node: Option<Aabb64>,
     had_hits: bool,
+    /// Which rays hit, as last logged (their colours).
+    ray_hits: Option<[bool; 6]>,
     /// Box colliders, mesh colliders, mesh triangles, as last logged.
     counts: [Option<f64>; 3],
     previous_time: Option<rerun::TimePoint>,
@@ -261,23 +263,19 @@ fn log_tick(
 
     // Body, its model (once), axes; the chase frame (position and heading only).
     let q = f.pose.enu_from_body.as_quat();
-    state.rows.log(
+    state.rows.pose(
         rec,
         paths::body(id),
-        &Transform3D::from_translation_rotation(
-            position.to_array(),
-            rerun::Quaternion::from_xyzw([q.x, q.y, q.z, q.w]),
-        ),
+        position.to_array(),
+        rerun::Quaternion::from_xyzw([q.x, q.y, q.z, q.w]),
     )?;
     let forward = f.pose.enu_from_body * DVec3::X;
     let heading = DQuat::from_rotation_z(forward.y.atan2(forward.x)).as_quat();
-    state.rows.log(
+    state.rows.pose(
         rec,
         paths::chase(id),
-        &Transform3D::from_translation_rotation(
-            position.to_array(),
-            rerun::Quaternion::from_xyzw([heading.x, heading.y, heading.z, heading.w]),
-        ),
+        position.to_array(),
+        rerun::Quaternion::from_xyzw([heading.x, heading.y, heading.z, heading.w]),
     )?;
     if v.model != Some(f.model) {
         let model = &scene.geometries[f.model];
@@ -344,14 +342,18 @@ fn log_tick(
             hits.push(local(state.offset, f.pose.position_enu_m + dir * d).to_array());
         }
     }
-    state.rows.log(
-        rec,
-        paths::vehicle_part(id, "rays"),
-        &Arrows3D::from_vectors(vectors)
-            .with_origins(vec![position.to_array(); 6])
-            .with_radii([-1.0])
-            .with_colors(colors),
-    )?;
+    // Colours (hit or miss) and widths only when they change; vectors and origins every tick.
+    let mut rays = Arrows3D::update_fields()
+        .with_vectors(vectors)
+        .with_origins(vec![position.to_array(); 6]);
+    let hit_pattern = f.rays_m.map(|r| r.is_some());
+    if v.ray_hits != Some(hit_pattern) {
+        rays = rays.with_radii([-1.0]).with_colors(colors);
+        v.ray_hits = Some(hit_pattern);
+    }
+    state
+        .rows
+        .log(rec, paths::vehicle_part(id, "rays"), &rays)?;
     if !hits.is_empty() || v.had_hits {
         v.had_hits = !hits.is_empty();
         state.rows.log(
@@ -404,9 +406,7 @@ fn log_tick(
     for &(o, _, beta) in &f.colliders {
         if beta > 0.0 {
             if let Some(name) = obstacle_name(scene, f, o) {
-                state
-                    .rows
-                    .log(rec, paths::beta(id, name), &Scalars::single(beta))?;
+                state.rows.scalar(rec, paths::beta(id, name), beta)?;
             }
         }
     }
@@ -508,9 +508,7 @@ fn log_tick(
 
     // Scalars: the cost every tick; the counts as steps, logged when they change (the old
     // value at the previous tick, then the new one).
-    state
-        .rows
-        .log(rec, paths::cost(id), &Scalars::single(f.cost_us))?;
+    state.rows.scalar(rec, paths::cost(id), f.cost_us)?;
     let counts = [
         f.report.active_box as f64,
         f.report.active_mesh as f64,

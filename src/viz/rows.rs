@@ -4,15 +4,16 @@
 //! dozen rows per tick that cost the logger several times the collision core's own time. Rows
 //! logged here are kept per entity and sent as one chunk every [`ROWS_PER_CHUNK`] rows, when
 //! [`MAX_HOLD`] has passed (a viewer watching a live run sees them that late at most), and at
-//! the end.
+//! the end. Scalars and poses, the most frequent rows, are kept as plain columns and become
+//! arrow arrays once per chunk, not once per row.
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
-use rerun::log::{Chunk, RowId};
+use rerun::log::{Chunk, RowId, TimeColumn};
 use rerun::{
-    AsComponents, RecordingStream, RecordingStreamResult, SerializedComponentBatch, TimeCell,
-    TimePoint,
+    AsComponents, RecordingStream, RecordingStreamResult, Scalars, SerializedComponentBatch,
+    TimeCell, TimePoint, Transform3D,
 };
 
 /// Rows per entity gathered into one chunk.
@@ -22,10 +23,33 @@ pub const MAX_HOLD: Duration = Duration::from_millis(200);
 
 type Row = (RowId, TimePoint, Vec<SerializedComponentBatch>);
 
+/// The three timelines of a column's rows: tick, vehicle time (ns), tlog time (ns).
+#[derive(Default)]
+struct Times(Vec<[i64; 3]>);
+
+impl Times {
+    fn take(&mut self) -> [TimeColumn; 3] {
+        let rows = std::mem::take(&mut self.0);
+        [
+            TimeColumn::new_sequence("tick", rows.iter().map(|r| r[0])),
+            TimeColumn::new_duration_nanos("vehicle_time", rows.iter().map(|r| r[1])),
+            TimeColumn::new_timestamp_nanos_since_epoch("tlog_time", rows.iter().map(|r| r[2])),
+        ]
+    }
+}
+
+/// A column of one entity: its values, one per row.
+enum Values {
+    Scalar(Vec<f64>),
+    Pose(Vec<[f32; 3]>, Vec<rerun::Quaternion>),
+}
+
 /// The gathered rows, and the time they are logged at.
 pub struct Rows {
     pending: BTreeMap<String, Vec<Row>>,
+    columns: BTreeMap<String, (Times, Values)>,
     time: TimePoint,
+    now: [i64; 3],
     since: Instant,
 }
 
@@ -33,7 +57,9 @@ impl Default for Rows {
     fn default() -> Self {
         Self {
             pending: BTreeMap::new(),
+            columns: BTreeMap::new(),
             time: TimePoint::default(),
+            now: [0; 3],
             since: Instant::now(),
         }
     }
@@ -42,17 +68,66 @@ impl Default for Rows {
 impl Rows {
     /// The time of the rows logged next: the three timelines of docs/rerun.md.
     pub fn set_time(&mut self, tick: u64, vehicle_time_s: f64, tlog_time_s: f64) {
+        self.now = [
+            tick as i64,
+            (vehicle_time_s * 1e9) as i64,
+            (tlog_time_s * 1e9) as i64,
+        ];
         let mut time = TimePoint::default();
-        time.insert_cell("tick", TimeCell::from_sequence(tick as i64));
-        time.insert_cell(
-            "vehicle_time",
-            TimeCell::from_duration_nanos((vehicle_time_s * 1e9) as i64),
-        );
+        time.insert_cell("tick", TimeCell::from_sequence(self.now[0]));
+        time.insert_cell("vehicle_time", TimeCell::from_duration_nanos(self.now[1]));
         time.insert_cell(
             "tlog_time",
-            TimeCell::from_timestamp_secs_since_epoch(tlog_time_s),
+            TimeCell::from_timestamp_nanos_since_epoch(self.now[2]),
         );
         self.time = time;
+    }
+
+    /// A scalar at `path`, now.
+    pub fn scalar(
+        &mut self,
+        rec: &RecordingStream,
+        path: String,
+        value: f64,
+    ) -> RecordingStreamResult<()> {
+        let (times, values) = self
+            .columns
+            .entry(path)
+            .or_insert_with(|| (Times::default(), Values::Scalar(Vec::new())));
+        times.0.push(self.now);
+        if let Values::Scalar(v) = values {
+            v.push(value);
+        }
+        let n = times.0.len();
+        self.flush_if_due(rec, n)
+    }
+
+    /// A pose (translation, rotation) at `path`, now.
+    pub fn pose(
+        &mut self,
+        rec: &RecordingStream,
+        path: String,
+        translation: [f32; 3],
+        rotation: rerun::Quaternion,
+    ) -> RecordingStreamResult<()> {
+        let (times, values) = self
+            .columns
+            .entry(path)
+            .or_insert_with(|| (Times::default(), Values::Pose(Vec::new(), Vec::new())));
+        times.0.push(self.now);
+        if let Values::Pose(t, r) = values {
+            t.push(translation);
+            r.push(rotation);
+        }
+        let n = times.0.len();
+        self.flush_if_due(rec, n)
+    }
+
+    fn flush_if_due(&mut self, rec: &RecordingStream, rows: usize) -> RecordingStreamResult<()> {
+        if rows >= ROWS_PER_CHUNK || self.since.elapsed() >= MAX_HOLD {
+            self.flush(rec)?;
+        }
+        Ok(())
     }
 
     /// The time rows are logged at now.
@@ -81,10 +156,8 @@ impl Rows {
     ) -> RecordingStreamResult<()> {
         let rows = self.pending.entry(path).or_default();
         rows.push((RowId::new(), time, archetype.as_serialized_batches()));
-        if rows.len() >= ROWS_PER_CHUNK || self.since.elapsed() >= MAX_HOLD {
-            self.flush(rec)?;
-        }
-        Ok(())
+        let n = rows.len();
+        self.flush_if_due(rec, n)
     }
 
     /// Send every gathered row.
@@ -100,6 +173,27 @@ impl Rows {
                 })
                 .build()?;
             rec.send_chunk(chunk);
+        }
+        for (path, (times, values)) in &mut self.columns {
+            if times.0.is_empty() {
+                continue;
+            }
+            let times = times.take();
+            match values {
+                Values::Scalar(v) => rec.send_columns(
+                    path.as_str(),
+                    times,
+                    Scalars::new(std::mem::take(v)).columns_of_unit_batches()?,
+                )?,
+                Values::Pose(t, r) => rec.send_columns(
+                    path.as_str(),
+                    times,
+                    Transform3D::update_fields()
+                        .with_many_translation(std::mem::take(t))
+                        .with_many_quaternion(std::mem::take(r))
+                        .columns_of_unit_batches()?,
+                )?,
+            }
         }
         self.since = Instant::now();
         Ok(())
