@@ -67,11 +67,12 @@ pub fn send(rec: &RecordingStream, layout: &Layout) -> RecordingStreamResult<()>
     Ok(())
 }
 
-/// The chase eye in the chase frame (x forward along the heading, y left, z up): behind and
-/// above the vehicle, looking at it.
+/// The chase eye in the chase frame (x forward along the heading, y left, z up): behind,
+/// above and a little to the right of the vehicle (not on the plane it flies in, where
+/// axis-aligned edges such as the octree's would pass through the eye), looking at it.
 pub fn chase_eye(distance_m: f32) -> EyeControls3D {
     EyeControls3D::new()
-        .with_position([-0.85 * distance_m, 0.0, 0.5 * distance_m])
+        .with_position([-0.8 * distance_m, -0.25 * distance_m, 0.5 * distance_m])
         .with_look_target([0.0, 0.0, 0.0])
         .with_eye_up([0.0, 0.0, 1.0])
 }

@@ -71,8 +71,8 @@ pub fn boxes_of(
         .with_quaternions(rotations)
         .with_colors(colors)
         .with_fill_mode(fill)
-        // Lines a fixed width on screen, however near the eye.
-        .with_radii([-0.75])
+        // Thin lines (3 cm): an edge that passes by the chase eye stays a line.
+        .with_radii([0.03])
 }
 
 /// A box in the scene: centre, half sizes, rotation.
