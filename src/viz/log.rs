@@ -15,10 +15,10 @@ use super::colliders::{obstacle_name, ColliderView};
 use super::draw::{
     box_of_geometry, boxes_of, kind_color, local, pose_of_static, viz_offset, LocalBox,
 };
+use super::markers::Markers;
 use super::rows::Rows;
 use super::{paths, TickFrame, VizMsg, VizOptions};
 use crate::collision::bodies::BodySource;
-use crate::collision::events::EventKind;
 use crate::collision::pipeline::RAY_AXES_FRD;
 use crate::scene::{Aabb64, Kind, Scene};
 
@@ -28,9 +28,6 @@ const STATIC_MESH_BUDGET: usize = 500_000;
 const TRACK_SEGMENT: usize = 100;
 /// Recent positions kept per vehicle to place near-miss markers at their closest time.
 const RECENT_LEN: usize = 6000;
-/// The time selection around the first collision: seconds before and after.
-const FOCUS_BEFORE_S: f64 = 4.0;
-const FOCUS_AFTER_S: f64 = 2.0;
 /// Vehicle colours, by order of appearance (the first is the pink the render check looks for).
 pub const VEHICLE_COLORS: [[u8; 3]; 4] =
     [[255, 80, 200], [255, 170, 0], [0, 200, 255], [150, 255, 60]];
@@ -52,12 +49,6 @@ struct Vehicle {
     previous_time: Option<rerun::TimePoint>,
 }
 
-struct Marker {
-    at: Vec3,
-    label: String,
-    normal: Vec3,
-}
-
 struct State<'s> {
     scene: &'s Scene,
     options: &'s VizOptions,
@@ -65,8 +56,7 @@ struct State<'s> {
     offset: DVec3,
     vehicles: BTreeMap<u8, Vehicle>,
     layout: Layout,
-    collisions: Vec<Marker>,
-    near_misses: Vec<Marker>,
+    markers: Markers,
     traffic: BTreeMap<String, bool>,
     rows: Rows,
 }
@@ -86,8 +76,7 @@ pub fn run(
         offset: viz_offset(scene),
         vehicles: BTreeMap::new(),
         layout: Layout::default(),
-        collisions: Vec::new(),
-        near_misses: Vec::new(),
+        markers: Markers::default(),
         traffic: BTreeMap::new(),
         rows: Rows::default(),
     };
@@ -182,26 +171,6 @@ fn see_through(c: Color, alpha: u8) -> Color {
     Color::from_unmultiplied_rgba(r, g, b, alpha)
 }
 
-/// Every marker so far at `path`: labelled points of a fixed size on screen, so they read in
-/// the chase views and the overview alike (labels on screen, or on hover only).
-fn log_markers(
-    rec: &RecordingStream,
-    path: &str,
-    markers: &[Marker],
-    radius_ui: f32,
-    color: Color,
-    show_labels: bool,
-) -> RecordingStreamResult<()> {
-    rec.log(
-        path,
-        &Points3D::new(markers.iter().map(|m| m.at.to_array()))
-            .with_radii([-radius_ui])
-            .with_colors([color])
-            .with_labels(markers.iter().map(|m| m.label.as_str()))
-            .with_show_labels(show_labels),
-    )
-}
-
 /// The distance a chase eye keeps from a vehicle of this model: ten model radii, at least 5 m.
 fn chase_distance_m(scene: &Scene, model: usize) -> f32 {
     let (cuboid, _) = scene.geometries[model].box_collider();
@@ -228,42 +197,86 @@ fn log_tick(
         .rows
         .set_time(f.tick, f64::from(f.time_boot_ms) / 1000.0, f.t_s);
     let id = f.system_id;
-    let t0 = f.t0_s;
     let position = local(state.offset, f.pose.position_enu_m);
     grow(&mut state.layout.overview, position);
-
-    // A new vehicle: its colour, and a chase view of its own (the layout is sent again).
     if !state.vehicles.contains_key(&id) {
-        let n = state.vehicles.len();
-        state.layout.vehicles.push(id);
-        state.vehicles.insert(
-            id,
-            Vehicle {
-                color: VEHICLE_COLORS[n % VEHICLE_COLORS.len()],
-                ..Vehicle::default()
-            },
-        );
-        if state.layout.chased.len() < MAX_CHASE_VIEWS {
-            state
-                .layout
-                .chased
-                .push((id, chase_distance_m(scene, f.model)));
-        }
-        // Until the flight is over, the overview frames a kilometre around what is known.
-        let mut live = state.layout.clone();
-        live.overview = live
-            .overview
-            .map(|(min, max)| (min - Vec3::splat(500.0), max + Vec3::splat(500.0)));
-        blueprint::send(rec, &live)?;
+        vehicle_appears(rec, state, f)?;
     }
     let Some(v) = state.vehicles.get_mut(&id) else {
         return Ok(());
     };
-    let color = Color::from_rgb(v.color[0], v.color[1], v.color[2]);
+    let rows = &mut state.rows;
+    log_body(rec, rows, v, scene, f, position)?;
+    log_track(rec, rows, v, f, position)?;
+    log_rays(rec, rows, v, f, state.offset, position)?;
+    log_node(rec, v, f, state.leaves, state.offset)?;
+    // Colliders (what changed), and the beta of each one a ray sees.
+    v.colliders.log(rec, scene, state.offset, f)?;
+    for &(o, _, beta) in &f.colliders {
+        if beta > 0.0 {
+            if let Some(name) = obstacle_name(scene, f, o) {
+                rows.scalar(rec, paths::beta(id, name), beta)?;
+            }
+        }
+    }
+    log_traffic(rec, rows, &mut state.traffic, scene, f, state.offset)?;
+    for e in &f.events {
+        let normal_m = chase_distance_m(scene, f.model) / 4.0;
+        if let Some(focus) =
+            state
+                .markers
+                .on_event(rec, e, f, state.offset, normal_m, &v.recent, position)?
+        {
+            state.layout.focus_s.get_or_insert(focus);
+        }
+    }
+    log_metrics(rec, rows, v, f)
+}
 
-    // Body, its model (once), axes; the chase frame (position and heading only).
+/// A vehicle seen for the first time: its colour, a chase view of its own if there is room,
+/// and the layout sent again.
+fn vehicle_appears(
+    rec: &RecordingStream,
+    state: &mut State<'_>,
+    f: &TickFrame,
+) -> RecordingStreamResult<()> {
+    let id = f.system_id;
+    let n = state.vehicles.len();
+    state.layout.vehicles.push(id);
+    state.vehicles.insert(
+        id,
+        Vehicle {
+            color: VEHICLE_COLORS[n % VEHICLE_COLORS.len()],
+            ..Vehicle::default()
+        },
+    );
+    if state.layout.chased.len() < MAX_CHASE_VIEWS {
+        state
+            .layout
+            .chased
+            .push((id, chase_distance_m(state.scene, f.model)));
+    }
+    // Until the flight is over, the overview frames a kilometre around what is known.
+    let mut live = state.layout.clone();
+    live.overview = live
+        .overview
+        .map(|(min, max)| (min - Vec3::splat(500.0), max + Vec3::splat(500.0)));
+    blueprint::send(rec, &live)
+}
+
+/// The body's pose, its model and axes (once per model), and the chase frame (position and
+/// heading only).
+fn log_body(
+    rec: &RecordingStream,
+    rows: &mut Rows,
+    v: &mut Vehicle,
+    scene: &Scene,
+    f: &TickFrame,
+    position: Vec3,
+) -> RecordingStreamResult<()> {
+    let id = f.system_id;
     let q = f.pose.enu_from_body.as_quat();
-    state.rows.pose(
+    rows.pose(
         rec,
         paths::body(id),
         position.to_array(),
@@ -271,39 +284,49 @@ fn log_tick(
     )?;
     let forward = f.pose.enu_from_body * DVec3::X;
     let heading = DQuat::from_rotation_z(forward.y.atan2(forward.x)).as_quat();
-    state.rows.pose(
+    rows.pose(
         rec,
         paths::chase(id),
         position.to_array(),
         rerun::Quaternion::from_xyzw([heading.x, heading.y, heading.z, heading.w]),
     )?;
-    if v.model != Some(f.model) {
-        let model = &scene.geometries[f.model];
-        let (vertices, indices) = model.triangles();
-        rec.log_static(
-            format!("{}/model", paths::body(id)),
-            &Mesh3D::new(vertices.iter().map(|v| v.to_array()))
-                .with_triangle_indices(
-                    indices
-                        .into_iter()
-                        .map(|t| rerun::TriangleIndices(t.into())),
-                )
-                .with_albedo_factor(color.0),
-        )?;
-        let axis_m = (3.0 * model.box_collider().0.half_extents.length()).max(1.0);
-        rec.log_static(
-            format!("{}/axes", paths::body(id)),
-            &Arrows3D::from_vectors([[axis_m, 0.0, 0.0], [0.0, axis_m, 0.0], [0.0, 0.0, axis_m]])
-                .with_colors([
-                    Color::from_rgb(255, 0, 0),
-                    Color::from_rgb(0, 255, 0),
-                    Color::from_rgb(0, 0, 255),
-                ]),
-        )?;
-        v.model = Some(f.model);
+    if v.model == Some(f.model) {
+        return Ok(());
     }
+    let model = &scene.geometries[f.model];
+    let (vertices, indices) = model.triangles();
+    rec.log_static(
+        format!("{}/model", paths::body(id)),
+        &Mesh3D::new(vertices.iter().map(|v| v.to_array()))
+            .with_triangle_indices(
+                indices
+                    .into_iter()
+                    .map(|t| rerun::TriangleIndices(t.into())),
+            )
+            .with_albedo_factor(Color::from_rgb(v.color[0], v.color[1], v.color[2]).0),
+    )?;
+    let axis_m = (3.0 * model.box_collider().0.half_extents.length()).max(1.0);
+    rec.log_static(
+        format!("{}/axes", paths::body(id)),
+        &Arrows3D::from_vectors([[axis_m, 0.0, 0.0], [0.0, axis_m, 0.0], [0.0, 0.0, axis_m]])
+            .with_colors([
+                Color::from_rgb(255, 0, 0),
+                Color::from_rgb(0, 255, 0),
+                Color::from_rgb(0, 0, 255),
+            ]),
+    )?;
+    v.model = Some(f.model);
+    Ok(())
+}
 
-    // Track: one open segment re-logged per tick; closed segments stay as they were.
+/// The track: one open segment re-logged per tick; closed segments stay as they were.
+fn log_track(
+    rec: &RecordingStream,
+    rows: &mut Rows,
+    v: &mut Vehicle,
+    f: &TickFrame,
+    position: Vec3,
+) -> RecordingStreamResult<()> {
     if v.open_segment.len() > TRACK_SEGMENT {
         let last = v.open_segment[v.open_segment.len() - 1];
         v.open_segment.clear();
@@ -311,21 +334,31 @@ fn log_tick(
         v.segment += 1;
     }
     v.open_segment.push(position.to_array());
-    state.rows.log(
+    if v.recent.len() == RECENT_LEN {
+        v.recent.pop_front();
+    }
+    v.recent.push_back((f.t_s, position));
+    rows.log(
         rec,
-        paths::track_segment(id, v.segment),
+        paths::track_segment(f.system_id, v.segment),
         &LineStrips3D::new([v.open_segment.as_slice()]).with_colors([Color::from_rgb(
             v.color[0] / 2 + 40,
             v.color[1] / 2 + 40,
             v.color[2] / 2 + 40,
         )]),
-    )?;
-    if v.recent.len() == RECENT_LEN {
-        v.recent.pop_front();
-    }
-    v.recent.push_back((f.t_s, position));
+    )
+}
 
-    // Rays and their hits.
+/// The six rays and their hits. Colours (hit or miss) and widths only when they change.
+fn log_rays(
+    rec: &RecordingStream,
+    rows: &mut Rows,
+    v: &mut Vehicle,
+    f: &TickFrame,
+    offset: DVec3,
+    position: Vec3,
+) -> RecordingStreamResult<()> {
+    let id = f.system_id;
     let mut vectors = Vec::new();
     let mut colors = Vec::new();
     let mut hits = Vec::new();
@@ -339,10 +372,9 @@ fn log_tick(
             Color::from_unmultiplied_rgba(160, 160, 160, 120)
         });
         if let Some(d) = hit {
-            hits.push(local(state.offset, f.pose.position_enu_m + dir * d).to_array());
+            hits.push(local(offset, f.pose.position_enu_m + dir * d).to_array());
         }
     }
-    // Colours (hit or miss) and widths only when they change; vectors and origins every tick.
     let mut rays = Arrows3D::update_fields()
         .with_vectors(vectors)
         .with_origins(vec![position.to_array(); 6]);
@@ -351,12 +383,10 @@ fn log_tick(
         rays = rays.with_radii([-1.0]).with_colors(colors);
         v.ray_hits = Some(hit_pattern);
     }
-    state
-        .rows
-        .log(rec, paths::vehicle_part(id, "rays"), &rays)?;
+    rows.log(rec, paths::vehicle_part(id, "rays"), &rays)?;
     if !hits.is_empty() || v.had_hits {
         v.had_hits = !hits.is_empty();
-        state.rows.log(
+        rows.log(
             rec,
             paths::vehicle_part(id, "rays/hits"),
             &Points3D::new(hits)
@@ -364,54 +394,62 @@ fn log_tick(
                 .with_colors([Color::from_rgb(255, 60, 60)]),
         )?;
     }
+    Ok(())
+}
 
-    // The current node and the leaves that touch it, logged when the node changes.
-    if f.node != v.node {
-        match f.node {
-            Some(n) => {
-                rec.log(
-                    paths::vehicle_part(id, "node"),
-                    &boxes_of(
-                        state.offset,
-                        FillMode::MajorWireframe,
-                        std::iter::once((LocalBox::aligned(&n), Color::from_rgb(255, 220, 0))),
-                    ),
-                )?;
-                let touching = Aabb64 {
-                    min: n.min - DVec3::splat(0.01),
-                    max: n.max + DVec3::splat(0.01),
-                };
-                let neighbours = state
-                    .leaves
-                    .iter()
-                    .filter(|b| **b != n && b.intersects(&touching))
-                    .map(|b| {
-                        (
-                            LocalBox::aligned(b),
-                            Color::from_unmultiplied_rgba(200, 200, 255, 90),
-                        )
-                    });
-                rec.log(
-                    paths::vehicle_part(id, "node/neighbours"),
-                    &boxes_of(state.offset, FillMode::MajorWireframe, neighbours),
-                )?;
-            }
-            None => rec.log(paths::vehicle_part(id, "node"), &Clear::recursive())?,
-        }
-        v.node = f.node;
+/// The current node and the leaves that touch it, logged when the node changes.
+fn log_node(
+    rec: &RecordingStream,
+    v: &mut Vehicle,
+    f: &TickFrame,
+    leaves: &[Aabb64],
+    offset: DVec3,
+) -> RecordingStreamResult<()> {
+    if f.node == v.node {
+        return Ok(());
     }
+    v.node = f.node;
+    let id = f.system_id;
+    let Some(n) = f.node else {
+        return rec.log(paths::vehicle_part(id, "node"), &Clear::recursive());
+    };
+    rec.log(
+        paths::vehicle_part(id, "node"),
+        &boxes_of(
+            offset,
+            FillMode::MajorWireframe,
+            std::iter::once((LocalBox::aligned(&n), Color::from_rgb(255, 220, 0))),
+        ),
+    )?;
+    let touching = Aabb64 {
+        min: n.min - DVec3::splat(0.01),
+        max: n.max + DVec3::splat(0.01),
+    };
+    let neighbours = leaves
+        .iter()
+        .filter(|b| **b != n && b.intersects(&touching))
+        .map(|b| {
+            (
+                LocalBox::aligned(b),
+                Color::from_unmultiplied_rgba(200, 200, 255, 90),
+            )
+        });
+    rec.log(
+        paths::vehicle_part(id, "node/neighbours"),
+        &boxes_of(offset, FillMode::MajorWireframe, neighbours),
+    )
+}
 
-    // Colliders (what changed), and the beta of each one a ray sees.
-    v.colliders.log(rec, scene, state.offset, f)?;
-    for &(o, _, beta) in &f.colliders {
-        if beta > 0.0 {
-            if let Some(name) = obstacle_name(scene, f, o) {
-                state.rows.scalar(rec, paths::beta(id, name), beta)?;
-            }
-        }
-    }
-
-    // Traffic (other vehicles are drawn by their own ticks, as vehicles).
+/// Moving obstacles other than vehicles (vehicles are drawn by their own ticks); those gone
+/// since the last tick are cleared.
+fn log_traffic(
+    rec: &RecordingStream,
+    rows: &mut Rows,
+    shown: &mut BTreeMap<String, bool>,
+    scene: &Scene,
+    f: &TickFrame,
+    offset: DVec3,
+) -> RecordingStreamResult<()> {
     let mut seen = BTreeMap::new();
     for (_, name, kind, model, pose) in f
         .dynamic
@@ -419,122 +457,57 @@ fn log_tick(
         .filter(|d| !matches!(d.0.source, BodySource::Vehicle { .. }))
     {
         let b = box_of_geometry(&scene.geometries[*model], pose);
-        state.rows.log(
+        rows.log(
             rec,
             paths::traffic(name),
             &boxes_of(
-                state.offset,
+                offset,
                 FillMode::Solid,
                 std::iter::once((b, kind_color(*kind))),
             ),
         )?;
         seen.insert(name.clone(), true);
     }
-    for name in state.traffic.keys() {
+    for name in shown.keys() {
         if !seen.contains_key(name) {
             rec.log(paths::traffic(name), &Clear::flat())?;
         }
     }
-    state.traffic = seen;
+    *shown = seen;
+    Ok(())
+}
 
-    // Collision and near-miss markers, labelled.
-    for e in &f.events {
-        match &e.kind {
-            EventKind::Collision {
-                obstacle,
-                point_enu_m,
-                normal_enu,
-                time_of_impact,
-                ..
-            } => {
-                state.collisions.push(Marker {
-                    at: local(state.offset, DVec3::from(*point_enu_m)),
-                    label: format!("COLLISION v{id} {obstacle} +{:.2} s", time_of_impact - t0),
-                    normal: DVec3::from(*normal_enu).as_vec3(),
-                });
-                state.layout.focus_s.get_or_insert((
-                    time_of_impact - FOCUS_BEFORE_S,
-                    time_of_impact + FOCUS_AFTER_S,
-                ));
-                log_markers(
-                    rec,
-                    paths::COLLISIONS,
-                    &state.collisions,
-                    10.0,
-                    Color::from_rgb(255, 0, 0),
-                    true,
-                )?;
-                let normal_m = chase_distance_m(scene, f.model) / 4.0;
-                rec.log(
-                    paths::COLLISION_NORMALS,
-                    &Arrows3D::from_vectors(
-                        state
-                            .collisions
-                            .iter()
-                            .map(|m| (m.normal * normal_m).to_array()),
-                    )
-                    .with_origins(state.collisions.iter().map(|m| m.at.to_array()))
-                    .with_colors([Color::from_rgb(255, 0, 0)]),
-                )?;
-            }
-            EventKind::NearMiss {
-                obstacle,
-                closest_m,
-                closest_t,
-            } => {
-                // Where the vehicle was when it was closest (or now, if that is no longer kept).
-                let at = v
-                    .recent
-                    .iter()
-                    .min_by(|a, b| (a.0 - closest_t).abs().total_cmp(&(b.0 - closest_t).abs()))
-                    .map_or(position, |r| r.1);
-                state.near_misses.push(Marker {
-                    at,
-                    label: format!("near miss v{id} {obstacle} {closest_m:.1} m"),
-                    normal: Vec3::ZERO,
-                });
-                log_markers(
-                    rec,
-                    paths::NEAR_MISSES,
-                    &state.near_misses,
-                    6.0,
-                    Color::from_rgb(255, 160, 0),
-                    false,
-                )?;
-            }
-            _ => {}
-        }
-    }
-
-    // Scalars: the cost every tick; the counts as steps, logged when they change (the old
-    // value at the previous tick, then the new one).
-    state.rows.scalar(rec, paths::cost(id), f.cost_us)?;
+/// The tick's cost every tick; the counts as steps, logged when they change (the old value at
+/// the vehicle's previous tick, then the new one).
+fn log_metrics(
+    rec: &RecordingStream,
+    rows: &mut Rows,
+    v: &mut Vehicle,
+    f: &TickFrame,
+) -> RecordingStreamResult<()> {
+    let id = f.system_id;
+    rows.scalar(rec, paths::cost(id), f.cost_us)?;
     let counts = [
         f.report.active_box as f64,
         f.report.active_mesh as f64,
         f.report.active_triangles as f64,
     ];
-    for (i, path) in [
+    let series = [
         paths::colliders_count(id, "box"),
         paths::colliders_count(id, "mesh"),
         paths::triangles(id),
-    ]
-    .into_iter()
-    .enumerate()
-    {
+    ];
+    for (i, path) in series.into_iter().enumerate() {
         match (v.counts[i], &v.previous_time) {
             (Some(old), _) if old == counts[i] => continue,
             (Some(old), Some(before)) => {
-                let before = before.clone();
-                state
-                    .rows
-                    .log_at(rec, path.clone(), before, &Scalars::single(old))?;
+                rows.log_at(rec, path.clone(), before.clone(), &Scalars::single(old))?;
             }
             _ => {}
         }
-        state.rows.log(rec, path, &Scalars::single(counts[i]))?;
+        rows.log(rec, path, &Scalars::single(counts[i]))?;
         v.counts[i] = Some(counts[i]);
     }
-    v.previous_time = Some(state.rows.time().clone());
+    v.previous_time = Some(rows.time().clone());
     Ok(())
 }

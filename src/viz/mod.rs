@@ -11,6 +11,7 @@ pub mod blueprint;
 mod colliders;
 pub mod draw;
 mod log;
+mod markers;
 pub mod paths;
 mod rows;
 

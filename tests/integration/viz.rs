@@ -102,8 +102,10 @@ fn a_replay_saves_a_recording_rerun_verifies() {
     }
 }
 
-#[test]
-fn a_run_logs_into_the_memory_sink() {
+/// A session over the bundled city logging into rerun's in-memory sink.
+fn city_session_in_memory(
+    options: savsim::viz::VizOptions,
+) -> (Session, rerun::sink::MemorySinkStorage) {
     let scene = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
     let mut session = Session::new(
         Some(std::sync::Arc::new(scene)),
@@ -114,9 +116,13 @@ fn a_run_logs_into_the_memory_sink() {
     let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
         .memory()
         .unwrap();
-    session
-        .start_viz_stream(rec, savsim::viz::VizOptions::default())
-        .unwrap();
+    session.start_viz_stream(rec, options).unwrap();
+    (session, storage)
+}
+
+#[test]
+fn a_run_logs_into_the_memory_sink() {
+    let (mut session, storage) = city_session_in_memory(savsim::viz::VizOptions::default());
     crate::common::replay_session(
         &root().join("scenes/flights/copter_square_10ms.tlog"),
         &mut session,
@@ -146,19 +152,8 @@ fn a_run_logs_into_the_memory_sink() {
 /// `--rerun-octree` draws every leaf.
 #[test]
 fn the_whole_octree_is_drawn_on_request() {
-    let scene = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
-    let mut session = Session::new(
-        Some(std::sync::Arc::new(scene)),
-        CollisionConfig::default(),
-        None,
-    )
-    .unwrap();
-    let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
-        .memory()
-        .unwrap();
-    session
-        .start_viz_stream(rec, savsim::viz::VizOptions { whole_octree: true })
-        .unwrap();
+    let (mut session, storage) =
+        city_session_in_memory(savsim::viz::VizOptions { whole_octree: true });
     session.finish().unwrap();
     let text = format!("{:?}", storage.take());
     assert!(text.contains("world/octree"));

@@ -1,0 +1,132 @@
+//! Collision and near-miss markers: every one so far, labelled, a fixed size on screen so that
+//! they read in the chase views and the overview alike.
+
+use std::collections::VecDeque;
+
+use glam::{DVec3, Vec3};
+use rerun::{Arrows3D, Color, Points3D, RecordingStream, RecordingStreamResult};
+
+use super::draw::local;
+use super::{paths, TickFrame};
+use crate::collision::events::{Event, EventKind};
+
+/// The time selection around the first collision: seconds before and after.
+const FOCUS_BEFORE_S: f64 = 4.0;
+const FOCUS_AFTER_S: f64 = 2.0;
+
+struct Marker {
+    at: Vec3,
+    label: String,
+    normal: Vec3,
+}
+
+/// Every marker so far.
+#[derive(Default)]
+pub struct Markers {
+    collisions: Vec<Marker>,
+    near_misses: Vec<Marker>,
+}
+
+impl Markers {
+    /// Mark an event of vehicle `f.system_id`: a collision at its contact point with its normal
+    /// (`normal_m` long), a near miss where the vehicle was when it was closest (found in
+    /// `recent`: (time, logged position); `now` if that is no longer kept). Returns the span of
+    /// `tlog_time` to select for a collision.
+    #[allow(clippy::too_many_arguments)]
+    pub fn on_event(
+        &mut self,
+        rec: &RecordingStream,
+        e: &Event,
+        f: &TickFrame,
+        offset: DVec3,
+        normal_m: f32,
+        recent: &VecDeque<(f64, Vec3)>,
+        now: Vec3,
+    ) -> RecordingStreamResult<Option<(f64, f64)>> {
+        let id = f.system_id;
+        match &e.kind {
+            EventKind::Collision {
+                obstacle,
+                point_enu_m,
+                normal_enu,
+                time_of_impact,
+                ..
+            } => {
+                self.collisions.push(Marker {
+                    at: local(offset, DVec3::from(*point_enu_m)),
+                    label: format!(
+                        "COLLISION v{id} {obstacle} +{:.2} s",
+                        time_of_impact - f.t0_s
+                    ),
+                    normal: DVec3::from(*normal_enu).as_vec3(),
+                });
+                log_points(
+                    rec,
+                    paths::COLLISIONS,
+                    &self.collisions,
+                    10.0,
+                    [255, 0, 0],
+                    true,
+                )?;
+                rec.log(
+                    paths::COLLISION_NORMALS,
+                    &Arrows3D::from_vectors(
+                        self.collisions
+                            .iter()
+                            .map(|m| (m.normal * normal_m).to_array()),
+                    )
+                    .with_origins(self.collisions.iter().map(|m| m.at.to_array()))
+                    .with_colors([Color::from_rgb(255, 0, 0)]),
+                )?;
+                Ok(Some((
+                    time_of_impact - FOCUS_BEFORE_S,
+                    time_of_impact + FOCUS_AFTER_S,
+                )))
+            }
+            EventKind::NearMiss {
+                obstacle,
+                closest_m,
+                closest_t,
+            } => {
+                let at = recent
+                    .iter()
+                    .min_by(|a, b| (a.0 - closest_t).abs().total_cmp(&(b.0 - closest_t).abs()))
+                    .map_or(now, |r| r.1);
+                self.near_misses.push(Marker {
+                    at,
+                    label: format!("near miss v{id} {obstacle} {closest_m:.1} m"),
+                    normal: Vec3::ZERO,
+                });
+                log_points(
+                    rec,
+                    paths::NEAR_MISSES,
+                    &self.near_misses,
+                    6.0,
+                    [255, 160, 0],
+                    false,
+                )?;
+                Ok(None)
+            }
+            _ => Ok(None),
+        }
+    }
+}
+
+/// Markers as points `radius_ui` points wide, labels on screen or on hover only.
+fn log_points(
+    rec: &RecordingStream,
+    path: &str,
+    markers: &[Marker],
+    radius_ui: f32,
+    [r, g, b]: [u8; 3],
+    show_labels: bool,
+) -> RecordingStreamResult<()> {
+    rec.log(
+        path,
+        &Points3D::new(markers.iter().map(|m| m.at.to_array()))
+            .with_radii([-radius_ui])
+            .with_colors([Color::from_rgb(r, g, b)])
+            .with_labels(markers.iter().map(|m| m.label.as_str()))
+            .with_show_labels(show_labels),
+    )
+}
