@@ -2,9 +2,10 @@
 //! (hundreds of entities made hundreds of chunks, slow to write and to load), each logged only
 //! when what it shows changes.
 //!
-//! - `colliders/boxes`: box colliders no ray sees (beta 0): blue wireframes. Changes when the
-//!   vehicle's node does.
-//! - `colliders/seen`: box colliders a ray sees, wireframes coloured by beta (a handful).
+//! - `colliders/boxes`: every box collider: thin blue wireframes. Changes when the vehicle's
+//!   node does, or a collider is swapped.
+//! - `colliders/seen`: the box colliders a ray sees, drawn over them in thicker wireframes
+//!   coloured by beta (a handful; they change as the rays sweep).
 //! - `colliders/meshes/{obstacle}`: each mesh collider (a mesh is large, so it is logged once,
 //!   when it appears, see-through, in the colour of the beta that made it a mesh).
 //! - `colliders/moving`: colliders of moving bodies (logged every tick they exist).
@@ -110,12 +111,16 @@ impl ColliderView {
                 (_, ColliderKind::None) => {}
                 (ObstacleRef::Dynamic(_), _) => moving.push(entry),
                 (_, ColliderKind::Mesh) => meshes.push(entry),
-                (_, ColliderKind::Box) if entry.1 == 0 => boxes.push(entry),
-                (_, ColliderKind::Box) => seen.push(entry),
+                (_, ColliderKind::Box) => {
+                    boxes.push((o, 0));
+                    if entry.1 > 0 {
+                        seen.push(entry);
+                    }
+                }
             }
         }
         // Named by obstacle id, shown on hover.
-        let wireframes = |shown: &Shown| {
+        let wireframes = |shown: &Shown, radius_m: f32| {
             let items = shown.iter().filter_map(|&(o, s)| {
                 let (geometry, pose) = placed(scene, f, o)?;
                 Some((box_of_geometry(geometry, &pose), step_color(s)))
@@ -124,15 +129,16 @@ impl ColliderView {
                 .iter()
                 .filter(|&&(o, _)| placed(scene, f, o).is_some());
             boxes_of(offset, FillMode::MajorWireframe, items)
+                .with_radii([radius_m])
                 .with_labels(names.map(|&(o, _)| obstacle_name(scene, f, o).unwrap_or_default()))
                 .with_show_labels(false)
         };
         if boxes != self.boxes {
-            rec.log(paths::colliders(id, "boxes"), &wireframes(&boxes))?;
+            rec.log(paths::colliders(id, "boxes"), &wireframes(&boxes, 0.03))?;
             self.boxes = boxes;
         }
         if seen != self.seen {
-            rec.log(paths::colliders(id, "seen"), &wireframes(&seen))?;
+            rec.log(paths::colliders(id, "seen"), &wireframes(&seen, 0.08))?;
             self.seen = seen;
         }
         for &(o, s) in &meshes {
@@ -157,7 +163,7 @@ impl ColliderView {
         }
         self.meshes = now;
         if !moving.is_empty() {
-            rec.log(paths::colliders(id, "moving"), &wireframes(&moving))?;
+            rec.log(paths::colliders(id, "moving"), &wireframes(&moving, 0.03))?;
         } else if self.moving {
             rec.log(paths::colliders(id, "moving"), &Clear::flat())?;
         }

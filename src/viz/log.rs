@@ -7,7 +7,7 @@ use glam::{DQuat, DVec3, Vec3};
 use rerun::components::FillMode;
 use rerun::{
     Arrows3D, Clear, Color, LineStrips3D, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
-    Scalars, ViewCoordinates,
+    ViewCoordinates,
 };
 
 use super::blueprint::{self, Layout, MAX_CHASE_VIEWS};
@@ -25,7 +25,7 @@ use crate::scene::{Aabb64, Kind, Scene};
 /// Static scenes with at most this many triangles are drawn as meshes, larger ones as boxes.
 const STATIC_MESH_BUDGET: usize = 500_000;
 /// Points per track segment entity (`track/{k}`): each tick re-logs only the open segment.
-const TRACK_SEGMENT: usize = 100;
+const TRACK_SEGMENT: usize = 50;
 /// Recent positions kept per vehicle to place near-miss markers at their closest time.
 const RECENT_LEN: usize = 6000;
 /// Vehicle colours, by order of appearance (the first is the pink the render check looks for).
@@ -44,9 +44,6 @@ struct Vehicle {
     had_hits: bool,
     /// Which rays hit, as last logged (their colours).
     ray_hits: Option<[bool; 6]>,
-    /// Box colliders, mesh colliders, mesh triangles, as last logged.
-    counts: [Option<f64>; 3],
-    previous_time: Option<rerun::TimePoint>,
 }
 
 struct State<'s> {
@@ -230,7 +227,7 @@ fn log_tick(
             state.layout.focus_s.get_or_insert(focus);
         }
     }
-    log_metrics(rec, rows, v, f)
+    log_metrics(rec, rows, f)
 }
 
 /// A vehicle seen for the first time: its colour, a chase view of its own if there is room,
@@ -338,15 +335,19 @@ fn log_track(
         v.recent.pop_front();
     }
     v.recent.push_back((f.t_s, position));
-    rows.log(
-        rec,
-        paths::track_segment(f.system_id, v.segment),
-        &LineStrips3D::new([v.open_segment.as_slice()]).with_colors([Color::from_rgb(
-            v.color[0] / 2 + 40,
-            v.color[1] / 2 + 40,
-            v.color[2] / 2 + 40,
-        )]),
-    )
+    let path = paths::track_segment(f.system_id, v.segment);
+    if v.open_segment.len() <= 2 {
+        // A new segment: its colour, once.
+        rec.log_static(
+            path.as_str(),
+            &LineStrips3D::update_fields().with_colors([Color::from_rgb(
+                v.color[0] / 2 + 40,
+                v.color[1] / 2 + 40,
+                v.color[2] / 2 + 40,
+            )]),
+        )?;
+    }
+    rows.strip(rec, path, &v.open_segment)
 }
 
 /// The six rays and their hits. Colours (hit or miss) and widths only when they change.
@@ -375,15 +376,19 @@ fn log_rays(
             hits.push(local(offset, f.pose.position_enu_m + dir * d).to_array());
         }
     }
-    let mut rays = Arrows3D::update_fields()
-        .with_vectors(vectors)
-        .with_origins(vec![position.to_array(); 6]);
+    let path = paths::vehicle_part(id, "rays");
     let hit_pattern = f.rays_m.map(|r| r.is_some());
     if v.ray_hits != Some(hit_pattern) {
-        rays = rays.with_radii([-1.0]).with_colors(colors);
+        rows.log(
+            rec,
+            path.clone(),
+            &Arrows3D::update_fields()
+                .with_radii([-1.0])
+                .with_colors(colors),
+        )?;
         v.ray_hits = Some(hit_pattern);
     }
-    rows.log(rec, paths::vehicle_part(id, "rays"), &rays)?;
+    rows.arrows(rec, path, &vectors, &[position.to_array(); 6])?;
     if !hits.is_empty() || v.had_hits {
         v.had_hits = !hits.is_empty();
         rows.log(
@@ -477,37 +482,19 @@ fn log_traffic(
     Ok(())
 }
 
-/// The tick's cost every tick; the counts as steps, logged when they change (the old value at
-/// the vehicle's previous tick, then the new one).
-fn log_metrics(
-    rec: &RecordingStream,
-    rows: &mut Rows,
-    v: &mut Vehicle,
-    f: &TickFrame,
-) -> RecordingStreamResult<()> {
+/// The tick's cost, the active colliders and triangles (plain columns: cheap every tick).
+fn log_metrics(rec: &RecordingStream, rows: &mut Rows, f: &TickFrame) -> RecordingStreamResult<()> {
     let id = f.system_id;
     rows.scalar(rec, paths::cost(id), f.cost_us)?;
-    let counts = [
-        f.report.active_box as f64,
-        f.report.active_mesh as f64,
-        f.report.active_triangles as f64,
-    ];
-    let series = [
+    rows.scalar(
+        rec,
         paths::colliders_count(id, "box"),
+        f.report.active_box as f64,
+    )?;
+    rows.scalar(
+        rec,
         paths::colliders_count(id, "mesh"),
-        paths::triangles(id),
-    ];
-    for (i, path) in series.into_iter().enumerate() {
-        match (v.counts[i], &v.previous_time) {
-            (Some(old), _) if old == counts[i] => continue,
-            (Some(old), Some(before)) => {
-                rows.log_at(rec, path.clone(), before.clone(), &Scalars::single(old))?;
-            }
-            _ => {}
-        }
-        rows.log(rec, path, &Scalars::single(counts[i]))?;
-        v.counts[i] = Some(counts[i]);
-    }
-    v.previous_time = Some(rows.time().clone());
-    Ok(())
+        f.report.active_mesh as f64,
+    )?;
+    rows.scalar(rec, paths::triangles(id), f.report.active_triangles as f64)
 }

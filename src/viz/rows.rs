@@ -4,20 +4,20 @@
 //! dozen rows per tick that cost the logger several times the collision core's own time. Rows
 //! logged here are kept per entity and sent as one chunk every [`ROWS_PER_CHUNK`] rows, when
 //! [`MAX_HOLD`] has passed (a viewer watching a live run sees them that late at most), and at
-//! the end. Scalars and poses, the most frequent rows, are kept as plain columns and become
-//! arrow arrays once per chunk, not once per row.
+//! the end. Scalars, poses, arrows and line strips, the most frequent rows, are kept as plain
+//! columns and become arrow arrays once per chunk, not once per row.
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use rerun::log::{Chunk, RowId, TimeColumn};
 use rerun::{
-    AsComponents, RecordingStream, RecordingStreamResult, Scalars, SerializedComponentBatch,
-    TimeCell, TimePoint, Transform3D,
+    Arrows3D, AsComponents, LineStrips3D, RecordingStream, RecordingStreamResult, Scalars,
+    SerializedComponentBatch, TimeCell, TimePoint, Transform3D,
 };
 
 /// Rows per entity gathered into one chunk.
-pub const ROWS_PER_CHUNK: usize = 256;
+pub const ROWS_PER_CHUNK: usize = 1024;
 /// The longest a row waits before it is sent.
 pub const MAX_HOLD: Duration = Duration::from_millis(200);
 
@@ -38,10 +38,14 @@ impl Times {
     }
 }
 
-/// A column of one entity: its values, one per row.
+/// A column of one entity: its values, one row each.
 enum Values {
     Scalar(Vec<f64>),
     Pose(Vec<[f32; 3]>, Vec<rerun::Quaternion>),
+    /// Arrows: vectors and origins, and how many of them each row has.
+    Arrows(Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<usize>),
+    /// One line strip per row.
+    Strip(Vec<Vec<[f32; 3]>>),
 }
 
 /// The gathered rows, and the time they are logged at.
@@ -123,6 +127,50 @@ impl Rows {
         self.flush_if_due(rec, n)
     }
 
+    /// Arrows (vectors from origins) at `path`, now; their colours and widths go through
+    /// [`Rows::log`] when they change.
+    pub fn arrows(
+        &mut self,
+        rec: &RecordingStream,
+        path: String,
+        vectors: &[[f32; 3]],
+        origins: &[[f32; 3]],
+    ) -> RecordingStreamResult<()> {
+        let (times, values) = self.columns.entry(path).or_insert_with(|| {
+            (
+                Times::default(),
+                Values::Arrows(Vec::new(), Vec::new(), Vec::new()),
+            )
+        });
+        times.0.push(self.now);
+        if let Values::Arrows(v, o, n) = values {
+            v.extend_from_slice(vectors);
+            o.extend_from_slice(origins);
+            n.push(vectors.len());
+        }
+        let n = times.0.len();
+        self.flush_if_due(rec, n)
+    }
+
+    /// A line strip at `path`, now.
+    pub fn strip(
+        &mut self,
+        rec: &RecordingStream,
+        path: String,
+        points: &[[f32; 3]],
+    ) -> RecordingStreamResult<()> {
+        let (times, values) = self
+            .columns
+            .entry(path)
+            .or_insert_with(|| (Times::default(), Values::Strip(Vec::new())));
+        times.0.push(self.now);
+        if let Values::Strip(s) = values {
+            s.push(points.to_vec());
+        }
+        let n = times.0.len();
+        self.flush_if_due(rec, n)
+    }
+
     fn flush_if_due(&mut self, rec: &RecordingStream, rows: usize) -> RecordingStreamResult<()> {
         if rows >= ROWS_PER_CHUNK || self.since.elapsed() >= MAX_HOLD {
             self.flush(rec)?;
@@ -130,32 +178,19 @@ impl Rows {
         Ok(())
     }
 
-    /// The time rows are logged at now.
-    pub fn time(&self) -> &TimePoint {
-        &self.time
-    }
-
-    /// Add a row at `path`; a full chunk goes out at once.
+    /// Add a row at `path`, now (archetypes without a column of their own here).
     pub fn log(
         &mut self,
         rec: &RecordingStream,
         path: String,
         archetype: &dyn AsComponents,
     ) -> RecordingStreamResult<()> {
-        let time = self.time.clone();
-        self.log_at(rec, path, time, archetype)
-    }
-
-    /// Add a row at `path` at another time than now.
-    pub fn log_at(
-        &mut self,
-        rec: &RecordingStream,
-        path: String,
-        time: TimePoint,
-        archetype: &dyn AsComponents,
-    ) -> RecordingStreamResult<()> {
         let rows = self.pending.entry(path).or_default();
-        rows.push((RowId::new(), time, archetype.as_serialized_batches()));
+        rows.push((
+            RowId::new(),
+            self.time.clone(),
+            archetype.as_serialized_batches(),
+        ));
         let n = rows.len();
         self.flush_if_due(rec, n)
     }
@@ -184,6 +219,19 @@ impl Rows {
                     path.as_str(),
                     times,
                     Scalars::new(std::mem::take(v)).columns_of_unit_batches()?,
+                )?,
+                Values::Arrows(v, o, n) => rec.send_columns(
+                    path.as_str(),
+                    times,
+                    Arrows3D::update_fields()
+                        .with_vectors(std::mem::take(v))
+                        .with_origins(std::mem::take(o))
+                        .columns(std::mem::take(n))?,
+                )?,
+                Values::Strip(strips) => rec.send_columns(
+                    path.as_str(),
+                    times,
+                    LineStrips3D::new(std::mem::take(strips)).columns_of_unit_batches()?,
                 )?,
                 Values::Pose(t, r) => rec.send_columns(
                     path.as_str(),
