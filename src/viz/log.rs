@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, VecDeque};
 use glam::{DQuat, DVec3, Vec3};
 use rerun::components::FillMode;
 use rerun::{
-    Arrows3D, Clear, Color, LineStrips3D, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
+    Arrows3D, Clear, Color, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
     ViewCoordinates,
 };
 
@@ -335,19 +335,17 @@ fn log_track(
         v.recent.pop_front();
     }
     v.recent.push_back((f.t_s, position));
-    let path = paths::track_segment(f.system_id, v.segment);
-    if v.open_segment.len() <= 2 {
-        // A new segment: its colour, once.
-        rec.log_static(
-            path.as_str(),
-            &LineStrips3D::update_fields().with_colors([Color::from_rgb(
-                v.color[0] / 2 + 40,
-                v.color[1] / 2 + 40,
-                v.color[2] / 2 + 40,
-            )]),
-        )?;
-    }
-    rows.strip(rec, path, &v.open_segment)
+    let color = Color::from_rgb(
+        v.color[0] / 2 + 40,
+        v.color[1] / 2 + 40,
+        v.color[2] / 2 + 40,
+    );
+    rows.strip(
+        rec,
+        paths::track_segment(f.system_id, v.segment),
+        &v.open_segment,
+        color,
+    )
 }
 
 /// The six rays and their hits. Colours (hit or miss) and widths only when they change.

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use rerun::log::{Chunk, RowId, TimeColumn};
 use rerun::{
-    Arrows3D, AsComponents, LineStrips3D, RecordingStream, RecordingStreamResult, Scalars,
+    Arrows3D, AsComponents, Color, LineStrips3D, RecordingStream, RecordingStreamResult, Scalars,
     SerializedComponentBatch, TimeCell, TimePoint, Transform3D,
 };
 
@@ -44,8 +44,8 @@ enum Values {
     Pose(Vec<[f32; 3]>, Vec<rerun::Quaternion>),
     /// Arrows: vectors and origins, and how many of them each row has.
     Arrows(Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<usize>),
-    /// One line strip per row.
-    Strip(Vec<Vec<[f32; 3]>>),
+    /// One line strip per row, all in one colour.
+    Strip(Vec<Vec<[f32; 3]>>, Color),
 }
 
 /// The gathered rows, and the time they are logged at.
@@ -152,19 +152,20 @@ impl Rows {
         self.flush_if_due(rec, n)
     }
 
-    /// A line strip at `path`, now.
+    /// A line strip in `color` at `path`, now.
     pub fn strip(
         &mut self,
         rec: &RecordingStream,
         path: String,
         points: &[[f32; 3]],
+        color: Color,
     ) -> RecordingStreamResult<()> {
         let (times, values) = self
             .columns
             .entry(path)
-            .or_insert_with(|| (Times::default(), Values::Strip(Vec::new())));
+            .or_insert_with(|| (Times::default(), Values::Strip(Vec::new(), color)));
         times.0.push(self.now);
-        if let Values::Strip(s) = values {
+        if let Values::Strip(s, _) = values {
             s.push(points.to_vec());
         }
         let n = times.0.len();
@@ -228,11 +229,16 @@ impl Rows {
                         .with_origins(std::mem::take(o))
                         .columns(std::mem::take(n))?,
                 )?,
-                Values::Strip(strips) => rec.send_columns(
-                    path.as_str(),
-                    times,
-                    LineStrips3D::new(std::mem::take(strips)).columns_of_unit_batches()?,
-                )?,
+                Values::Strip(strips, color) => {
+                    let colors = vec![*color; strips.len()];
+                    rec.send_columns(
+                        path.as_str(),
+                        times,
+                        LineStrips3D::new(std::mem::take(strips))
+                            .with_colors(colors)
+                            .columns_of_unit_batches()?,
+                    )?
+                }
                 Values::Pose(t, r) => rec.send_columns(
                     path.as_str(),
                     times,
