@@ -94,16 +94,16 @@ impl Rows {
         path: String,
         value: f64,
     ) -> RecordingStreamResult<()> {
-        let (times, values) = self
-            .columns
-            .entry(path)
-            .or_insert_with(|| (Times::default(), Values::Scalar(Vec::new())));
-        times.0.push(self.now);
-        if let Values::Scalar(v) = values {
-            v.push(value);
-        }
-        let n = times.0.len();
-        self.flush_if_due(rec, n)
+        self.push(
+            rec,
+            path,
+            || Values::Scalar(Vec::new()),
+            |values| {
+                if let Values::Scalar(v) = values {
+                    v.push(value);
+                }
+            },
+        )
     }
 
     /// A pose (translation, rotation) at `path`, now.
@@ -114,17 +114,17 @@ impl Rows {
         translation: [f32; 3],
         rotation: rerun::Quaternion,
     ) -> RecordingStreamResult<()> {
-        let (times, values) = self
-            .columns
-            .entry(path)
-            .or_insert_with(|| (Times::default(), Values::Pose(Vec::new(), Vec::new())));
-        times.0.push(self.now);
-        if let Values::Pose(t, r) = values {
-            t.push(translation);
-            r.push(rotation);
-        }
-        let n = times.0.len();
-        self.flush_if_due(rec, n)
+        self.push(
+            rec,
+            path,
+            || Values::Pose(Vec::new(), Vec::new()),
+            |values| {
+                if let Values::Pose(t, r) = values {
+                    t.push(translation);
+                    r.push(rotation);
+                }
+            },
+        )
     }
 
     /// Arrows (vectors from origins) at `path`, now; their colours and widths go through
@@ -136,20 +136,18 @@ impl Rows {
         vectors: &[[f32; 3]],
         origins: &[[f32; 3]],
     ) -> RecordingStreamResult<()> {
-        let (times, values) = self.columns.entry(path).or_insert_with(|| {
-            (
-                Times::default(),
-                Values::Arrows(Vec::new(), Vec::new(), Vec::new()),
-            )
-        });
-        times.0.push(self.now);
-        if let Values::Arrows(v, o, n) = values {
-            v.extend_from_slice(vectors);
-            o.extend_from_slice(origins);
-            n.push(vectors.len());
-        }
-        let n = times.0.len();
-        self.flush_if_due(rec, n)
+        self.push(
+            rec,
+            path,
+            || Values::Arrows(Vec::new(), Vec::new(), Vec::new()),
+            |values| {
+                if let Values::Arrows(v, o, n) = values {
+                    v.extend_from_slice(vectors);
+                    o.extend_from_slice(origins);
+                    n.push(vectors.len());
+                }
+            },
+        )
     }
 
     /// A line strip in `color` at `path`, now.
@@ -160,14 +158,32 @@ impl Rows {
         points: &[[f32; 3]],
         color: Color,
     ) -> RecordingStreamResult<()> {
+        self.push(
+            rec,
+            path,
+            || Values::Strip(Vec::new(), color),
+            |values| {
+                if let Values::Strip(s, _) = values {
+                    s.push(points.to_vec());
+                }
+            },
+        )
+    }
+
+    /// One row of the column at `path` (made by `empty` on first use), filled by `add`.
+    fn push(
+        &mut self,
+        rec: &RecordingStream,
+        path: String,
+        empty: impl FnOnce() -> Values,
+        add: impl FnOnce(&mut Values),
+    ) -> RecordingStreamResult<()> {
         let (times, values) = self
             .columns
             .entry(path)
-            .or_insert_with(|| (Times::default(), Values::Strip(Vec::new(), color)));
+            .or_insert_with(|| (Times::default(), empty()));
         times.0.push(self.now);
-        if let Values::Strip(s, _) = values {
-            s.push(points.to_vec());
-        }
+        add(values);
         let n = times.0.len();
         self.flush_if_due(rec, n)
     }

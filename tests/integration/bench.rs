@@ -114,11 +114,7 @@ fn bench_writes_a_report_json_and_a_chart() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::common::assert_ran(&out);
     assert!(
         stdout.contains("| exact |") && stdout.contains("### Goals"),
         "{stdout}"

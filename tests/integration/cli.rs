@@ -146,11 +146,7 @@ fn thresholds_and_the_ahp_matrix_come_from_the_command_line() {
         .arg(&summary)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::common::assert_ran(&out);
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     let w = &s["collision"]["ahp"]["w"];

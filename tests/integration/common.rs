@@ -17,6 +17,15 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// A command finished with success; its stderr is the failure message.
+pub fn assert_ran(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// ../shared/fixtures, if present.
 pub fn shared_fixtures() -> Option<PathBuf> {
     let p = root().join("../shared/fixtures");

@@ -79,11 +79,7 @@ fn a_replay_saves_a_recording_rerun_verifies() {
         .arg(&summary)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::common::assert_ran(&out);
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     assert_eq!(s["rerun"]["sent"], 2025);

@@ -127,11 +127,7 @@ fn the_demo_recording_shows_the_vehicle_in_its_chase_view() {
         .arg(format!("save={}", rrd.display()))
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::common::assert_ran(&out);
     // Kept after the run (target/tmp/), to look at when this fails.
     let png = Path::new(env!("CARGO_TARGET_TMPDIR")).join("viz_render_demo.png");
     // The viewer takes its screenshot ten frames after it starts, whatever it has loaded by
