@@ -237,6 +237,13 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
 
 fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
     let speed: Speed = args.speed.parse()?;
+    if let Some(until_s) = args.until_s {
+        if !(until_s.is_finite() && until_s >= 0.0) {
+            return Err(Error::Usage(format!(
+                "--until-s {until_s}: give seconds after the first message, 0 or more"
+            )));
+        }
+    }
     let mut session = session_for(&args.collision)?;
     let result = replay(
         &args.flight,

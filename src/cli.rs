@@ -144,7 +144,7 @@ pub struct DemoArgs {
     #[arg(long, default_value = "max")]
     pub speed: String,
     /// Stop this many seconds after the first message (the clock of the report's "+N s").
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub until_s: Option<f64>,
 }
 
@@ -164,7 +164,7 @@ pub struct ReplayArgs {
     pub no_progress: bool,
     /// Stop this many seconds after the first message (the clock of the report's "+N s"): for
     /// a recording that ends at a moment of interest.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub until_s: Option<f64>,
 }
 

@@ -83,6 +83,36 @@ fn colliders_never_flap_faster_than_the_hold_time() {
     }
 }
 
+/// `--until-s` ends a replay that many seconds after the first message: before the demo's
+/// collision (+91.69 s) there is none; a negative or non-number time is a usage error.
+#[test]
+fn until_s_cuts_the_replay_on_the_reports_clock() {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let cut = |until: &str| {
+        savsim()
+            .args(["demo", "--until-s", until, "--summary-json"])
+            .arg(&summary)
+            .output()
+            .unwrap()
+    };
+    let out = cut("91.5");
+    crate::common::assert_ran(&out);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let ticks = s["collision"]["ticks"].as_u64().unwrap();
+    assert!(ticks > 100 && ticks < 2025, "{ticks} ticks");
+    assert_eq!(s["collision"]["collisions"], 0);
+    let out = cut("92");
+    crate::common::assert_ran(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("COLLISION  vehicle 1 with b2150"));
+    for bad in ["-1", "NaN"] {
+        let out = cut(bad);
+        assert_eq!(out.status.code(), Some(2), "--until-s {bad}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--until-s"));
+    }
+}
+
 #[test]
 fn bad_input_gets_a_clear_message_and_exit_code_2() {
     let dir = tempfile::tempdir().unwrap();
