@@ -230,8 +230,8 @@ fn log_tick(
     log_metrics(rec, rows, f)
 }
 
-/// A vehicle seen for the first time: its colour, a chase view of its own if there is room,
-/// and the layout sent again.
+/// A vehicle seen for the first time: its colour, and a chase view of its own (the layout
+/// sent again) if there is room.
 fn vehicle_appears(
     rec: &RecordingStream,
     state: &mut State<'_>,
@@ -247,12 +247,15 @@ fn vehicle_appears(
             ..Vehicle::default()
         },
     );
-    if state.layout.chased.len() < MAX_CHASE_VIEWS {
-        state
-            .layout
-            .chased
-            .push((id, chase_distance_m(state.scene, f.model)));
+    if state.layout.chased.len() >= MAX_CHASE_VIEWS {
+        // No view of its own: the layout (which resets a live viewer's eyes) stays until the
+        // end, when the overview learns to leave out this vehicle's rays and colliders too.
+        return Ok(());
     }
+    state
+        .layout
+        .chased
+        .push((id, chase_distance_m(state.scene, f.model)));
     // Until the flight is over, the overview frames a kilometre around what is known.
     let mut live = state.layout.clone();
     live.overview = live

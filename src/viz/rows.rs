@@ -214,6 +214,10 @@ impl Rows {
 
     /// Send every gathered row.
     pub fn flush(&mut self, rec: &RecordingStream) -> RecordingStreamResult<()> {
+        // Entities with nothing since the last flush (a closed track segment, a vehicle gone)
+        // are forgotten, so a long live run does not keep one entry per segment ever logged.
+        self.pending.retain(|_, rows| !rows.is_empty());
+        self.columns.retain(|_, (times, _)| !times.0.is_empty());
         for (path, rows) in &mut self.pending {
             if rows.is_empty() {
                 continue;
