@@ -244,3 +244,70 @@ fn sigterm_during_replay_leaves_complete_files() {
     }
     assert_rrd_verifies(&rrd);
 }
+
+/// Six vehicles: the first four get a chase view each, the others are in the overview only,
+/// and the final layout leaves every vehicle's rays and colliders out of the overview.
+#[test]
+fn a_fleet_gets_four_chase_views_and_one_overview() {
+    let scene = crate::common::scene_at(
+        savsim::geo::Geodetic {
+            lat_deg: 47.0,
+            lon_deg: 8.0,
+            alt_m: 400.0,
+        },
+        "[[obstacle]]\nid = \"b\"\nkind = \"building\"\nshape = { box = [20.0, 20.0, 30.0] }\n\
+         position_enu_m = [0.0, 200.0, 0.0]\n",
+    );
+    let plane = savsim::geo::LocalTangentPlane::new(scene.origin);
+    let mut session = Session::new(
+        Some(std::sync::Arc::new(scene)),
+        CollisionConfig::default(),
+        None,
+    )
+    .unwrap();
+    let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
+        .memory()
+        .unwrap();
+    session
+        .start_viz_stream(rec, savsim::viz::VizOptions::default())
+        .unwrap();
+    let mut seq = 0;
+    for step in 0..20u32 {
+        for sysid in 1..=6u8 {
+            let p = glam::DVec3::new(f64::from(sysid) * 30.0, f64::from(step), 40.0);
+            let bytes = crate::common::position_frames(
+                &plane,
+                sysid,
+                &mut seq,
+                1000 + step * 100,
+                p,
+                glam::DVec3::Y * 10.0,
+            );
+            crate::common::feed(&mut session, 1.7e9 + f64::from(step) * 0.1, &bytes);
+        }
+    }
+    session.finish().unwrap();
+    let text = format!("{:?}", storage.take());
+    for id in 1..=6 {
+        assert!(
+            text.contains(&format!("world/vehicles/{id}/body")),
+            "vehicle {id}"
+        );
+        assert!(
+            text.contains(&format!("- /world/vehicles/{id}/colliders/**")),
+            "the overview leaves out vehicle {id}'s colliders"
+        );
+    }
+    for id in 1..=4 {
+        assert!(
+            text.contains(&format!("vehicle {id} (chase)")),
+            "chase view {id}"
+        );
+    }
+    for id in 5..=6 {
+        assert!(
+            !text.contains(&format!("vehicle {id} (chase)")),
+            "no chase view {id}"
+        );
+    }
+}
