@@ -2,7 +2,7 @@
 //! rerun viewer (entity paths in [`paths`], documented in docs/rerun.md).
 //!
 //! The core never waits for it: the session sends [`VizMsg`]s over a bounded channel to a
-//! dedicated thread ([`log`]) that owns the `RecordingStream` (rerun's time cursor is per
+//! dedicated thread (`viz::log`) that owns the `RecordingStream` (rerun's time cursor is per
 //! thread); a full channel drops the message and counts it. Positions are logged in the scene's
 //! ENU metres minus a fixed offset (the scene's centre, rounded, when that is far from the
 //! origin), so f32 stays precise; the 3D views are Z up. The layout is in [`blueprint`].
