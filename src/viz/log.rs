@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, VecDeque};
 use glam::{DQuat, DVec3, Vec3};
 use rerun::components::FillMode;
 use rerun::{
-    Arrows3D, Clear, Color, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
+    Arrows3D, Boxes3D, Clear, Color, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
     ViewCoordinates,
 };
 
@@ -446,8 +446,9 @@ fn log_node(
     )
 }
 
-/// Moving obstacles other than vehicles (vehicles are drawn by their own ticks); those gone
-/// since the last tick are cleared.
+/// Moving obstacles other than vehicles (vehicles are drawn by their own ticks): a pose every
+/// tick, and the box in its own frame once, when it appears; those gone since the last tick are
+/// cleared.
 fn log_traffic(
     rec: &RecordingStream,
     rows: &mut Rows,
@@ -462,21 +463,31 @@ fn log_traffic(
         .iter()
         .filter(|d| !matches!(d.0.source, BodySource::Vehicle { .. }))
     {
-        let b = box_of_geometry(&scene.geometries[*model], pose);
-        rows.log(
+        let path = paths::traffic(name);
+        let q = pose.enu_from_body.as_quat();
+        rows.pose(
             rec,
-            paths::traffic(name),
-            &boxes_of(
-                offset,
-                FillMode::Solid,
-                std::iter::once((b, kind_color(*kind))),
-            ),
+            path.clone(),
+            local(offset, pose.position_enu_m).to_array(),
+            rerun::Quaternion::from_xyzw([q.x, q.y, q.z, q.w]),
         )?;
+        if !shown.contains_key(name) {
+            let (cuboid, centre) = scene.geometries[*model].box_collider();
+            rec.log(
+                format!("{path}/box"),
+                &Boxes3D::from_centers_and_half_sizes(
+                    [centre.to_array()],
+                    [cuboid.half_extents.to_array()],
+                )
+                .with_colors([kind_color(*kind)])
+                .with_fill_mode(FillMode::Solid),
+            )?;
+        }
         seen.insert(name.clone(), true);
     }
     for name in shown.keys() {
         if !seen.contains_key(name) {
-            rec.log(paths::traffic(name), &Clear::flat())?;
+            rec.log(paths::traffic(name), &Clear::recursive())?;
         }
     }
     *shown = seen;

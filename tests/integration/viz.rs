@@ -10,7 +10,7 @@ use savsim::session::Session;
 use crate::common::root;
 
 /// Paths every replay over the bundled city must log (docs/rerun.md).
-const PATHS: [&str; 18] = [
+const PATHS: [&str; 20] = [
     "world/obstacles/building",
     "world/vehicles/1/body",
     "world/vehicles/1/body/model",
@@ -25,6 +25,8 @@ const PATHS: [&str; 18] = [
     "world/vehicles/1/colliders/boxes",
     "world/vehicles/1/colliders/seen",
     "world/vehicles/1/colliders/meshes/b2150",
+    "world/traffic/crossing-airliner",
+    "world/traffic/crossing-airliner/box",
     "world/events/collisions",
     "world/events/collision_normals",
     "world/events/near_misses",
