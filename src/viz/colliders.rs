@@ -16,7 +16,7 @@ use glam::DVec3;
 use rerun::components::FillMode;
 use rerun::{Clear, Color, Mesh3D, RecordingStream, RecordingStreamResult};
 
-use super::draw::{beta_color, box_of_geometry, boxes_of, local, pose_of_static};
+use super::draw::{beta_color, box_of_geometry, boxes_of, local, pose_of_static, see_through};
 use super::{paths, TickFrame};
 use crate::collision::pipeline::{BodyPose, ObstacleRef};
 use crate::collision::ColliderKind;
@@ -176,7 +176,6 @@ impl ColliderView {
 /// vehicle, shows), in one colour.
 fn mesh_of(offset: DVec3, geometry: &Geometry, pose: &BodyPose, color: Color) -> Mesh3D {
     let (vertices, triangles) = geometry.triangles();
-    let [r, g, b, _] = color.to_array();
     Mesh3D::new(vertices.iter().map(|v| {
         local(
             offset,
@@ -189,5 +188,5 @@ fn mesh_of(offset: DVec3, geometry: &Geometry, pose: &BodyPose, color: Color) ->
             .into_iter()
             .map(|t| rerun::TriangleIndices(t.into())),
     )
-    .with_albedo_factor(Color::from_unmultiplied_rgba(r, g, b, 50).0)
+    .with_albedo_factor(see_through(color, 50).0)
 }

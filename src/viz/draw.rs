@@ -21,6 +21,12 @@ pub fn kind_color(kind: Kind) -> Color {
     }
 }
 
+/// A colour with some transparency: for solid things the vehicle may be inside of.
+pub fn see_through(c: Color, alpha: u8) -> Color {
+    let [r, g, b, _] = c.to_array();
+    Color::from_unmultiplied_rgba(r, g, b, alpha)
+}
+
 /// Colour of a collider by its beta: blue (0) through yellow (50, the mesh threshold) to red
 /// (100 and more).
 pub fn beta_color(beta: f64) -> Color {

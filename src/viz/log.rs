@@ -13,7 +13,7 @@ use rerun::{
 use super::blueprint::{self, Layout, MAX_CHASE_VIEWS};
 use super::colliders::{obstacle_name, ColliderView};
 use super::draw::{
-    box_of_geometry, boxes_of, kind_color, local, pose_of_static, viz_offset, LocalBox,
+    box_of_geometry, boxes_of, kind_color, local, pose_of_static, see_through, viz_offset, LocalBox,
 };
 use super::markers::Markers;
 use super::rows::Rows;
@@ -160,12 +160,6 @@ fn log_scene(rec: &RecordingStream, state: &State<'_>) -> RecordingStreamResult<
         )?;
     }
     Ok(())
-}
-
-/// A colour with some transparency: solid things the vehicle may be inside of.
-fn see_through(c: Color, alpha: u8) -> Color {
-    let [r, g, b, _] = c.to_array();
-    Color::from_unmultiplied_rgba(r, g, b, alpha)
 }
 
 /// The distance a chase eye keeps from a vehicle of this model: ten model radii, at least 5 m.
