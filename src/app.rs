@@ -136,7 +136,13 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
 
 #[cfg(feature = "viz")]
 fn start_viz(session: &mut Session, target: &str, whole_octree: bool) -> Result<()> {
-    session.start_viz(&target.parse()?, crate::viz::VizOptions { whole_octree })
+    session.start_viz(
+        &target.parse()?,
+        crate::viz::VizOptions {
+            whole_octree,
+            ..Default::default()
+        },
+    )
 }
 
 #[cfg(not(feature = "viz"))]

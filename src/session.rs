@@ -104,7 +104,11 @@ impl Session {
         if self.pipeline.is_none() {
             return Err(Error::Usage("--rerun needs --scene".into()));
         }
-        self.start_viz_stream(crate::viz::open(target)?, options)
+        let live = !matches!(target, crate::viz::RerunTarget::Save(_));
+        self.start_viz_stream(
+            crate::viz::open(target)?,
+            crate::viz::VizOptions { live, ..options },
+        )
     }
 
     /// Stream this run into an already open rerun stream (tests use a memory stream).

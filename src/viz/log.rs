@@ -75,7 +75,7 @@ pub fn run(
         layout: Layout::default(),
         markers: Markers::default(),
         traffic: BTreeMap::new(),
-        rows: Rows::default(),
+        rows: Rows::new(options.live),
     };
     let text = |e: rerun::RecordingStreamError| e.to_string();
     blueprint::send(&rec, &state.layout).map_err(text)?;
@@ -181,12 +181,11 @@ fn log_tick(
     f: &TickFrame,
 ) -> RecordingStreamResult<()> {
     let scene = state.scene;
-    rec.set_time_sequence("tick", f.tick as i64);
-    rec.set_duration_secs("vehicle_time", f64::from(f.time_boot_ms) / 1000.0);
-    rec.set_timestamp_secs_since_epoch("tlog_time", f.t_s);
+    // One time for the gathered rows and for what is logged directly.
     state
         .rows
         .set_time(f.tick, f64::from(f.time_boot_ms) / 1000.0, f.t_s);
+    rec.set_timepoint(state.rows.time().clone());
     let id = f.system_id;
     let position = local(state.offset, f.pose.position_enu_m);
     grow(&mut state.layout.overview, position);

@@ -70,8 +70,9 @@ impl FromStr for RerunTarget {
 pub fn open(target: &RerunTarget) -> Result<RecordingStream> {
     let builder = RecordingStreamBuilder::new("savsim");
     match target {
-        // A file is not watched as it is written: chunks are cut by size only, so the file is
-        // the same however fast the run was (and loads in few, large chunks).
+        // A file is not watched as it is written: rerun's batcher cuts chunks by size only (and
+        // savsim's rows go out by count, `VizOptions::live`), so the file is the same however
+        // fast the run was, and loads in few, large chunks.
         RerunTarget::Save(path) => builder
             .batcher_config(rerun::log::ChunkBatcherConfig {
                 flush_tick: std::time::Duration::MAX,
@@ -134,6 +135,10 @@ pub struct VizOptions {
     /// Draw every octree leaf (`--rerun-octree`), not only each vehicle's node and the leaves
     /// touching it.
     pub whole_octree: bool,
+    /// A viewer watches the run as it is logged (`connect`, `spawn`): gathered rows wait at most
+    /// 200 ms. Otherwise (a file, a memory sink) they are sent by count only, so a file is cut
+    /// into the same chunks however fast the run was.
+    pub live: bool,
 }
 
 /// The running logger.

@@ -3,7 +3,7 @@
 //! `RecordingStream::log` hands every row to rerun's batcher thread through a channel; at a
 //! dozen rows per tick that cost the logger several times the collision core's own time. Rows
 //! logged here are kept per entity and sent as one chunk every [`ROWS_PER_CHUNK`] rows, when
-//! [`MAX_HOLD`] has passed (a viewer watching a live run sees them that late at most), and at
+//! [`MAX_HOLD`] has passed if a viewer watches live (it sees them that late at most), and at
 //! the end. Scalars, poses, arrows and line strips, the most frequent rows, are kept as plain
 //! columns and become arrow arrays once per chunk, not once per row.
 
@@ -55,16 +55,20 @@ pub struct Rows {
     time: TimePoint,
     now: [i64; 3],
     since: Instant,
+    /// Send by time too ([`MAX_HOLD`]), for a viewer watching live.
+    live: bool,
 }
 
-impl Default for Rows {
-    fn default() -> Self {
+impl Rows {
+    /// Gathered rows for a recording a viewer watches live (`live`) or not.
+    pub fn new(live: bool) -> Self {
         Self {
             pending: BTreeMap::new(),
             columns: BTreeMap::new(),
             time: TimePoint::default(),
             now: [0; 3],
             since: Instant::now(),
+            live,
         }
     }
 }
@@ -85,6 +89,11 @@ impl Rows {
             TimeCell::from_timestamp_nanos_since_epoch(self.now[2]),
         );
         self.time = time;
+    }
+
+    /// The time rows are logged at now (`set_time`).
+    pub fn time(&self) -> &TimePoint {
+        &self.time
     }
 
     /// A scalar at `path`, now.
@@ -189,7 +198,7 @@ impl Rows {
     }
 
     fn flush_if_due(&mut self, rec: &RecordingStream, rows: usize) -> RecordingStreamResult<()> {
-        if rows >= ROWS_PER_CHUNK || self.since.elapsed() >= MAX_HOLD {
+        if rows >= ROWS_PER_CHUNK || (self.live && self.since.elapsed() >= MAX_HOLD) {
             self.flush(rec)?;
         }
         Ok(())

@@ -105,6 +105,14 @@ fn city_session_in_memory(
     options: savsim::viz::VizOptions,
 ) -> (Session, rerun::sink::MemorySinkStorage) {
     let scene = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    session_in_memory(scene, options)
+}
+
+/// A session over `scene` logging into rerun's in-memory sink.
+fn session_in_memory(
+    scene: savsim::scene::Scene,
+    options: savsim::viz::VizOptions,
+) -> (Session, rerun::sink::MemorySinkStorage) {
     let mut session = Session::new(
         Some(std::sync::Arc::new(scene)),
         CollisionConfig::default(),
@@ -150,8 +158,10 @@ fn a_run_logs_into_the_memory_sink() {
 /// `--rerun-octree` draws every leaf.
 #[test]
 fn the_whole_octree_is_drawn_on_request() {
-    let (mut session, storage) =
-        city_session_in_memory(savsim::viz::VizOptions { whole_octree: true });
+    let (mut session, storage) = city_session_in_memory(savsim::viz::VizOptions {
+        whole_octree: true,
+        ..Default::default()
+    });
     session.finish().unwrap();
     let text = format!("{:?}", storage.take());
     assert!(text.contains("world/octree"));
@@ -261,18 +271,7 @@ fn a_fleet_gets_four_chase_views_and_one_overview() {
          position_enu_m = [0.0, 200.0, 0.0]\n",
     );
     let plane = savsim::geo::LocalTangentPlane::new(scene.origin);
-    let mut session = Session::new(
-        Some(std::sync::Arc::new(scene)),
-        CollisionConfig::default(),
-        None,
-    )
-    .unwrap();
-    let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
-        .memory()
-        .unwrap();
-    session
-        .start_viz_stream(rec, savsim::viz::VizOptions::default())
-        .unwrap();
+    let (mut session, storage) = session_in_memory(scene, savsim::viz::VizOptions::default());
     let mut seq = 0;
     for step in 0..20u32 {
         for sysid in 1..=6u8 {
