@@ -20,7 +20,8 @@ use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline, RAY_AXES_FRD}
 use savsim::scene::{Aabb64, Kind, Scene};
 
 fn city() -> Scene {
-    savsim::scene::load(&savsim::app::bundled("scenes/city.toml")).expect("the bundled city loads")
+    savsim::scene::load(&savsim::bundled::bundled("scenes/city.toml"))
+        .expect("the bundled city loads")
 }
 
 fn step(c: &mut Criterion) {

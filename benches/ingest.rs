@@ -7,7 +7,7 @@ use savsim::ingest::tlog::TlogReader;
 use savsim::ingest::Ingestor;
 
 fn decode_tlog(c: &mut Criterion) {
-    let bytes = std::fs::read(savsim::app::bundled(savsim::app::DEMO_FLIGHT)).unwrap();
+    let bytes = std::fs::read(savsim::bundled::bundled(savsim::bundled::DEMO_FLIGHT)).unwrap();
     let mut group = c.benchmark_group("ingest");
     group.throughput(Throughput::Bytes(bytes.len() as u64));
     group.bench_function("tlog_decode_demo_flight", |b| {

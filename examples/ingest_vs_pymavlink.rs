@@ -11,7 +11,7 @@ use savsim::ingest::Ingestor;
 
 fn main() {
     let path = std::env::args().nth(1).unwrap_or_else(|| {
-        savsim::app::bundled(savsim::app::DEMO_FLIGHT)
+        savsim::bundled::bundled(savsim::bundled::DEMO_FLIGHT)
             .display()
             .to_string()
     });

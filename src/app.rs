@@ -1,11 +1,11 @@
 //! The one place that wires things together: commands, threads, channels, signals, files.
 
-use std::fs::File;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use crate::bundled::{bundled, DEMO_FLIGHT, DEMO_SCENE};
 use crate::cli::{
     BenchArgs, Cli, CollisionArgs, Command, DemoArgs, LiveArgs, RecordArgs, ReplayArgs,
     SceneCommand, SceneKind,
@@ -15,52 +15,9 @@ use crate::collision::pipeline::CollisionConfig;
 use crate::collision::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::ingest::live::{self, ConnectAddress, LiveOptions};
-use crate::ingest::tlog::TlogReader;
+use crate::replay::{replay, Speed};
 use crate::scene::{self, gen, Scene};
 use crate::session::{write_json_atomic, Session};
-
-/// How fast a replay runs.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Speed {
-    /// As fast as the machine can.
-    Max,
-    /// This factor of the recorded time (1 = as flown).
-    Factor(f64),
-}
-
-impl std::str::FromStr for Speed {
-    type Err = Error;
-
-    fn from_str(s: &str) -> Result<Self> {
-        if s == "max" {
-            return Ok(Speed::Max);
-        }
-        match s.parse::<f64>() {
-            Ok(f) if f.is_finite() && f > 0.0 => Ok(Speed::Factor(f)),
-            _ => Err(Error::Usage(format!(
-                "--speed {s:?}: give a positive factor (1 = as flown) or `max`"
-            ))),
-        }
-    }
-}
-
-/// Longest wall-clock pause a replay makes for one gap in the recording, seconds.
-const MAX_REPLAY_PAUSE_S: f64 = 10.0;
-
-/// Where bundled files live: the working directory, else the source tree savsim was built from.
-pub fn bundled(relative: &str) -> PathBuf {
-    let here = PathBuf::from(relative);
-    if here.exists() {
-        here
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
-    }
-}
-
-/// The bundled demo flight.
-pub const DEMO_FLIGHT: &str = "scenes/flights/copter_square_10ms.tlog";
-/// The bundled city.
-pub const DEMO_SCENE: &str = "scenes/city.toml";
 
 fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
     for (name, v) in [
@@ -167,6 +124,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Live(args) => live_command(&args, shutdown),
         Command::Record(args) => record_command(&args, shutdown),
         Command::Bench(args) => bench_command(&args),
+        Command::Batch(args) => crate::batch::command::run(&args),
         Command::Scene(SceneCommand::Gen { kind, seed, out }) => {
             let text = match kind {
                 SceneKind::City => gen::city(seed, gen::DEFAULT_ORIGIN),
@@ -286,67 +244,6 @@ fn write_summary(
     }
 }
 
-/// Replay a tlog into a session, paced by its timestamps; with `until_s`, stop at the first
-/// record more than that many seconds after the first message (the report's "+N s").
-pub fn replay(
-    path: &Path,
-    speed: Speed,
-    progress: bool,
-    until_s: Option<f64>,
-    session: &mut Session,
-    shutdown: &AtomicBool,
-) -> Result<()> {
-    let file = File::open(path).map_err(|e| Error::file(path, e))?;
-    let len = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let bar = (progress && len > (8 << 20) && std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .then(|| indicatif::ProgressBar::new(len));
-    let mut reader = TlogReader::new(file);
-    let wall_start = Instant::now();
-    let mut first_t_s: Option<f64> = None;
-    let mut paused_s = 0.0;
-    let mut last_t_s = f64::NEG_INFINITY;
-    let mut n: u64 = 0;
-    loop {
-        if shutdown.load(Ordering::Relaxed) {
-            session.interrupted = true;
-            break;
-        }
-        let record = reader
-            .next_record(&mut session.ingestor.stats)
-            .map_err(|e| Error::file(path, e))?;
-        let Some(record) = record else { break };
-        let t_s = record.timestamp_us as f64 * 1e-6;
-        if let (Some(until_s), Some(elapsed_s)) = (until_s, session.elapsed_s(t_s)) {
-            if elapsed_s > until_s {
-                break;
-            }
-        }
-        if let Speed::Factor(factor) = speed {
-            let t0 = *first_t_s.get_or_insert(t_s);
-            if t_s - last_t_s > MAX_REPLAY_PAUSE_S && last_t_s.is_finite() {
-                paused_s += t_s - last_t_s - MAX_REPLAY_PAUSE_S;
-            }
-            let due = (t_s - t0 - paused_s) / factor;
-            let now = wall_start.elapsed().as_secs_f64();
-            if due > now {
-                std::thread::sleep(Duration::from_secs_f64((due - now).min(MAX_REPLAY_PAUSE_S)));
-            }
-        }
-        last_t_s = last_t_s.max(t_s);
-        session.on_frame(t_s, &record.frame)?;
-        n += 1;
-        if let Some(bar) = &bar {
-            if n.is_multiple_of(4096) {
-                bar.set_position(reader.position());
-            }
-        }
-    }
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
-    Ok(())
-}
-
 fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
     if args.collision.scene.is_none() {
         args.collision.scene = Some(bundled(DEMO_SCENE));
@@ -382,8 +279,8 @@ pub fn print_report(session: &Session) {
         stats.messages_total(),
         span,
         session.world.seen.len(),
-        stats.bad_crc + stats.unknown_ids.values().sum::<u64>() + stats.bad_incompat_flags,
-        stats.rejected.values().sum::<u64>()
+        stats.bad_frames(),
+        stats.rejected_total()
     );
     let Some(p) = &session.pipeline else { return };
     let (median_us, p99_us) = crate::session::percentiles_us(&session.tick_cost_ns);

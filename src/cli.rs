@@ -32,6 +32,70 @@ pub enum Command {
     /// Measure every collision mode's cost and accuracy (against the reference) on a
     /// generated flight set, scene sizes 10^2..10^6 and fleets of 1..1000 vehicles.
     Bench(BenchArgs),
+    /// Run a manifest of tlogs and encounters on every core, one Parquet row per run; or
+    /// generate encounters (`batch gen-encounters`).
+    Batch(BatchArgs),
+}
+
+/// `savsim batch`.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct BatchArgs {
+    /// Generate a manifest instead of running one.
+    #[command(subcommand)]
+    pub command: Option<BatchCommand>,
+    /// The manifest: .csv, .toml (`[[run]]` tables) or .json (docs/batch.md).
+    #[arg(required = true)]
+    pub manifest: Option<PathBuf>,
+    /// The directory shard files are written to (created if missing).
+    #[arg(long, required = true)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Run one shard: `K/N` (K from 0), or `N` with K from SLURM_ARRAY_TASK_ID or
+    /// JOB_COMPLETION_INDEX. A Slurm array task needs no flag.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Run the shard even if its file exists (replacing it).
+    #[arg(long)]
+    pub force: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+/// `savsim batch ...` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum BatchCommand {
+    /// Write a deterministic manifest of pairwise encounters, their closest approach and NMAC
+    /// known by construction (distributions in docs/batch.md).
+    GenEncounters {
+        /// How many.
+        #[arg(long)]
+        n: usize,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// A scene for every encounter (default: open air).
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Collision mode for every encounter.
+        #[arg(long, value_enum, default_value_t = ModeArg::Exact)]
+        mode: ModeArg,
+        /// Length of each encounter, seconds.
+        #[arg(long, default_value_t = 180.0)]
+        duration_s: f64,
+        /// Ownship samples per second.
+        #[arg(long, default_value_t = 10.0)]
+        rate_hz: f64,
+        /// The intruder's kind (a320, b737, dji, airship, balloon).
+        #[arg(long, default_value = "dji")]
+        intruder_kind: String,
+        /// Write the manifest here (.csv; default: stdout).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 /// `savsim bench`.

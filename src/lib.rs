@@ -6,12 +6,15 @@
 //! 2019, see docs/ARCHITECTURE.md).
 
 pub mod app;
+pub mod batch;
 pub mod bench;
+pub mod bundled;
 pub mod cli;
 pub mod collision;
 pub mod error;
 pub mod geo;
 pub mod ingest;
+pub mod replay;
 pub mod scene;
 pub mod session;
 pub mod signals;

@@ -7,10 +7,11 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use glam::{DQuat, DVec3};
 use serde::Serialize;
 use serde_json::json;
 
+use crate::collision::approach::Approaches;
+use crate::collision::bodies::waypoint_pose;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{
     BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Pipeline, VehicleKey,
@@ -44,6 +45,8 @@ pub struct Session {
     pub notable: Vec<Event>,
     /// Per-tick collision cost, nanoseconds.
     pub tick_cost_ns: Vec<u64>,
+    /// Closest approach of each vehicle to each moving body, on the receive clock.
+    pub approaches: Approaches,
     dynamic: Vec<DynamicBody>,
     flight_start_t_s: Option<f64>,
     last_expire_t_s: f64,
@@ -83,6 +86,7 @@ impl Session {
             events: Vec::new(),
             notable: Vec::new(),
             tick_cost_ns: Vec::new(),
+            approaches: Approaches::default(),
             dynamic: Vec::new(),
             flight_start_t_s: None,
             last_expire_t_s: f64::NEG_INFINITY,
@@ -183,6 +187,15 @@ impl Session {
             start,
             t_before,
             current.t_s,
+        );
+        self.approaches.observe(
+            sender.system_id,
+            (
+                t_before,
+                previous.map_or(current.position_enu_m, |p| p.position_enu_m),
+            ),
+            (current.t_s, current.position_enu_m),
+            &self.dynamic,
         );
         let first = self.events.len();
         let started = Instant::now();
@@ -349,6 +362,20 @@ impl Session {
             "ingest": stats.to_summary(),
             "vehicles": vehicles,
             "traffic_aircraft": self.world.traffic.len(),
+            "approaches": self
+                .approaches
+                .by_pair
+                .iter()
+                .map(|((vehicle, track), a)| json!({
+                    "vehicle": vehicle,
+                    "track": &**track,
+                    "distance_m": a.distance_m,
+                    "horizontal_m": a.horizontal_m,
+                    "vertical_m": a.vertical_m,
+                    "t_s": self.elapsed_s(a.t_s),
+                    "nmac": a.nmac,
+                }))
+                .collect::<Vec<_>>(),
             "tracks_expired": self.world.expired,
             "collision": collision,
             "rerun": self.rerun_summary(),
@@ -414,7 +441,10 @@ fn fill_dynamic(
         let mut generation = 0;
         let poses = match &d.source {
             DynamicSource::Waypoints(w) => {
-                let at = |t: f64| waypoint_pose(w, t - flight_start_t_s);
+                let at = |t: f64| {
+                    let (pose, velocity) = waypoint_pose(w, t - flight_start_t_s);
+                    (pose, velocity.length())
+                };
                 Some((at(t_before), at(t_now)))
             }
             DynamicSource::SystemId(id) => {
@@ -521,39 +551,4 @@ fn fill_dynamic(
 
 fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {
     (body_from(sample), sample.velocity_enu_mps.length())
-}
-
-/// Pose and speed on a scripted track at `t` seconds after the flight's start: linear between
-/// waypoints, held at the ends, nose along the direction of travel.
-fn waypoint_pose(w: &[crate::scene::Waypoint], t: f64) -> (BodyPose, f64) {
-    let i = w.partition_point(|p| p.t_s <= t);
-    let (a, b) = match i {
-        0 => (&w[0], w.get(1).unwrap_or(&w[0])),
-        i if i >= w.len() => (&w[w.len().saturating_sub(2)], &w[w.len() - 1]),
-        i => (&w[i - 1], &w[i]),
-    };
-    let (pa, pb) = (DVec3::from(a.position_enu_m), DVec3::from(b.position_enu_m));
-    let span = b.t_s - a.t_s;
-    let velocity = if span > 0.0 {
-        (pb - pa) / span
-    } else {
-        DVec3::ZERO
-    };
-    let u = if span > 0.0 {
-        ((t - a.t_s) / span).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let moving = t > w[0].t_s && t < w[w.len() - 1].t_s;
-    // FRD body: forward along the track, down towards -z (ENU).
-    let heading = velocity.y.atan2(velocity.x);
-    let enu_from_body =
-        DQuat::from_rotation_z(heading) * DQuat::from_rotation_x(std::f64::consts::PI);
-    (
-        BodyPose {
-            position_enu_m: pa.lerp(pb, u),
-            enu_from_body,
-        },
-        if moving { velocity.length() } else { 0.0 },
-    )
 }

@@ -58,8 +58,8 @@ impl SceneChoice {
     /// The scene file.
     pub fn path(&self) -> PathBuf {
         match self {
-            SceneChoice::City => crate::app::bundled("scenes/city.toml"),
-            SceneChoice::Mountain => crate::app::bundled("scenes/mountain.toml"),
+            SceneChoice::City => crate::bundled::bundled("scenes/city.toml"),
+            SceneChoice::Mountain => crate::bundled::bundled("scenes/mountain.toml"),
             SceneChoice::Path(p) => p.clone(),
         }
     }

@@ -118,6 +118,43 @@ impl BodyPose {
     }
 }
 
+/// Pose and velocity (ENU m/s; zero outside the track's time span) on a scripted track at `t`
+/// seconds after the flight's start: linear between waypoints, held at the ends, nose along
+/// the direction of travel. `w` is not empty (a scene's
+/// and a manifest's tracks are checked for that when read).
+pub fn waypoint_pose(w: &[crate::scene::Waypoint], t: f64) -> (BodyPose, DVec3) {
+    let i = w.partition_point(|p| p.t_s <= t);
+    let (a, b) = match i {
+        0 => (&w[0], w.get(1).unwrap_or(&w[0])),
+        i if i >= w.len() => (&w[w.len().saturating_sub(2)], &w[w.len() - 1]),
+        i => (&w[i - 1], &w[i]),
+    };
+    let (pa, pb) = (DVec3::from(a.position_enu_m), DVec3::from(b.position_enu_m));
+    let span = b.t_s - a.t_s;
+    let velocity = if span > 0.0 {
+        (pb - pa) / span
+    } else {
+        DVec3::ZERO
+    };
+    let u = if span > 0.0 {
+        ((t - a.t_s) / span).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let moving = t > w[0].t_s && t < w[w.len() - 1].t_s;
+    // FRD body: forward along the track, down towards -z (ENU).
+    let heading = velocity.y.atan2(velocity.x);
+    let enu_from_body =
+        DQuat::from_rotation_z(heading) * DQuat::from_rotation_x(std::f64::consts::PI);
+    (
+        BodyPose {
+            position_enu_m: pa.lerp(pb, u),
+            enu_from_body,
+        },
+        if moving { velocity } else { DVec3::ZERO },
+    )
+}
+
 /// A moving obstacle at this tick (another vehicle, ADS-B traffic, a scripted track).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicBody {

@@ -39,6 +39,20 @@ impl Mode {
         Mode::Reference,
     ];
 
+    /// The mode of a name as [`Mode::name`] gives it (`adaptive` is an alias of `exact`).
+    ///
+    /// ```
+    /// use savsim::collision::pipeline::Mode;
+    /// assert_eq!(Mode::from_name("adaptive"), Some(Mode::Exact));
+    /// assert_eq!(Mode::from_name("fast"), None);
+    /// ```
+    pub fn from_name(name: &str) -> Option<Mode> {
+        if name == "adaptive" {
+            return Some(Mode::Exact);
+        }
+        Mode::ALL.into_iter().find(|m| m.name() == name)
+    }
+
     /// The name used on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {

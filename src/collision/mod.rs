@@ -25,7 +25,9 @@
 //! - [`reference`](mod@reference): the independent ground truth (dense sub-stepping).
 //! - [`pipeline`]: the per-tick orchestrator.
 //! - [`events`]: what is reported.
+//! - [`approach`]: closest point of approach and NMAC between two tracks.
 
+pub mod approach;
 pub mod bodies;
 pub mod config;
 pub mod contact;

@@ -192,6 +192,16 @@ impl IngestStats {
         self.by_version.iter().sum()
     }
 
+    /// Frames dropped as bad: CRC, unknown message id, unknown incompatibility flags.
+    pub fn bad_frames(&self) -> u64 {
+        self.bad_crc + self.unknown_ids.values().sum::<u64>() + self.bad_incompat_flags
+    }
+
+    /// Decoded values rejected as implausible.
+    pub fn rejected_total(&self) -> u64 {
+        self.rejected.values().sum()
+    }
+
     /// Fold another input's counts into these.
     pub fn merge(&mut self, other: &IngestStats) {
         for (a, b) in self.by_id.iter_mut().zip(&other.by_id) {

@@ -117,9 +117,9 @@ pub fn straight(
 /// Replay a tlog as fast as possible into `session` and finish it.
 pub fn replay_session(path: &Path, session: &mut savsim::session::Session) {
     let shutdown = std::sync::atomic::AtomicBool::new(false);
-    savsim::app::replay(
+    savsim::replay::replay(
         path,
-        savsim::app::Speed::Max,
+        savsim::replay::Speed::Max,
         false,
         None,
         session,

@@ -1,0 +1,106 @@
+//! `savsim batch` on the command line: read the manifest, pick the shard, skip it if it is
+//! done, run it with a progress bar, write its file, print what it found.
+
+use std::path::Path;
+
+use crate::batch::gen::{self, GenOptions};
+use crate::batch::manifest;
+use crate::batch::row::RunRow;
+use crate::batch::shard::Shard;
+use crate::cli::{BatchArgs, BatchCommand};
+use crate::collision::pipeline::Mode;
+use crate::error::{Error, Result};
+
+/// Run `savsim batch ...`.
+pub fn run(args: &BatchArgs) -> Result<()> {
+    if let Some(BatchCommand::GenEncounters {
+        n,
+        seed,
+        scene,
+        mode,
+        duration_s,
+        rate_hz,
+        intruder_kind,
+        out,
+    }) = &args.command
+    {
+        for (name, v) in [("--duration-s", *duration_s), ("--rate-hz", *rate_hz)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::Usage(format!("{name} {v}: give a positive number")));
+            }
+        }
+        let scene = scene
+            .as_ref()
+            .map(|p| std::fs::canonicalize(p).map_err(|e| Error::file(p, e)))
+            .transpose()?;
+        let runs = gen::encounters(&GenOptions {
+            n: *n,
+            seed: *seed,
+            scene: scene.map(|p| p.to_string_lossy().into_owned()),
+            mode: Mode::from(*mode).name().into(),
+            duration_s: *duration_s,
+            rate_hz: *rate_hz,
+            intruder_kind: intruder_kind.clone(),
+        });
+        let csv_error = |path: &Path, e: csv::Error| Error::file(path, std::io::Error::other(e));
+        return match out {
+            Some(path) => {
+                let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
+                manifest::write_csv(&runs, std::io::BufWriter::new(file))
+                    .map_err(|e| csv_error(path, e))
+            }
+            None => manifest::write_csv(&runs, std::io::stdout().lock())
+                .map_err(|e| csv_error(Path::new("stdout"), e)),
+        };
+    }
+    let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
+        return Err(Error::Usage("give a manifest and --out DIR".into()));
+    };
+    if args.jobs == Some(0) {
+        return Err(Error::Usage("--jobs 0: give at least 1".into()));
+    }
+    let runs = manifest::load(manifest_path)?;
+    let shard = Shard::from_args(args.shard.as_deref(), |v| std::env::var(v).ok())?;
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
+    let path = out.join(shard.file_name());
+    if path.exists() && !args.force {
+        eprintln!(
+            "batch: shard {}/{} is done ({} exists): skipped",
+            shard.index,
+            shard.count,
+            path.display()
+        );
+        return Ok(());
+    }
+    let range = shard.rows(runs.len());
+    let bar = (!args.no_progress && std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .then(|| indicatif::ProgressBar::new(range.len() as u64));
+    let rows = crate::batch::run_rows(&runs[range.clone()], range.start, args.jobs, |_| {
+        if let Some(bar) = &bar {
+            bar.inc(1);
+        }
+    })?;
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    crate::batch::table::write_atomic(&rows, &path)?;
+    print!("{}", report(&rows, &path));
+    Ok(())
+}
+
+/// What a shard found, for a person at a terminal.
+pub fn report(rows: &[RunRow], path: &Path) -> String {
+    let count = |f: fn(&RunRow) -> bool| rows.iter().filter(|r| f(r)).count();
+    let mut text = format!(
+        "{} runs: {} with a collision, {} NMAC, {} failed; written to {}\n",
+        rows.len(),
+        count(|r| r.collisions > 0),
+        count(|r| r.nmac),
+        count(|r| r.error.is_some()),
+        path.display()
+    );
+    for r in rows.iter().filter(|r| r.error.is_some()).take(10) {
+        text += &format!("  {}: {}\n", r.run_id, r.error.as_deref().unwrap_or(""));
+    }
+    text
+}

@@ -1,0 +1,139 @@
+//! A manifest: the runs of a batch, read from CSV, TOML or JSON.
+//!
+//! Every column is optional and read as written; what a run means is checked when it runs, so
+//! that one bad row becomes a row with its error and the rest still run. Only a file that
+//! cannot be read as a table at all is an error here.
+//!
+//! ```
+//! let csv = "id,tlog,scene,mode\nsquare,flights/a.tlog,city.toml,exact\n";
+//! let runs = savsim::batch::manifest::parse_csv(csv.as_bytes()).unwrap();
+//! assert_eq!(runs[0].tlog.as_deref(), Some("flights/a.tlog"));
+//! assert_eq!(runs[0].mode.as_deref(), Some("exact"));
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// One run, as the manifest wrote it.
+///
+/// A run is a **tlog** (`tlog`, with an optional `scene`) or an **encounter** (`own` and
+/// `intruder` tracks, each waypoints `"t_s e_m n_m u_m; ..."` in the scene's ENU frame or a
+/// `.tlog` path, over a `scene` or open air). Relative paths are relative to the manifest.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Run {
+    /// Name in the results (default: `run-<row number>`).
+    pub id: Option<String>,
+    /// A flight log to replay.
+    pub tlog: Option<String>,
+    /// A scene file (default: open air around ArduPilot SITL's default home).
+    pub scene: Option<String>,
+    /// Collision mode (default `exact`).
+    pub mode: Option<String>,
+    /// Ownship track of an encounter.
+    pub own: Option<String>,
+    /// Intruder track of an encounter.
+    pub intruder: Option<String>,
+    /// The intruder's kind (default `dji`): its threat class and model.
+    pub intruder_kind: Option<String>,
+    /// Ownship sample rate of an encounter, Hz (default 10).
+    pub rate_hz: Option<f64>,
+    /// Encounter length, seconds (default: the ownship track's).
+    pub duration_s: Option<f64>,
+    /// The closest approach the encounter was built with, metres (carried to the results).
+    pub expect_cpa_m: Option<f64>,
+    /// Its horizontal part, metres.
+    pub expect_cpa_horizontal_m: Option<f64>,
+    /// Its vertical part (intruder above ownship positive), metres.
+    pub expect_cpa_vertical_m: Option<f64>,
+    /// When it happens, seconds after the start.
+    pub expect_cpa_t_s: Option<f64>,
+    /// Whether the encounter was built to be an NMAC.
+    pub expect_nmac: Option<bool>,
+}
+
+impl Run {
+    /// The run's id: its own, or `run-<index>`.
+    pub fn id_or(&self, index: usize) -> String {
+        self.id.clone().unwrap_or_else(|| format!("run-{index}"))
+    }
+
+    /// The same run with its file paths made relative to `base` (a manifest's directory).
+    /// A waypoint track is left as it is.
+    pub fn anchored(mut self, base: &Path) -> Self {
+        let anchor = |p: &mut Option<String>| {
+            if let Some(path) = p.as_mut().filter(|p| !p.is_empty()) {
+                if Path::new(path.as_str()).is_relative() {
+                    *path = base.join(&*path).to_string_lossy().into_owned();
+                }
+            }
+        };
+        anchor(&mut self.tlog);
+        anchor(&mut self.scene);
+        for track in [&mut self.own, &mut self.intruder] {
+            if track.as_deref().is_some_and(is_tlog_path) {
+                anchor(track);
+            }
+        }
+        self
+    }
+}
+
+/// Whether a track is given as a tlog path (rather than waypoints).
+pub fn is_tlog_path(track: &str) -> bool {
+    track.trim_end().to_ascii_lowercase().ends_with(".tlog")
+}
+
+/// The TOML form: `[[run]]` tables.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TomlManifest {
+    #[serde(default)]
+    run: Vec<Run>,
+}
+
+/// Read a manifest file (`.csv`, `.toml` or `.json` by its extension); paths in it become
+/// relative to its directory.
+pub fn load(path: &Path) -> Result<Vec<Run>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let bad = |why: String| Error::Usage(format!("manifest {}: {why}", path.display()));
+    let runs = match path.extension().and_then(|e| e.to_str()) {
+        Some("csv") => parse_csv(text.as_bytes()).map_err(|e| bad(e.to_string()))?,
+        Some("toml") => {
+            toml::from_str::<TomlManifest>(&text)
+                .map_err(|e| bad(e.to_string()))?
+                .run
+        }
+        Some("json") => parse_json(&text).map_err(|e| bad(e.to_string()))?,
+        _ => return Err(bad("give a .csv, .toml or .json file".into())),
+    };
+    let base: PathBuf = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    Ok(runs.into_iter().map(|r| r.anchored(&base)).collect())
+}
+
+/// Runs from CSV with a header row; an empty cell is an absent value.
+pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<Run>, csv::Error> {
+    csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(bytes)
+        .deserialize()
+        .collect()
+}
+
+/// Runs from a JSON array of objects (what the Python package sends).
+pub fn parse_json(text: &str) -> std::result::Result<Vec<Run>, serde_json::Error> {
+    serde_json::from_str(text)
+}
+
+/// Write runs as CSV (what `gen-encounters` writes).
+pub fn write_csv(runs: &[Run], out: impl std::io::Write) -> std::result::Result<(), csv::Error> {
+    let mut w = csv::Writer::from_writer(out);
+    for r in runs {
+        w.serialize(r)?;
+    }
+    w.flush()?;
+    Ok(())
+}

@@ -1,0 +1,227 @@
+//! One run's result: its inputs as the manifest gave them, what happened, what it cost.
+
+use serde::Serialize;
+
+use crate::batch::manifest::Run;
+use crate::collision::approach::Approach;
+use crate::collision::events::{Event, EventKind};
+use crate::ingest::stats::IngestStats;
+
+/// The closest approach of one vehicle to one moving body.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ApproachRow {
+    /// The vehicle (MAVLink system id; 1 for an encounter's ownship).
+    pub vehicle: u8,
+    /// The other track's id (`intruder`, `vehicle:2`, `icao:4840D6`, a scene's track).
+    pub track: String,
+    /// Least separation of the two reference points, metres.
+    pub distance_m: f64,
+    /// Horizontal separation then, metres.
+    pub horizontal_m: f64,
+    /// Vertical separation then (other above the vehicle positive), metres.
+    pub vertical_m: f64,
+    /// When, seconds after the run's start.
+    pub t_s: f64,
+    /// Ever within 500 ft horizontally and 100 ft vertically at once.
+    pub nmac: bool,
+}
+
+/// One row of the results table. Every field but the three measured costs
+/// (`tick_cost_us_median`, `tick_cost_us_p99`, `wall_s`) is the same on every run of the same
+/// manifest, whatever the jobs, the sharding, or the caller (CLI or Python).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunRow {
+    /// The row's position in the manifest (from 0).
+    pub index: u64,
+    /// The run's id.
+    pub run_id: String,
+    /// `tlog` or `encounter` (empty when the row says neither).
+    pub kind: String,
+    /// Inputs as the manifest gave them (paths anchored to the manifest's directory).
+    pub tlog: Option<String>,
+    /// Scene file (none: open air).
+    pub scene: Option<String>,
+    /// Collision mode.
+    pub mode: String,
+    /// Ownship track of an encounter.
+    pub own: Option<String>,
+    /// Intruder track of an encounter.
+    pub intruder: Option<String>,
+    /// Intruder kind.
+    pub intruder_kind: Option<String>,
+    /// Ownship sample rate, Hz.
+    pub rate_hz: Option<f64>,
+    /// Encounter length, seconds.
+    pub duration_s: Option<f64>,
+    /// The closest approach the encounter was built with (from the manifest).
+    pub expect_cpa_m: Option<f64>,
+    /// Its horizontal part.
+    pub expect_cpa_horizontal_m: Option<f64>,
+    /// Its vertical part.
+    pub expect_cpa_vertical_m: Option<f64>,
+    /// Its time.
+    pub expect_cpa_t_s: Option<f64>,
+    /// Whether it was built as an NMAC.
+    pub expect_nmac: Option<bool>,
+    /// Why the run failed (then the results below are empty).
+    pub error: Option<String>,
+    /// Collision ticks (vehicle samples).
+    pub ticks: u64,
+    /// Collisions reported.
+    pub collisions: u64,
+    /// Time of impact of the first, seconds after the start.
+    pub first_collision_t_s: Option<f64>,
+    /// What it hit.
+    pub first_collision_obstacle: Option<String>,
+    /// Near misses reported.
+    pub near_misses: u64,
+    /// The closest of them, metres.
+    pub closest_near_miss_m: Option<f64>,
+    /// Any NMAC with any moving body.
+    pub nmac: bool,
+    /// The closest approach to any moving body, metres.
+    pub cpa_m: Option<f64>,
+    /// Its horizontal part.
+    pub cpa_horizontal_m: Option<f64>,
+    /// Its vertical part.
+    pub cpa_vertical_m: Option<f64>,
+    /// Its time, seconds after the start.
+    pub cpa_t_s: Option<f64>,
+    /// The body it was with.
+    pub cpa_track: Option<String>,
+    /// The closest approach to each moving body.
+    pub approaches: Vec<ApproachRow>,
+    /// MAVLink messages read (tlog inputs).
+    pub messages: u64,
+    /// Frames rejected by CRC, unknown id or flags.
+    pub bad_frames: u64,
+    /// Decoded values rejected as implausible.
+    pub rejected: u64,
+    /// Median tick cost, microseconds (measured: varies run to run).
+    pub tick_cost_us_median: f64,
+    /// 99th percentile tick cost, microseconds (measured).
+    pub tick_cost_us_p99: f64,
+    /// Wall time of the run, seconds (measured).
+    pub wall_s: f64,
+}
+
+impl RunRow {
+    /// A row with `run`'s inputs and no results yet.
+    pub fn of_inputs(index: usize, run: &Run, mode: &str) -> Self {
+        let kind = match (&run.tlog, &run.own) {
+            (Some(_), _) => "tlog",
+            (None, Some(_)) => "encounter",
+            (None, None) => "",
+        };
+        RunRow {
+            index: index as u64,
+            run_id: run.id_or(index),
+            kind: kind.into(),
+            tlog: run.tlog.clone(),
+            scene: run.scene.clone(),
+            mode: mode.into(),
+            own: run.own.clone(),
+            intruder: run.intruder.clone(),
+            intruder_kind: run.intruder_kind.clone(),
+            rate_hz: run.rate_hz,
+            duration_s: run.duration_s,
+            expect_cpa_m: run.expect_cpa_m,
+            expect_cpa_horizontal_m: run.expect_cpa_horizontal_m,
+            expect_cpa_vertical_m: run.expect_cpa_vertical_m,
+            expect_cpa_t_s: run.expect_cpa_t_s,
+            expect_nmac: run.expect_nmac,
+            error: None,
+            ticks: 0,
+            collisions: 0,
+            first_collision_t_s: None,
+            first_collision_obstacle: None,
+            near_misses: 0,
+            closest_near_miss_m: None,
+            nmac: false,
+            cpa_m: None,
+            cpa_horizontal_m: None,
+            cpa_vertical_m: None,
+            cpa_t_s: None,
+            cpa_track: None,
+            approaches: Vec::new(),
+            messages: 0,
+            bad_frames: 0,
+            rejected: 0,
+            tick_cost_us_median: 0.0,
+            tick_cost_us_p99: 0.0,
+            wall_s: 0.0,
+        }
+    }
+
+    /// Fill in the first collision and the closest near miss from a run's events (in time
+    /// order); times become seconds after `t0_s`.
+    pub fn record_events<'a>(&mut self, events: impl IntoIterator<Item = &'a Event>, t0_s: f64) {
+        for e in events {
+            match &e.kind {
+                EventKind::Collision {
+                    obstacle,
+                    time_of_impact,
+                    ..
+                } if self.first_collision_t_s.is_none() => {
+                    self.first_collision_t_s = Some(time_of_impact - t0_s);
+                    self.first_collision_obstacle = Some(obstacle.clone());
+                }
+                EventKind::NearMiss { closest_m, .. } => {
+                    self.closest_near_miss_m = Some(
+                        self.closest_near_miss_m
+                            .map_or(*closest_m, |m| m.min(*closest_m)),
+                    );
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Fill in the approaches (`(vehicle, track, approach)`, times on the clock of `t0_s`),
+    /// the closest of them and whether any was an NMAC.
+    pub fn record_approaches<'a>(
+        &mut self,
+        approaches: impl IntoIterator<Item = (u8, &'a str, &'a Approach)>,
+        t0_s: f64,
+    ) {
+        self.approaches = approaches
+            .into_iter()
+            .map(|(vehicle, track, a)| ApproachRow {
+                vehicle,
+                track: track.to_owned(),
+                distance_m: a.distance_m,
+                horizontal_m: a.horizontal_m,
+                vertical_m: a.vertical_m,
+                t_s: a.t_s - t0_s,
+                nmac: a.nmac,
+            })
+            .collect();
+        self.nmac = self.approaches.iter().any(|a| a.nmac);
+        // The closest; the first listed on a tie (the list is in a fixed order).
+        let closest =
+            self.approaches
+                .iter()
+                .reduce(|a, b| if b.distance_m < a.distance_m { b } else { a });
+        if let Some(c) = closest {
+            self.cpa_m = Some(c.distance_m);
+            self.cpa_horizontal_m = Some(c.horizontal_m);
+            self.cpa_vertical_m = Some(c.vertical_m);
+            self.cpa_t_s = Some(c.t_s);
+            self.cpa_track = Some(c.track.clone());
+        }
+    }
+
+    /// Add an input's ingest counters.
+    pub fn record_ingest(&mut self, stats: &IngestStats) {
+        self.messages += stats.messages_total();
+        self.bad_frames += stats.bad_frames();
+        self.rejected += stats.rejected_total();
+    }
+
+    /// Fill in the tick costs (nanoseconds each).
+    pub fn record_costs(&mut self, tick_cost_ns: &[u64]) {
+        let (median_us, p99_us) = crate::session::percentiles_us(tick_cost_ns);
+        self.tick_cost_us_median = median_us;
+        self.tick_cost_us_p99 = p99_us;
+    }
+}

@@ -1,0 +1,219 @@
+//! Running one row of a manifest: a tlog replayed over its scene, or an encounter flown; any
+//! failure (a bad path, scene, mode or track, even a bug) becomes the row's `error`.
+
+use std::collections::HashMap;
+use std::panic::AssertUnwindSafe;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+use crate::batch::encounter::{self, Encounter};
+use crate::batch::manifest::{is_tlog_path, Run};
+use crate::batch::row::RunRow;
+use crate::collision::pipeline::{CollisionConfig, Mode};
+use crate::ingest::stats::IngestStats;
+use crate::replay::{replay, Speed};
+use crate::scene::{self, Kind, Scene, Waypoint};
+use crate::session::Session;
+
+/// Default ownship sample rate of an encounter, Hz.
+pub const DEFAULT_RATE_HZ: f64 = 10.0;
+
+/// Every scene a manifest names, each loaded once and shared by its runs (a scene that does
+/// not load is kept as its error, for its rows).
+pub struct Scenes {
+    open_air: Arc<Scene>,
+    by_path: HashMap<String, Result<Arc<Scene>, String>>,
+}
+
+impl Scenes {
+    /// Load the scenes of `runs`.
+    pub fn for_runs(runs: &[Run]) -> Self {
+        let mut by_path = HashMap::new();
+        for path in runs.iter().filter_map(|r| r.scene.as_deref()) {
+            if !path.is_empty() && !by_path.contains_key(path) {
+                let loaded = scene::load(Path::new(path))
+                    .map(Arc::new)
+                    .map_err(|e| e.to_string());
+                by_path.insert(path.to_owned(), loaded);
+            }
+        }
+        Self {
+            open_air: Arc::new(open_air()),
+            by_path,
+        }
+    }
+
+    fn get(&self, path: Option<&str>) -> Result<Arc<Scene>, String> {
+        match path.filter(|p| !p.is_empty()) {
+            None => Ok(self.open_air.clone()),
+            Some(p) => self
+                .by_path
+                .get(p)
+                .cloned()
+                .unwrap_or_else(|| Err(format!("{p}: scene not loaded"))),
+        }
+    }
+}
+
+/// A scene with nothing in it, around ArduPilot SITL's default home (CMAC, Canberra), whose
+/// ENU frame encounters are written in.
+pub fn open_air() -> Scene {
+    let o = crate::scene::gen::DEFAULT_ORIGIN;
+    let text = format!(
+        "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n",
+        o.lat_deg, o.lon_deg, o.alt_m
+    );
+    scene::format::parse(&text, Path::new("open-air.toml"), "open-air")
+        .expect("the open-air scene is valid")
+}
+
+/// The mode a row asks for (`exact` when it says nothing).
+fn mode_of(run: &Run) -> Result<Mode, String> {
+    match run.mode.as_deref().filter(|m| !m.is_empty()) {
+        None => Ok(Mode::Exact),
+        Some(m) => Mode::from_name(m).ok_or_else(|| {
+            format!("mode {m:?}: give one of none, box, mesh, paper, exact, reference")
+        }),
+    }
+}
+
+/// Run row `index` of a manifest.
+pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
+    let started = Instant::now();
+    let mode = mode_of(run);
+    let mut row = RunRow::of_inputs(
+        index,
+        run,
+        mode.as_ref()
+            .map_or(run.mode.as_deref().unwrap_or(""), |m| m.name()),
+    );
+    let outcome = mode.and_then(|mode| {
+        std::panic::catch_unwind(AssertUnwindSafe(|| execute(run, mode, scenes, &mut row)))
+            .unwrap_or_else(|panic| {
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                Err(format!("internal error, please report it: {what}"))
+            })
+    });
+    if let Err(e) = outcome {
+        // Nothing half-done stays in a failed row: its inputs and the error.
+        row = RunRow {
+            error: Some(e),
+            ..RunRow::of_inputs(index, run, &row.mode)
+        };
+    }
+    row.wall_s = started.elapsed().as_secs_f64();
+    row
+}
+
+fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(), String> {
+    let scene = scenes.get(run.scene.as_deref())?;
+    let config = CollisionConfig {
+        mode,
+        ..CollisionConfig::default()
+    };
+    match (&run.tlog, &run.own, &run.intruder) {
+        (Some(tlog), None, None) => replay_tlog(Path::new(tlog), scene, config, row),
+        (None, Some(own), Some(intruder)) => {
+            let mut stats = IngestStats::default();
+            let own = track(own, &scene, &mut stats).map_err(|e| format!("own: {e}"))?;
+            let duration_s = match run.duration_s {
+                Some(d) => positive("duration_s", d)?,
+                None => own.last().map_or(0.0, |w| w.t_s),
+            };
+            let encounter = Encounter {
+                own,
+                intruder: track(intruder, &scene, &mut stats)
+                    .map_err(|e| format!("intruder: {e}"))?,
+                intruder_kind: match run.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
+                    None => Kind::Dji,
+                    Some(k) => Kind::ALL
+                        .into_iter()
+                        .find(|kind| kind.name() == k)
+                        .ok_or_else(|| format!("intruder_kind {k:?}: not a kind"))?,
+                },
+                rate_hz: positive("rate_hz", run.rate_hz.unwrap_or(DEFAULT_RATE_HZ))?,
+                duration_s,
+            };
+            let flown = encounter::fly(&scene, config, &encounter);
+            row.record_ingest(&stats);
+            row.ticks = flown.pipeline.totals.ticks;
+            row.collisions = flown.pipeline.totals.collisions;
+            row.near_misses = flown.pipeline.totals.near_misses;
+            row.record_events(&flown.events, 0.0);
+            row.record_approaches(
+                flown
+                    .approaches
+                    .by_pair
+                    .iter()
+                    .map(|((v, id), a)| (*v, &**id, a)),
+                0.0,
+            );
+            row.record_costs(&flown.tick_cost_ns);
+            Ok(())
+        }
+        _ => Err("give either `tlog`, or both `own` and `intruder`".into()),
+    }
+}
+
+fn positive(name: &str, v: f64) -> Result<f64, String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{name} {v}: give a positive number"))
+    }
+}
+
+/// A track given as waypoints or as a tlog path.
+fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypoint>, String> {
+    let track = if is_tlog_path(text) {
+        let (track, tlog_stats) = encounter::track_from_tlog(Path::new(text.trim()), scene)?;
+        stats.merge(&tlog_stats);
+        track
+    } else {
+        encounter::parse_waypoints(text)?
+    };
+    if track.is_empty() {
+        return Err("no waypoints".into());
+    }
+    Ok(track)
+}
+
+fn replay_tlog(
+    path: &Path,
+    scene: Arc<Scene>,
+    config: CollisionConfig,
+    row: &mut RunRow,
+) -> Result<(), String> {
+    let mut session = Session::new(Some(scene), config, None).map_err(|e| e.to_string())?;
+    let never = AtomicBool::new(false);
+    replay(path, Speed::Max, false, None, &mut session, &never).map_err(|e| e.to_string())?;
+    session.finish().map_err(|e| e.to_string())?;
+    let t0_s = session
+        .ingestor
+        .stats
+        .time_span_s
+        .map_or(0.0, |(first, _)| first);
+    row.record_ingest(&session.ingestor.stats);
+    if let Some(p) = &session.pipeline {
+        row.ticks = p.totals.ticks;
+        row.collisions = p.totals.collisions;
+        row.near_misses = p.totals.near_misses;
+    }
+    row.record_events(&session.notable, t0_s);
+    row.record_approaches(
+        session
+            .approaches
+            .by_pair
+            .iter()
+            .map(|((v, id), a)| (*v, &**id, a)),
+        t0_s,
+    );
+    row.record_costs(&session.tick_cost_ns);
+    Ok(())
+}
