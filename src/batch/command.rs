@@ -24,11 +24,6 @@ pub fn run(args: &BatchArgs) -> Result<()> {
         out,
     }) = &args.command
     {
-        for (name, v) in [("--duration-s", *duration_s), ("--rate-hz", *rate_hz)] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(Error::Usage(format!("{name} {v}: give a positive number")));
-            }
-        }
         let scene = scene
             .as_ref()
             .map(|p| std::fs::canonicalize(p).map_err(|e| Error::file(p, e)))
@@ -41,7 +36,7 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             duration_s: *duration_s,
             rate_hz: *rate_hz,
             intruder_kind: intruder_kind.clone(),
-        });
+        })?;
         let csv_error = |path: &Path, e: csv::Error| Error::file(path, std::io::Error::other(e));
         return match out {
             Some(path) => {

@@ -26,6 +26,9 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::batch::manifest::Run;
 use crate::collision::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
+use crate::collision::pipeline::Mode;
+use crate::error::{Error, Result};
+use crate::scene::Kind;
 
 /// What to generate.
 #[derive(Debug, Clone)]
@@ -55,24 +58,41 @@ fn straight(start: DVec3, velocity: DVec3, duration_s: f64) -> String {
     )
 }
 
-/// The encounters, as manifest rows.
+/// The encounters, as manifest rows; options that make no sense are a usage error.
 ///
 /// ```
 /// use savsim::batch::gen::{encounters, GenOptions};
 /// let options = GenOptions { n: 3, seed: 7, scene: None, mode: "exact".into(),
 ///     duration_s: 180.0, rate_hz: 10.0, intruder_kind: "dji".into() };
-/// let a = encounters(&options);
-/// assert_eq!(a, encounters(&options)); // deterministic
+/// let a = encounters(&options).unwrap();
+/// assert_eq!(a, encounters(&options).unwrap()); // deterministic
 /// assert_eq!(a[2].id.as_deref(), Some("enc-000002"));
 /// ```
-pub fn encounters(options: &GenOptions) -> Vec<Run> {
+pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
+    for (name, v) in [
+        ("duration_s", options.duration_s),
+        ("rate_hz", options.rate_hz),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::Usage(format!("{name} {v}: give a positive number")));
+        }
+    }
+    if Mode::from_name(&options.mode).is_none() {
+        return Err(Error::Usage(format!("mode {:?}: not a mode", options.mode)));
+    }
+    if !Kind::ALL.iter().any(|k| k.name() == options.intruder_kind) {
+        return Err(Error::Usage(format!(
+            "intruder kind {:?}: not a kind (a320, b737, dji, airship, balloon, ...)",
+            options.intruder_kind
+        )));
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let d = options.duration_s;
     let heading = |rng: &mut ChaCha8Rng, speed: f64| {
         let course = rng.random_range(0.0..std::f64::consts::TAU);
         DVec3::new(course.sin(), course.cos(), 0.0) * speed
     };
-    (0..options.n)
+    Ok((0..options.n)
         .map(|i| {
             let t_cpa = rng.random_range(d / 3.0..=2.0 * d / 3.0);
             let own_at_cpa = DVec3::new(
@@ -121,5 +141,5 @@ pub fn encounters(options: &GenOptions) -> Vec<Run> {
                 ..Run::default()
             }
         })
-        .collect()
+        .collect())
 }

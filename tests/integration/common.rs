@@ -39,17 +39,27 @@ pub fn shared_fixtures() -> Option<PathBuf> {
 
 /// True when `python3 -c "import pymavlink"` works; says so when it does not.
 pub fn have_pymavlink() -> bool {
+    have_python_module(
+        "pymavlink",
+        "SAVSIM_REQUIRE_PYTHON",
+        "pip install pymavlink; .ci/run does",
+    )
+}
+
+/// True when `python3 -c "import {module}"` works; when it does not, says so, or fails if
+/// `require_var` is set (CI sets it, so that a test cannot pass by skipping there).
+pub fn have_python_module(module: &str, require_var: &str, how: &str) -> bool {
     let ok = Command::new("python3")
-        .args(["-c", "import pymavlink"])
+        .args(["-c", &format!("import {module}")])
         .output()
         .map(|o| o.status.success())
         .unwrap_or(false);
     if !ok {
         assert!(
-            std::env::var_os("SAVSIM_REQUIRE_PYTHON").is_none(),
-            "pymavlink is required here (SAVSIM_REQUIRE_PYTHON is set) but not importable"
+            std::env::var_os(require_var).is_none(),
+            "{module} is required here ({require_var} is set) but not importable"
         );
-        eprintln!("SKIP: pymavlink is not installed (pip install pymavlink; .ci/run does)");
+        eprintln!("SKIP: {module} is not installed ({how})");
     }
     ok
 }

@@ -19,11 +19,14 @@
 //!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
 //!   the reference.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
+//! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
+//!   rows, schedulers) and the Python package and its Ray example against the CLI.
 //! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); the
 //!   default layout; SIGTERM during a recorded replay.
 //! - `viz_render`: the demo's recording rendered headless by rerun's own viewer, the vehicle
 //!   found in the picture.
 
+mod batch;
 mod bench;
 mod cities;
 mod cli;
