@@ -1,0 +1,388 @@
+//! What a bench run measured, the goals it checks, and the report as Markdown.
+
+use std::fmt::Write as _;
+
+use serde::{Deserialize, Serialize};
+
+use crate::bench::machine::Machine;
+use crate::bench::scale;
+
+/// One mode in one scene.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ModeRow {
+    /// Mode name.
+    pub mode: String,
+    /// Ticks over all flights.
+    pub ticks: u64,
+    /// Median per-tick cost, microseconds.
+    pub cost_median_us: f64,
+    /// 99th percentile per-tick cost, microseconds.
+    pub cost_p99_us: f64,
+    /// Median cost over `box`'s median in the same run.
+    pub cost_vs_box: f64,
+    /// Median per-tick cost of the contact layer alone, microseconds.
+    #[serde(default)]
+    pub contact_median_us: f64,
+    /// 99th percentile per-tick cost of the contact layer alone, microseconds.
+    #[serde(default)]
+    pub contact_p99_us: f64,
+    /// Sensing frames run.
+    #[serde(default)]
+    pub sensing_frames: u64,
+    /// Median cost of one sensing frame (rays, beta, residency), microseconds.
+    #[serde(default)]
+    pub sensing_median_us: f64,
+    /// Meshes built because a contact needed one that was not resident.
+    #[serde(default)]
+    pub meshes_built_on_contact: usize,
+    /// Mean active box colliders per tick.
+    pub active_box_mean: f64,
+    /// Mean active mesh colliders per tick.
+    pub active_mesh_mean: f64,
+    /// Mean triangles in active meshes per tick.
+    pub triangles_mean: f64,
+    /// Most triangles in active meshes at one tick.
+    pub triangles_max: usize,
+    /// Memory the mode's pipeline holds at the end (octree and built meshes), bytes.
+    pub memory_bytes: usize,
+    /// Building the pipeline, seconds.
+    pub startup_s: f64,
+    /// Building meshes during the flights, seconds.
+    pub mesh_build_s: f64,
+    /// Collisions reported.
+    pub collisions: usize,
+    /// The reference's collisions this mode did not report.
+    pub missed: usize,
+    /// Collisions this mode reported that the reference did not.
+    pub false_collisions: usize,
+    /// Mean |time of impact - reference's| over matched collisions, seconds.
+    pub contact_time_error_mean_s: Option<f64>,
+    /// Largest |time of impact - reference's| over matched collisions, seconds.
+    pub contact_time_error_max_s: Option<f64>,
+    /// Flights with a missed or false collision.
+    pub wrong_flights: Vec<String>,
+}
+
+/// One flight's result in one mode.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FlightResult {
+    /// Mode name.
+    pub mode: String,
+    /// Collisions reported.
+    pub collisions: usize,
+    /// Missed against the reference.
+    pub missed: usize,
+    /// False against the reference.
+    pub false_collisions: usize,
+    /// Near misses reported.
+    pub near_misses: usize,
+    /// |time of impact - reference's| of the flight's first collision, seconds.
+    pub first_contact_error_s: Option<f64>,
+}
+
+/// One flight.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FlightRow {
+    /// Name.
+    pub name: String,
+    /// What it was built to do.
+    pub what: String,
+    /// Telemetry rate, Hz.
+    pub rate_hz: f64,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+    /// Samples.
+    pub ticks: usize,
+    /// Results per mode.
+    pub modes: Vec<FlightResult>,
+}
+
+/// One scene.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SceneReport {
+    /// Scene name.
+    pub scene: String,
+    /// Static obstacles.
+    pub obstacles: usize,
+    /// Triangles of all static obstacles.
+    pub triangles: usize,
+    /// Loading the scene file, seconds.
+    pub load_s: f64,
+    /// Per mode.
+    pub modes: Vec<ModeRow>,
+    /// Per flight.
+    pub flights: Vec<FlightRow>,
+}
+
+/// A goal of issue 5 and whether this run met it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Goal {
+    /// The goal.
+    pub goal: String,
+    /// What was measured.
+    pub measured: String,
+    /// Met?
+    pub met: bool,
+}
+
+/// Everything a bench run measured.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BenchReport {
+    /// Where.
+    pub machine: Machine,
+    /// Per scene.
+    pub scenes: Vec<SceneReport>,
+    /// Tick cost by scene size.
+    pub scale: Vec<scale::SizeRow>,
+    /// Throughput by fleet size.
+    pub fleets: Vec<scale::FleetRow>,
+    /// The goals, checked.
+    pub goals: Vec<Goal>,
+    /// Peak resident memory of the whole run, bytes (Linux; None elsewhere).
+    pub peak_rss_bytes: Option<u64>,
+    /// Wall time of the run, seconds.
+    pub wall_s: f64,
+}
+
+pub(crate) fn goals(report: &BenchReport) -> Vec<Goal> {
+    let mut goals = Vec::new();
+    for s in &report.scenes {
+        let row = |m: &str| s.modes.iter().find(|r| r.mode == m);
+        let (Some(e), Some(b)) = (row("exact"), row("box")) else {
+            continue;
+        };
+        let error_ms = e.contact_time_error_max_s.unwrap_or(0.0) * 1e3;
+        goals.push(Goal {
+            goal: format!(
+                "{}: exact 0 missed, 0 false, contact time error <= 1 ms",
+                s.scene
+            ),
+            measured: format!(
+                "{} missed, {} false, {error_ms:.3} ms",
+                e.missed, e.false_collisions
+            ),
+            met: e.missed == 0 && e.false_collisions == 0 && error_ms <= 1.0,
+        });
+        let median = e.contact_median_us / b.contact_median_us.max(1e-9);
+        let p99 = e.contact_p99_us / b.contact_p99_us.max(1e-9);
+        goals.push(Goal {
+            goal: format!(
+                "{}: exact contact layer median <= 1.5x box, p99 <= 5x box",
+                s.scene
+            ),
+            measured: format!("{median:.2}x median, {p99:.2}x p99"),
+            met: median <= 1.5 && p99 <= 5.0,
+        });
+        if s.scene == "city" {
+            goals.push(Goal {
+                goal: "city: sensing frame (six rays, beta, residency) <= 3 us median".into(),
+                measured: format!("{:.2} us", e.sensing_median_us),
+                met: e.sensing_median_us <= 3.0,
+            });
+        }
+    }
+    let exact_scale: Vec<_> = report.scale.iter().filter(|r| r.mode == "exact").collect();
+    if let (Some(first), Some(last)) = (exact_scale.first(), exact_scale.last()) {
+        goals.push(Goal {
+            goal: format!(
+                "exact: {} -> {} obstacles costs <= 3x per tick",
+                first.obstacles, last.obstacles
+            ),
+            measured: format!("{:.2}x", last.cost_vs_smallest),
+            met: last.cost_vs_smallest <= 3.0,
+        });
+    }
+    if let Some(f) = report.fleets.iter().find(|f| f.vehicles == 100) {
+        goals.push(Goal {
+            goal: "100 vehicles at 50 Hz in real time on one core".into(),
+            measured: format!(
+                "{:.0} ticks/s = {:.2}x real time",
+                f.ticks_per_s, f.real_time_factor
+            ),
+            met: f.real_time_factor >= 1.0,
+        });
+    }
+    goals
+}
+
+fn opt_ms(v: Option<f64>) -> String {
+    v.map_or("-".into(), |s| format!("{:.3}", s * 1e3))
+}
+
+/// The report as markdown tables.
+pub fn markdown(report: &BenchReport) -> String {
+    let mut out = String::new();
+    let m = &report.machine;
+    let _ = writeln!(
+        out,
+        "Machine: {} ({} logical CPUs), {}, {}. Wall time {:.0} s, peak RSS {}.\n",
+        m.cpu,
+        m.cpus,
+        m.os,
+        m.build,
+        report.wall_s,
+        report.peak_rss_bytes.map_or("unknown".into(), |b| format!(
+            "{:.0} MiB",
+            b as f64 / 1048576.0
+        ))
+    );
+    for s in &report.scenes {
+        let _ = writeln!(
+            out,
+            "### Scene `{}`: {} obstacles, {} triangles, loaded in {:.2} s\n",
+            s.scene, s.obstacles, s.triangles, s.load_s
+        );
+        let _ = writeln!(
+            out,
+            "| mode | median µs | p99 µs | × box | boxes | meshes | triangles (mean / max) | memory MiB | start-up ms | mesh build ms | collisions | missed | false | contact time error ms (mean / max) |\n\
+             |---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        );
+        for r in &s.modes {
+            let _ = writeln!(
+                out,
+                "| {} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {:.0} / {} | {:.1} | {:.1} | {:.0} | {} | {} | {} | {} / {} |",
+                r.mode,
+                r.cost_median_us,
+                r.cost_p99_us,
+                r.cost_vs_box,
+                r.active_box_mean,
+                r.active_mesh_mean,
+                r.triangles_mean,
+                r.triangles_max,
+                r.memory_bytes as f64 / 1048576.0,
+                r.startup_s * 1e3,
+                r.mesh_build_s * 1e3,
+                r.collisions,
+                r.missed,
+                r.false_collisions,
+                opt_ms(r.contact_time_error_mean_s),
+                opt_ms(r.contact_time_error_max_s),
+            );
+        }
+        let _ = writeln!(
+            out,
+            "\nThe layers apart: the contact layer per tick, the sensing layer per frame.\n\n\
+             | mode | contact median µs | contact p99 µs | contact × box (median / p99) | sensing frames | sensing µs per frame (median) | meshes built on contact |\n\
+             |---|--:|--:|--:|--:|--:|--:|"
+        );
+        let box_row = s.modes.iter().find(|r| r.mode == "box");
+        for r in &s.modes {
+            let vs = box_row.map_or("-".into(), |b| {
+                format!(
+                    "{:.2} / {:.2}",
+                    r.contact_median_us / b.contact_median_us.max(1e-9),
+                    r.contact_p99_us / b.contact_p99_us.max(1e-9)
+                )
+            });
+            let _ = writeln!(
+                out,
+                "| {} | {:.2} | {:.2} | {} | {} | {:.2} | {} |",
+                r.mode,
+                r.contact_median_us,
+                r.contact_p99_us,
+                vs,
+                r.sensing_frames,
+                r.sensing_median_us,
+                r.meshes_built_on_contact
+            );
+        }
+        let _ = writeln!(
+            out,
+            "\nPer flight: the reference's collisions, and per mode `ok` or `-missed +false` \
+             (near misses in brackets).\n"
+        );
+        let names: Vec<&str> = s.modes.iter().map(|r| r.mode.as_str()).collect();
+        let _ = writeln!(
+            out,
+            "| flight | Hz | m/s | ticks | {} |\n|---|--:|--:|--:|{}",
+            names.join(" | "),
+            "--:|".repeat(names.len())
+        );
+        for f in &s.flights {
+            let cells: Vec<String> = f
+                .modes
+                .iter()
+                .map(|r| {
+                    let head = if r.mode == "reference" {
+                        r.collisions.to_string()
+                    } else if r.missed + r.false_collisions == 0 {
+                        "ok".into()
+                    } else {
+                        format!("-{} +{}", r.missed, r.false_collisions)
+                    };
+                    format!("{head} ({})", r.near_misses)
+                })
+                .collect();
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} | {} |",
+                f.name,
+                f.rate_hz,
+                f.speed_mps,
+                f.ticks,
+                cells.join(" | ")
+            );
+        }
+        let _ = writeln!(out, "\nFlights:\n");
+        for f in &s.flights {
+            let _ = writeln!(out, "- `{}`: {}", f.name, f.what);
+        }
+        let _ = writeln!(out);
+    }
+    if !report.scale.is_empty() {
+        let _ = writeln!(
+            out,
+            "### Scale: one flight over grids of box buildings\n\n\
+             | obstacles | mode | start-up ms | octree MiB | median µs | p99 µs | × smallest | collisions |\n\
+             |--:|---|--:|--:|--:|--:|--:|--:|"
+        );
+        for r in &report.scale {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {} |",
+                r.obstacles,
+                r.mode,
+                r.startup_s * 1e3,
+                r.octree_bytes as f64 / 1048576.0,
+                r.cost_median_us,
+                r.cost_p99_us,
+                r.cost_vs_smallest,
+                r.collisions
+            );
+        }
+        let _ = writeln!(out);
+    }
+    if !report.fleets.is_empty() {
+        let _ = writeln!(
+            out,
+            "### Fleets: vehicles at 50 Hz in the first scene, exact, every vehicle an obstacle to the others, one core\n\n\
+             | vehicles | ticks | ticks/s | × real time | median µs | p99 µs |\n|--:|--:|--:|--:|--:|--:|"
+        );
+        for f in &report.fleets {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:.0} | {:.2} | {:.2} | {:.2} |",
+                f.vehicles,
+                f.ticks,
+                f.ticks_per_s,
+                f.real_time_factor,
+                f.cost_median_us,
+                f.cost_p99_us
+            );
+        }
+        let _ = writeln!(out);
+    }
+    if !report.goals.is_empty() {
+        let _ = writeln!(out, "### Goals\n\n| goal | measured | met |\n|---|---|---|");
+        for g in &report.goals {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} |",
+                g.goal,
+                g.measured,
+                if g.met { "yes" } else { "**no**" }
+            );
+        }
+    }
+    out
+}
