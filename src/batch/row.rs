@@ -37,32 +37,10 @@ pub struct RunRow {
     pub run_id: String,
     /// `tlog` or `encounter` (empty when the row says neither).
     pub kind: String,
-    /// Inputs as the manifest gave them (paths anchored to the manifest's directory).
-    pub tlog: Option<String>,
-    /// Scene file (none: open air).
-    pub scene: Option<String>,
-    /// Collision mode.
+    /// The run as the manifest gave it (paths anchored to the manifest's directory).
+    pub inputs: Run,
+    /// Collision mode, resolved (`exact` when the row names none).
     pub mode: String,
-    /// Ownship track of an encounter.
-    pub own: Option<String>,
-    /// Intruder track of an encounter.
-    pub intruder: Option<String>,
-    /// Intruder kind.
-    pub intruder_kind: Option<String>,
-    /// Ownship sample rate, Hz.
-    pub rate_hz: Option<f64>,
-    /// Encounter length, seconds.
-    pub duration_s: Option<f64>,
-    /// The closest approach the encounter was built with (from the manifest).
-    pub expect_cpa_m: Option<f64>,
-    /// Its horizontal part.
-    pub expect_cpa_horizontal_m: Option<f64>,
-    /// Its vertical part.
-    pub expect_cpa_vertical_m: Option<f64>,
-    /// Its time.
-    pub expect_cpa_t_s: Option<f64>,
-    /// Whether it was built as an NMAC.
-    pub expect_nmac: Option<bool>,
     /// Why the run failed (then the results below are empty).
     pub error: Option<String>,
     /// Collision ticks (vehicle samples).
@@ -117,19 +95,8 @@ impl RunRow {
             index: index as u64,
             run_id: run.id_or(index),
             kind: kind.into(),
-            tlog: run.tlog.clone(),
-            scene: run.scene.clone(),
+            inputs: run.clone(),
             mode: mode.into(),
-            own: run.own.clone(),
-            intruder: run.intruder.clone(),
-            intruder_kind: run.intruder_kind.clone(),
-            rate_hz: run.rate_hz,
-            duration_s: run.duration_s,
-            expect_cpa_m: run.expect_cpa_m,
-            expect_cpa_horizontal_m: run.expect_cpa_horizontal_m,
-            expect_cpa_vertical_m: run.expect_cpa_vertical_m,
-            expect_cpa_t_s: run.expect_cpa_t_s,
-            expect_nmac: run.expect_nmac,
             error: None,
             ticks: 0,
             collisions: 0,
