@@ -22,8 +22,8 @@ impl Shard {
     pub const WHOLE: Shard = Shard { index: 0, count: 1 };
 
     /// The shard `--shard` names: `K/N`, or `N` with `K` from the scheduler (Slurm's
-    /// `SLURM_ARRAY_TASK_ID` less `SLURM_ARRAY_TASK_MIN`, or Kubernetes'
-    /// `JOB_COMPLETION_INDEX`). Without `--shard`, a Slurm array task takes its index and count
+    /// `SLURM_ARRAY_TASK_ID` less `SLURM_ARRAY_TASK_MIN`, over `SLURM_ARRAY_TASK_STEP`; or
+    /// Kubernetes' `JOB_COMPLETION_INDEX`). Without `--shard`, a Slurm array task takes its index and count
     /// from Slurm; anything else runs the whole manifest. `env` reads a variable.
     ///
     /// ```
@@ -33,6 +33,14 @@ impl Shard {
     /// let k8s = |v: &str| (v == "JOB_COMPLETION_INDEX").then(|| "3".to_string());
     /// assert_eq!(Shard::from_args(Some("4"), k8s).unwrap(), Shard { index: 3, count: 4 });
     /// assert!(Shard::from_args(Some("8/8"), none).is_err());
+    /// // Slurm `--array=10-40:10`: task 30 is shard 2 of 4.
+    /// let slurm = |v: &str| match v {
+    ///     "SLURM_ARRAY_TASK_ID" => Some("30".to_string()),
+    ///     "SLURM_ARRAY_TASK_MIN" | "SLURM_ARRAY_TASK_STEP" => Some("10".to_string()),
+    ///     "SLURM_ARRAY_TASK_COUNT" => Some("4".to_string()),
+    ///     _ => None,
+    /// };
+    /// assert_eq!(Shard::from_args(None, slurm).unwrap(), Shard { index: 2, count: 4 });
     /// ```
     pub fn from_args(arg: Option<&str>, env: impl Fn(&str) -> Option<String>) -> Result<Shard> {
         let number = |what: &str, text: &str| {
@@ -44,8 +52,12 @@ impl Shard {
             if let Some(id) = env("SLURM_ARRAY_TASK_ID") {
                 let min = env("SLURM_ARRAY_TASK_MIN")
                     .map_or(Ok(0), |m| number("SLURM_ARRAY_TASK_MIN", &m))?;
+                // `--array=0-99:4` numbers its tasks 0, 4, 8, ...
+                let step = env("SLURM_ARRAY_TASK_STEP")
+                    .map_or(Ok(1), |m| number("SLURM_ARRAY_TASK_STEP", &m))?
+                    .max(1);
                 let id = number("SLURM_ARRAY_TASK_ID", &id)?;
-                return id.checked_sub(min).map(Some).ok_or_else(|| {
+                return id.checked_sub(min).map(|k| Some(k / step)).ok_or_else(|| {
                     Error::Usage(format!(
                         "SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}"
                     ))

@@ -120,9 +120,10 @@ fn closest_u(p: DVec3, d: DVec3, lo: f64, hi: f64) -> f64 {
     (-p.dot(d) / dd).clamp(lo, hi)
 }
 
-/// Whether `p + d u` is within both NMAC thresholds for some `u` in `[0, 1]`.
+/// Whether `p + d u` is within both NMAC thresholds (strictly) for some `u` in `[0, 1]`.
 fn nmac_within(p: DVec3, d: DVec3) -> bool {
-    // The sub-interval where the vertical separation is under the threshold (it is linear).
+    // The open sub-interval where the vertical separation is under its threshold (it is
+    // linear in u): empty, or of positive length.
     let (lo, hi) = if d.z == 0.0 {
         if p.z.abs() >= NMAC_VERTICAL_M {
             return false;
@@ -133,14 +134,14 @@ fn nmac_within(p: DVec3, d: DVec3) -> bool {
         let b = (NMAC_VERTICAL_M - p.z) / d.z;
         (a.min(b).max(0.0), a.max(b).min(1.0))
     };
-    if lo > hi {
+    if lo >= hi {
         return false;
     }
-    // The least horizontal separation inside it.
+    // The least horizontal separation over its closure: horizontal separation is continuous,
+    // so it is under its threshold somewhere inside exactly when it is at that least point.
     let (ph, dh) = (p.truncate().extend(0.0), d.truncate().extend(0.0));
     let u = closest_u(ph, dh, lo, hi);
-    let at = p + d * u;
-    at.truncate().length() < NMAC_HORIZONTAL_M && at.z.abs() < NMAC_VERTICAL_M
+    (ph + dh * u).length() < NMAC_HORIZONTAL_M
 }
 
 #[cfg(test)]
