@@ -11,7 +11,6 @@ use serde::Serialize;
 use serde_json::json;
 
 use crate::collision::approach::Approaches;
-use crate::collision::bodies::waypoint_pose;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{
     BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Pipeline, VehicleKey,
@@ -188,15 +187,8 @@ impl Session {
             t_before,
             current.t_s,
         );
-        self.approaches.observe(
-            sender.system_id,
-            (
-                t_before,
-                previous.map_or(current.position_enu_m, |p| p.position_enu_m),
-            ),
-            (current.t_s, current.position_enu_m),
-            &self.dynamic,
-        );
+        self.approaches
+            .observe(sender.system_id, previous.as_ref(), &current, &self.dynamic);
         let first = self.events.len();
         let started = Instant::now();
         let key = VehicleKey {
@@ -441,11 +433,16 @@ fn fill_dynamic(
         let mut generation = 0;
         let poses = match &d.source {
             DynamicSource::Waypoints(w) => {
-                let at = |t: f64| {
-                    let (pose, velocity) = waypoint_pose(w, t - flight_start_t_s);
-                    (pose, velocity.length())
-                };
-                Some((at(t_before), at(t_now)))
+                out.push(DynamicBody::on_track(
+                    index as u32,
+                    d.id.clone(),
+                    d.kind,
+                    d.threat,
+                    d.geometry_index,
+                    w,
+                    (t_before - flight_start_t_s, t_now - flight_start_t_s),
+                ));
+                continue;
             }
             DynamicSource::SystemId(id) => {
                 claimed_sysids[usize::from(*id)] = true;

@@ -11,9 +11,7 @@ use glam::DVec3;
 use crate::collision::approach::Approaches;
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::events::Event;
-use crate::collision::pipeline::{
-    BodyKey, BodySource, CollisionConfig, DynamicBody, Pipeline, VehicleKey,
-};
+use crate::collision::pipeline::{CollisionConfig, DynamicBody, Pipeline, VehicleKey};
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::IngestStats;
 use crate::ingest::tlog::TlogReader;
@@ -151,7 +149,7 @@ pub fn fly(scene: &Scene, config: CollisionConfig, encounter: &Encounter) -> Flo
         bodies.clear();
         for (index, d) in scene.dynamic.iter().enumerate() {
             if let DynamicSource::Waypoints(w) = &d.source {
-                bodies.push(scripted(
+                bodies.push(DynamicBody::on_track(
                     index as u32,
                     d.id.clone(),
                     d.kind,
@@ -163,7 +161,7 @@ pub fn fly(scene: &Scene, config: CollisionConfig, encounter: &Encounter) -> Flo
             }
         }
         let kind = encounter.intruder_kind;
-        bodies.push(scripted(
+        bodies.push(DynamicBody::on_track(
             scene.dynamic.len() as u32,
             intruder_id.clone(),
             kind,
@@ -172,15 +170,7 @@ pub fn fly(scene: &Scene, config: CollisionConfig, encounter: &Encounter) -> Flo
             &encounter.intruder,
             (t_before, t_s),
         ));
-        approaches.observe(
-            OWNSHIP,
-            (
-                t_before,
-                previous.map_or(current.position_enu_m, |p| p.position_enu_m),
-            ),
-            (t_s, current.position_enu_m),
-            &bodies,
-        );
+        approaches.observe(OWNSHIP, previous.as_ref(), &current, &bodies);
         let started = Instant::now();
         pipeline.step(
             scene,
@@ -217,32 +207,5 @@ fn ownship_sample(plane: &LocalTangentPlane, track: &[Waypoint], t_s: f64) -> Tr
             enu_from_frd: pose.enu_from_body,
             body_rates_radps: DVec3::ZERO,
         },
-    }
-}
-
-/// A scripted moving body over the interval `(t_before_s, t_now_s)`.
-fn scripted(
-    index: u32,
-    id: Arc<str>,
-    kind: Kind,
-    threat: f64,
-    geometry_index: usize,
-    track: &[Waypoint],
-    (t_before_s, t_now_s): (f64, f64),
-) -> DynamicBody {
-    let (previous, _) = waypoint_pose(track, t_before_s);
-    let (current, velocity) = waypoint_pose(track, t_now_s);
-    DynamicBody {
-        key: BodyKey {
-            source: BodySource::Scripted(index),
-            generation: 0,
-        },
-        id,
-        kind,
-        threat,
-        geometry_index,
-        previous,
-        current,
-        speed_mps: velocity.length(),
     }
 }

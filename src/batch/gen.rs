@@ -80,7 +80,7 @@ pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
     if Mode::from_name(&options.mode).is_none() {
         return Err(Error::Usage(format!("mode {:?}: not a mode", options.mode)));
     }
-    if !Kind::ALL.iter().any(|k| k.name() == options.intruder_kind) {
+    if Kind::from_name(&options.intruder_kind).is_none() {
         return Err(Error::Usage(format!(
             "intruder kind {:?}: not a kind (a320, b737, dji, airship, balloon, ...)",
             options.intruder_kind

@@ -3,8 +3,9 @@
 use serde::Serialize;
 
 use crate::batch::manifest::Run;
-use crate::collision::approach::Approach;
+use crate::collision::approach::Approaches;
 use crate::collision::events::{Event, EventKind};
+use crate::collision::pipeline::PipelineTotals;
 use crate::ingest::stats::IngestStats;
 
 /// The closest approach of one vehicle to one moving body.
@@ -120,9 +121,29 @@ impl RunRow {
         }
     }
 
-    /// Fill in the first collision and the closest near miss from a run's events (in time
-    /// order); times become seconds after `t0_s`.
-    pub fn record_events<'a>(&mut self, events: impl IntoIterator<Item = &'a Event>, t0_s: f64) {
+    /// Fill in what a run found: its pipeline's totals, its collision and near-miss events (in
+    /// time order), its closest approaches and its tick costs (nanoseconds); times become
+    /// seconds after `t0_s`.
+    pub fn record_run(
+        &mut self,
+        totals: &PipelineTotals,
+        events: &[Event],
+        approaches: &Approaches,
+        tick_cost_ns: &[u64],
+        t0_s: f64,
+    ) {
+        self.ticks = totals.ticks;
+        self.collisions = totals.collisions;
+        self.near_misses = totals.near_misses;
+        self.record_events(events, t0_s);
+        self.record_approaches(approaches, t0_s);
+        let (median_us, p99_us) = crate::session::percentiles_us(tick_cost_ns);
+        self.tick_cost_us_median = median_us;
+        self.tick_cost_us_p99 = p99_us;
+    }
+
+    /// The first collision and the closest near miss.
+    fn record_events(&mut self, events: &[Event], t0_s: f64) {
         for e in events {
             match &e.kind {
                 EventKind::Collision {
@@ -144,18 +165,14 @@ impl RunRow {
         }
     }
 
-    /// Fill in the approaches (`(vehicle, track, approach)`, times on the clock of `t0_s`),
-    /// the closest of them and whether any was an NMAC.
-    pub fn record_approaches<'a>(
-        &mut self,
-        approaches: impl IntoIterator<Item = (u8, &'a str, &'a Approach)>,
-        t0_s: f64,
-    ) {
+    /// Every approach, the closest of them, and whether any was an NMAC.
+    fn record_approaches(&mut self, approaches: &Approaches, t0_s: f64) {
         self.approaches = approaches
-            .into_iter()
-            .map(|(vehicle, track, a)| ApproachRow {
-                vehicle,
-                track: track.to_owned(),
+            .by_pair
+            .iter()
+            .map(|((vehicle, track), a)| ApproachRow {
+                vehicle: *vehicle,
+                track: track.to_string(),
                 distance_m: a.distance_m,
                 horizontal_m: a.horizontal_m,
                 vertical_m: a.vertical_m,
@@ -183,12 +200,5 @@ impl RunRow {
         self.messages += stats.messages_total();
         self.bad_frames += stats.bad_frames();
         self.rejected += stats.rejected_total();
-    }
-
-    /// Fill in the tick costs (nanoseconds each).
-    pub fn record_costs(&mut self, tick_cost_ns: &[u64]) {
-        let (median_us, p99_us) = crate::session::percentiles_us(tick_cost_ns);
-        self.tick_cost_us_median = median_us;
-        self.tick_cost_us_p99 = p99_us;
     }
 }

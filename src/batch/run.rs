@@ -132,9 +132,7 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
                     .map_err(|e| format!("intruder: {e}"))?,
                 intruder_kind: match run.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
                     None => Kind::Dji,
-                    Some(k) => Kind::ALL
-                        .into_iter()
-                        .find(|kind| kind.name() == k)
+                    Some(k) => Kind::from_name(k)
                         .ok_or_else(|| format!("intruder_kind {k:?}: not a kind"))?,
                 },
                 rate_hz: positive("rate_hz", run.rate_hz.unwrap_or(DEFAULT_RATE_HZ))?,
@@ -142,19 +140,13 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
             };
             let flown = encounter::fly(&scene, config, &encounter);
             row.record_ingest(&stats);
-            row.ticks = flown.pipeline.totals.ticks;
-            row.collisions = flown.pipeline.totals.collisions;
-            row.near_misses = flown.pipeline.totals.near_misses;
-            row.record_events(&flown.events, 0.0);
-            row.record_approaches(
-                flown
-                    .approaches
-                    .by_pair
-                    .iter()
-                    .map(|((v, id), a)| (*v, &**id, a)),
+            row.record_run(
+                &flown.pipeline.totals,
+                &flown.events,
+                &flown.approaches,
+                &flown.tick_cost_ns,
                 0.0,
             );
-            row.record_costs(&flown.tick_cost_ns);
             Ok(())
         }
         _ => Err("give either `tlog`, or both `own` and `intruder`".into()),
@@ -201,19 +193,13 @@ fn replay_tlog(
         .map_or(0.0, |(first, _)| first);
     row.record_ingest(&session.ingestor.stats);
     if let Some(p) = &session.pipeline {
-        row.ticks = p.totals.ticks;
-        row.collisions = p.totals.collisions;
-        row.near_misses = p.totals.near_misses;
+        row.record_run(
+            &p.totals,
+            &session.notable,
+            &session.approaches,
+            &session.tick_cost_ns,
+            t0_s,
+        );
     }
-    row.record_events(&session.notable, t0_s);
-    row.record_approaches(
-        session
-            .approaches
-            .by_pair
-            .iter()
-            .map(|((v, id), a)| (*v, &**id, a)),
-        t0_s,
-    );
-    row.record_costs(&session.tick_cost_ns);
     Ok(())
 }

@@ -17,6 +17,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use crate::collision::bodies::DynamicBody;
+use crate::world::TrackSample;
 
 /// NMAC horizontal threshold: 500 ft, metres.
 pub const NMAC_HORIZONTAL_M: f64 = 152.4;
@@ -86,22 +87,23 @@ pub struct Approaches {
 }
 
 impl Approaches {
-    /// Fold in one interval of vehicle `own` (from `own_before_enu_m` at `t_before_s` to
-    /// `own_now_enu_m` at `t_now_s`) against every moving body of that interval. Allocates only
+    /// Fold in one tick of vehicle `own` (from its `previous` sample, if any, to `current`)
+    /// against every moving body of that interval, as the pipeline sees them. Allocates only
     /// the first time a pair is seen.
     pub fn observe(
         &mut self,
         own: u8,
-        (t_before_s, own_before_enu_m): (f64, DVec3),
-        (t_now_s, own_now_enu_m): (f64, DVec3),
+        previous: Option<&TrackSample>,
+        current: &TrackSample,
         bodies: &[DynamicBody],
     ) {
+        let before = previous.unwrap_or(current);
         for body in bodies {
             let a = Approach::over(
-                t_before_s,
-                t_now_s,
-                body.previous.position_enu_m - own_before_enu_m,
-                body.current.position_enu_m - own_now_enu_m,
+                before.t_s,
+                current.t_s,
+                body.previous.position_enu_m - before.position_enu_m,
+                body.current.position_enu_m - current.position_enu_m,
             );
             self.by_pair
                 .entry((own, body.id.clone()))

@@ -177,6 +177,36 @@ pub struct DynamicBody {
     pub speed_mps: f64,
 }
 
+impl DynamicBody {
+    /// Scripted track number `index` (a scene's, or an encounter's intruder) over the interval
+    /// from `t_before_s` to `t_now_s`, seconds on the track's own clock.
+    pub fn on_track(
+        index: u32,
+        id: Arc<str>,
+        kind: Kind,
+        threat: f64,
+        geometry_index: usize,
+        track: &[crate::scene::Waypoint],
+        (t_before_s, t_now_s): (f64, f64),
+    ) -> DynamicBody {
+        let (previous, _) = waypoint_pose(track, t_before_s);
+        let (current, velocity) = waypoint_pose(track, t_now_s);
+        DynamicBody {
+            key: BodyKey {
+                source: BodySource::Scripted(index),
+                generation: 0,
+            },
+            id,
+            kind,
+            threat,
+            geometry_index,
+            previous,
+            current,
+            speed_mps: velocity.length(),
+        }
+    }
+}
+
 /// The world a stage looks at in one tick.
 pub(crate) struct World<'a> {
     pub scene: &'a Scene,

@@ -97,6 +97,11 @@ impl Kind {
         }
     }
 
+    /// The kind of a name as [`Kind::name`] gives it.
+    pub fn from_name(name: &str) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
     /// The kind an ADS-B emitter type (ADSB_EMITTER_TYPE) stands for.
     pub fn from_adsb_emitter(emitter_type: u8) -> Kind {
         match emitter_type {
