@@ -236,8 +236,9 @@ pub struct ReplayArgs {
 #[derive(Debug, Args)]
 pub struct LiveArgs {
     /// udpin:HOST:PORT (listen), udpout:HOST:PORT, tcpout:HOST:PORT, or tcpin:HOST:PORT.
-    #[arg(long)]
-    pub connect: String,
+    /// Repeat for several links (SITLs on separate ports, a UDP and a TCP link).
+    #[arg(long, required = true)]
+    pub connect: Vec<String>,
     /// Rate to ask for GLOBAL_POSITION_INT and ATTITUDE at, Hz.
     #[arg(long, default_value_t = 20.0)]
     pub rate_hz: f64,
@@ -256,8 +257,9 @@ pub struct LiveArgs {
 #[derive(Debug, Args)]
 pub struct RecordArgs {
     /// udpin:HOST:PORT (listen), udpout:HOST:PORT, tcpout:HOST:PORT, or tcpin:HOST:PORT.
-    #[arg(long)]
-    pub connect: String,
+    /// Repeat for several links (SITLs on separate ports, a UDP and a TCP link).
+    #[arg(long, required = true)]
+    pub connect: Vec<String>,
     /// The tlog to write.
     pub out: PathBuf,
     /// Rate to ask for GLOBAL_POSITION_INT and ATTITUDE at, Hz.

@@ -62,6 +62,67 @@ pub struct HeartbeatReport {
     pub autopilot: Option<MavAutopilot>,
 }
 
+impl HeartbeatReport {
+    /// True for a vehicle's autopilot: a real MAV_AUTOPILOT (not INVALID) and a vehicle
+    /// MAV_TYPE (not a GCS, companion computer, gimbal, camera, ADS-B receiver, ...). Only
+    /// these are asked for streams, and only their sequence numbers count as the link's.
+    ///
+    /// ```
+    /// use mavlink::dialects::ardupilotmega::{MavAutopilot, MavType};
+    /// use savsim::ingest::decode::HeartbeatReport;
+    /// let copter = HeartbeatReport {
+    ///     vehicle_type: Some(MavType::MAV_TYPE_QUADROTOR),
+    ///     autopilot: Some(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA),
+    /// };
+    /// let companion = HeartbeatReport {
+    ///     vehicle_type: Some(MavType::MAV_TYPE_ONBOARD_CONTROLLER),
+    ///     autopilot: Some(MavAutopilot::MAV_AUTOPILOT_INVALID),
+    /// };
+    /// assert!(copter.is_autopilot() && !companion.is_autopilot());
+    /// ```
+    pub fn is_autopilot(&self) -> bool {
+        use MavType::*;
+        let vehicle = matches!(
+            self.vehicle_type,
+            Some(
+                MAV_TYPE_FIXED_WING
+                    | MAV_TYPE_QUADROTOR
+                    | MAV_TYPE_COAXIAL
+                    | MAV_TYPE_HELICOPTER
+                    | MAV_TYPE_AIRSHIP
+                    | MAV_TYPE_FREE_BALLOON
+                    | MAV_TYPE_ROCKET
+                    | MAV_TYPE_GROUND_ROVER
+                    | MAV_TYPE_SURFACE_BOAT
+                    | MAV_TYPE_SUBMARINE
+                    | MAV_TYPE_HEXAROTOR
+                    | MAV_TYPE_OCTOROTOR
+                    | MAV_TYPE_TRICOPTER
+                    | MAV_TYPE_FLAPPING_WING
+                    | MAV_TYPE_KITE
+                    | MAV_TYPE_VTOL_TAILSITTER_DUOROTOR
+                    | MAV_TYPE_VTOL_TAILSITTER_QUADROTOR
+                    | MAV_TYPE_VTOL_TILTROTOR
+                    | MAV_TYPE_VTOL_FIXEDROTOR
+                    | MAV_TYPE_VTOL_TAILSITTER
+                    | MAV_TYPE_VTOL_TILTWING
+                    | MAV_TYPE_VTOL_RESERVED5
+                    | MAV_TYPE_PARAFOIL
+                    | MAV_TYPE_DODECAROTOR
+                    | MAV_TYPE_DECAROTOR
+                    | MAV_TYPE_GENERIC_MULTIROTOR
+                    | MAV_TYPE_SPACECRAFT_ORBITER
+                    | MAV_TYPE_GROUND_QUADRUPED
+                    | MAV_TYPE_VTOL_GYRODYNE
+            )
+        );
+        vehicle
+            && self
+                .autopilot
+                .is_some_and(|a| a != MavAutopilot::MAV_AUTOPILOT_INVALID)
+    }
+}
+
 /// An ADS-B traffic report (ADSB_VEHICLE) in SI units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AdsbReport {
@@ -198,9 +259,9 @@ fn attitude_from(m: &ATTITUDE_DATA) -> Result<AttitudeReport, Rejection> {
     })
 }
 
-/// HEARTBEAT is decoded field by field so that a vehicle type newer than the dialect still
-/// identifies a vehicle (the crate's `deser` rejects unknown enum values).
-fn heartbeat_from(payload: &[u8]) -> HeartbeatReport {
+/// A HEARTBEAT payload, decoded field by field so that a vehicle type newer than the dialect
+/// still identifies a vehicle (the crate's `deser` rejects unknown enum values).
+pub fn heartbeat_from(payload: &[u8]) -> HeartbeatReport {
     use num_traits::FromPrimitive;
     let byte = |i: usize| payload.get(i).copied().unwrap_or(0);
     HeartbeatReport {

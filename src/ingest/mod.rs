@@ -5,15 +5,19 @@
 //! - [`stats`]: counts of everything seen, for `--summary-json`.
 //! - [`tlog`]: tlog reading (with resync) and writing.
 //! - [`stream`]: datagrams and byte streams (UDP, TCP) through the same framer.
-//! - [`live`]: tokio sockets, GCS heartbeat and stream-rate requests.
+//! - [`address`]: `--connect` addresses.
+//! - [`live`]: tokio sockets: chunks in, addressed bytes out.
+//! - [`supervisor`]: per-vehicle routes, stream requests and their supervision (pure).
 //!
 //! Everything funnels into [`Ingestor::frame`], so replay and live decode identically.
 
+pub mod address;
 pub mod decode;
 pub mod frame;
 pub mod live;
 pub mod stats;
 pub mod stream;
+pub mod supervisor;
 pub mod tlog;
 
 use decode::Report;

@@ -40,6 +40,9 @@ pub struct IngestStats {
     pub by_sender: BTreeMap<SenderId, u64>,
     /// Sequence-number bookkeeping per sender: frames the link lost, repeated or delivered late.
     pub sequence: BTreeMap<SenderId, SequenceCounts>,
+    /// Senders whose HEARTBEAT names an autopilot: the link totals count only these; what
+    /// they forward (a GCS, a companion computer) is counted apart.
+    pub autopilots: std::collections::BTreeSet<SenderId>,
     /// Valid frames per protocol version (v1, v2).
     pub by_version: [u64; 2],
     /// Frames whose checksum failed.
@@ -68,10 +71,6 @@ pub struct IngestStats {
     pub dropped_chunks: u64,
     /// Live: bytes in those.
     pub dropped_bytes: u64,
-    /// Live: MAV_CMD_SET_MESSAGE_INTERVAL rounds sent.
-    pub interval_requests: u64,
-    /// Live: REQUEST_DATA_STREAM fallbacks sent.
-    pub stream_requests: u64,
 }
 
 impl Default for IngestStats {
@@ -81,6 +80,7 @@ impl Default for IngestStats {
             by_large_id: BTreeMap::new(),
             by_sender: BTreeMap::new(),
             sequence: BTreeMap::new(),
+            autopilots: Default::default(),
             by_version: [0; 2],
             bad_crc: 0,
             unknown_ids: BTreeMap::new(),
@@ -95,15 +95,15 @@ impl Default for IngestStats {
             time_span_s: None,
             dropped_chunks: 0,
             dropped_bytes: 0,
-            interval_requests: 0,
-            stream_requests: 0,
         }
     }
 }
 
 impl IngestStats {
     /// Count a complete frame by its status. Returns true when it is valid (to be decoded).
+    /// Sequence numbers are judged at the last time [`IngestStats::observe_time`] was given.
     pub fn count_frame(&mut self, frame: &RawFrame<'_>) -> bool {
+        let t_s = self.time_span_s.map_or(0.0, |(_, last)| last);
         match frame.status {
             FrameStatus::Valid => {
                 match usize::try_from(frame.message_id) {
@@ -118,7 +118,12 @@ impl IngestStats {
                 self.sequence
                     .entry(sender)
                     .or_insert_with(|| SequenceCounts::starting_at(frame.sequence))
-                    .observe(frame.sequence);
+                    .observe_at(frame.sequence, t_s);
+                if frame.message_id == crate::ingest::decode::ID_HEARTBEAT
+                    && crate::ingest::decode::heartbeat_from(frame.payload).is_autopilot()
+                {
+                    self.autopilots.insert(sender);
+                }
                 self.by_version[usize::from(frame.version == MavlinkVersion::V2)] += 1;
                 true
             }
@@ -134,6 +139,13 @@ impl IngestStats {
                 self.bad_incompat_flags += 1;
                 false
             }
+        }
+    }
+
+    /// Restart a sender's sequence bookkeeping at `sequence` (its next frame): it rebooted.
+    pub fn restart_sequence(&mut self, sender: SenderId, sequence: u8) {
+        if let Some(counts) = self.sequence.get_mut(&sender) {
+            counts.restart(sequence);
         }
     }
 
@@ -218,6 +230,7 @@ impl IngestStats {
             mine.lost += v.lost;
             mine.repeated += v.repeated;
             mine.late += v.late;
+            mine.restarts += v.restarts;
             mine.last = v.last;
         }
         for i in 0..2 {
@@ -238,12 +251,28 @@ impl IngestStats {
         self.clock_backwards += other.clock_backwards;
         self.dropped_chunks += other.dropped_chunks;
         self.dropped_bytes += other.dropped_bytes;
-        self.interval_requests += other.interval_requests;
-        self.stream_requests += other.stream_requests;
+        self.autopilots.extend(other.autopilots.iter().copied());
         self.time_span_s = match (self.time_span_s, other.time_span_s) {
             (Some((a0, a1)), Some((b0, b1))) => Some((a0.min(b0), a1.max(b1))),
             (a, b) => a.or(b),
         };
+    }
+
+    /// Sequence counts summed over the senders `pick` chooses.
+    fn sequence_summary(&self, pick: impl Fn(&SenderId) -> bool) -> SequenceSummary {
+        let picked = || {
+            self.sequence
+                .iter()
+                .filter(|(s, _)| pick(s))
+                .map(|(_, c)| c)
+        };
+        SequenceSummary {
+            senders: picked().count() as u64,
+            lost: picked().map(|s| s.lost).sum(),
+            repeated: picked().map(|s| s.repeated).sum(),
+            late: picked().map(|s| s.late).sum(),
+            restarts: picked().map(|s| s.restarts).sum(),
+        }
     }
 
     /// The JSON object `--summary-json` writes under `"ingest"`.
@@ -281,14 +310,9 @@ impl IngestStats {
             live: Live {
                 dropped_chunks: self.dropped_chunks,
                 dropped_bytes: self.dropped_bytes,
-                interval_requests: self.interval_requests,
-                stream_requests: self.stream_requests,
             },
-            sequence: SequenceSummary {
-                lost: self.sequence.values().map(|s| s.lost).sum(),
-                repeated: self.sequence.values().map(|s| s.repeated).sum(),
-                late: self.sequence.values().map(|s| s.late).sum(),
-            },
+            sequence: self.sequence_summary(|s| self.autopilots.contains(s)),
+            forwarded_sequence: self.sequence_summary(|s| !self.autopilots.contains(s)),
             senders: self
                 .by_sender
                 .iter()
@@ -324,8 +348,12 @@ pub struct IngestSummary {
     pub clock_backwards: u64,
     /// Live link counters (zero for replays).
     pub live: Live,
-    /// Frames lost, repeated or late by the senders' sequence numbers, all senders.
+    /// Frames lost, repeated or late by the autopilots' sequence numbers (the link's own
+    /// quality; per sender under `vehicles`).
     pub sequence: SequenceSummary,
+    /// The same for every other sender (GCSs, companion computers a vehicle forwards; a tlog
+    /// with no heartbeat has only these).
+    pub forwarded_sequence: SequenceSummary,
     /// Valid messages per "sysid/compid".
     pub senders: BTreeMap<String, u64>,
     /// First and last receive/tlog time, seconds.
@@ -335,6 +363,10 @@ pub struct IngestSummary {
 /// Sequence counts summed over senders.
 #[derive(Debug, Clone, Serialize)]
 pub struct SequenceSummary {
+    /// Senders summed.
+    pub senders: u64,
+    /// Times a sender's bookkeeping restarted (a reboot, or a silence).
+    pub restarts: u64,
     /// Frames missing from the sequence (lost on the link or before the recording).
     pub lost: u64,
     /// Frames whose sequence number repeated the previous one (duplicated by the link).
@@ -346,7 +378,9 @@ pub struct SequenceSummary {
 /// One sender's sequence-number bookkeeping. MAVLink's 8-bit sequence counts each sender's
 /// frames; a jump of 2..=128 means frames were lost, 0 a repeat, more than 128 (a step back) a
 /// late frame, which is then no longer lost. Runs of more than 127 lost frames in a row are
-/// undercounted by 256 each.
+/// undercounted by 256 each. After a silence of [`SequenceCounts::SILENCE_S`], or a pause of
+/// [`SequenceCounts::REBOOT_PAUSE_S`] ending in sequence 0 (a reboot), the bookkeeping
+/// restarts: what a silence lost cannot be told.
 ///
 /// ```
 /// use savsim::ingest::stats::SequenceCounts;
@@ -355,8 +389,14 @@ pub struct SequenceSummary {
 ///     s.observe(seq);
 /// }
 /// assert_eq!((s.lost, s.repeated, s.late), (1 + 84, 1, 1));
+/// // A reboot: 5 s of silence, then the sequence starts again at 0. Nothing is late or lost.
+/// let mut r = SequenceCounts::starting_at(0);
+/// for (seq, t_s) in [(0, 0.0), (1, 0.1), (2, 0.2), (0, 5.2), (1, 5.3)] {
+///     r.observe_at(seq, t_s);
+/// }
+/// assert_eq!((r.lost, r.late, r.restarts), (0, 0, 1));
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct SequenceCounts {
     /// The newest sequence number seen.
     pub last: u8,
@@ -366,6 +406,11 @@ pub struct SequenceCounts {
     pub repeated: u64,
     /// Late (reordered) frames.
     pub late: u64,
+    /// Restarts (reboots, silences).
+    pub restarts: u64,
+    /// When the last frame came, s.
+    #[serde(skip)]
+    last_t_s: Option<f64>,
 }
 
 impl SequenceCounts {
@@ -376,6 +421,32 @@ impl SequenceCounts {
             last: first.wrapping_sub(1),
             ..Self::default()
         }
+    }
+
+    /// A silence this long restarts the bookkeeping, s: longer than a lost heartbeat or two
+    /// (1 Hz), shorter than a reboot of ArduPilot or PX4 SITL.
+    pub const SILENCE_S: f64 = 2.5;
+
+    /// Start again at `sequence` (the next frame's), counting a restart.
+    pub fn restart(&mut self, sequence: u8) {
+        self.last = sequence.wrapping_sub(1);
+        self.restarts += 1;
+    }
+
+    /// A sequence starting again at 0 after a pause this long is a reboot, s (a rebooting
+    /// autopilot is silent longer; a stream this slow is only heartbeats, whose 0 after 255
+    /// continues the count anyway).
+    pub const REBOOT_PAUSE_S: f64 = 0.5;
+
+    /// Note the next frame's sequence number, received at `t_s`.
+    pub fn observe_at(&mut self, sequence: u8, t_s: f64) {
+        let pause_s = self.last_t_s.map_or(0.0, |last| t_s - last);
+        let restarted_at_zero = sequence == 0 && sequence != self.last.wrapping_add(1);
+        if pause_s > Self::SILENCE_S || (pause_s > Self::REBOOT_PAUSE_S && restarted_at_zero) {
+            self.restart(sequence);
+        }
+        self.last_t_s = Some(t_s);
+        self.observe(sequence);
     }
 
     /// Note the next frame's sequence number.
@@ -448,8 +519,4 @@ pub struct Live {
     pub dropped_chunks: u64,
     /// Bytes in those.
     pub dropped_bytes: u64,
-    /// MAV_CMD_SET_MESSAGE_INTERVAL rounds sent.
-    pub interval_requests: u64,
-    /// REQUEST_DATA_STREAM fallbacks sent.
-    pub stream_requests: u64,
 }

@@ -220,3 +220,51 @@ pub fn feed(session: &mut Session, t_s: f64, bytes: &[u8]) {
         "savsim reads every frame the mavlink crate wrote"
     );
 }
+
+/// Run savsim's live path on links already open on `runtime` for `duration`, with no scene.
+pub fn run_live(
+    runtime: &tokio::runtime::Runtime,
+    links: Vec<savsim::ingest::live::Link>,
+    duration: std::time::Duration,
+    session: Session,
+    record: Option<&Path>,
+) -> savsim::app::live::LiveRun {
+    let options = savsim::app::live::LiveOptions {
+        duration: Some(duration),
+        ..Default::default()
+    };
+    let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let run =
+        savsim::app::live::run_links(runtime.handle(), links, &options, session, record, shutdown)
+            .unwrap();
+    if let Err(e) = &run.ended {
+        panic!("the live run ended with {e}");
+    }
+    run
+}
+
+/// A tokio runtime with two workers for a test's peers and savsim's links.
+pub fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+/// A UDP link bound to 127.0.0.1:0 on `runtime`, with its address.
+pub fn udp_link(
+    runtime: &tokio::runtime::Runtime,
+) -> (savsim::ingest::live::Link, std::net::SocketAddr) {
+    let address = savsim::ingest::address::ConnectAddress::UdpIn(
+        "127.0.0.1:0"
+            .parse::<std::net::SocketAddr>()
+            .unwrap()
+            .into(),
+    );
+    let link = runtime
+        .block_on(savsim::ingest::live::Link::open(&address))
+        .unwrap();
+    let local = link.local_addr().unwrap();
+    (link, local)
+}

@@ -1,7 +1,6 @@
 //! Issue 11: exact contacts as a layer of their own, sensing beside them, stable identities and
 //! the vehicle's own clock. Each test names what it guards against.
 
-use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -13,7 +12,8 @@ use savsim::collision::pipeline::{
     BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
 };
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::live::{run_link, ConnectAddress, Link, LiveOptions};
+use savsim::ingest::address::ConnectAddress;
+use savsim::ingest::live::Link;
 use savsim::scene::{Kind, Scene};
 use savsim::session::Session;
 use savsim::world::TrackSample;
@@ -246,23 +246,12 @@ fn two_samples_in_one_tcp_read_are_swept_apart() {
             tokio::time::sleep(Duration::from_millis(200)).await;
         }
     });
-    let address = ConnectAddress::TcpOut(addr.to_string());
+    let address = ConnectAddress::TcpOut(addr.into());
     let link = runtime.block_on(Link::open(&address)).unwrap();
-    let options = LiveOptions {
-        address,
-        duration: Some(Duration::from_secs(20)),
-        ..LiveOptions::default()
-    };
     let session = Session::new(Some(Arc::new(s)), CollisionConfig::default(), None).unwrap();
-    let session = run_link(
-        &runtime,
-        link,
-        options,
-        session,
-        None,
-        Arc::new(AtomicBool::new(false)),
-    )
-    .unwrap();
+    // The server sends for about 2 s, then closes; savsim would reconnect, and stops at 4 s.
+    let run = crate::common::run_live(&runtime, vec![link], Duration::from_secs(4), session, None);
+    let session = run.session;
     assert_eq!(session.ingestor.stats.count_of(33), 10);
     let hits = collisions_on(&session.notable, 1);
     assert_eq!(hits.len(), 1, "{hits:?}");

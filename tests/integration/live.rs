@@ -1,6 +1,9 @@
-//! A live UDP link on 127.0.0.1 (ports bound to 0) against a vehicle played by a tokio task with
-//! the mavlink crate; and `record`'s tlog read back by pymavlink. Bounded in time: the link runs
-//! for 2 s.
+//! Live links on 127.0.0.1 (ports bound to 0) against vehicles played by tokio tasks with the
+//! mavlink crate, behaving as the autopilots do: an ArduPilot streams positions only after a
+//! SET_MESSAGE_INTERVAL addressed to its own (sysid, compid) and loses its streams at a
+//! reboot; a PX4 streams at 50 Hz by default and falls back to it at a reboot. Several vehicles
+//! on one UDP link, a forwarded companion computer, tcpin and tcpout lifecycles, SIGINT, and
+//! `record`'s tlog read back by pymavlink. Every run stops by itself within a few seconds.
 
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
@@ -13,157 +16,279 @@ use mavlink::dialects::ardupilotmega::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
 };
 use mavlink::{MavHeader, MavlinkVersion};
+use savsim::app::live::LiveRun;
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::geo::Geodetic;
-use savsim::ingest::live::{run_link, ConnectAddress, Link, LiveOptions};
+use savsim::ingest::address::ConnectAddress;
+use savsim::ingest::live::Link;
 use savsim::ingest::stats::SenderId;
 use savsim::session::Session;
 use tokio::net::UdpSocket;
 
-use crate::common::{have_pymavlink, python, root};
+use crate::common::{have_pymavlink, python, root, run_live, runtime, udp_link};
+
+/// How the played autopilot behaves.
+#[derive(Debug, Clone, Copy)]
+struct Behaviour {
+    sysid: u8,
+    autopilot: MavAutopilot,
+    /// Streams at 50 Hz before any request (PX4), or nothing until asked (ArduPilot).
+    streams_by_default: bool,
+    /// Reboot at this time after start: silent for `reboot_silence`, then sequence and clock
+    /// start again from 0 and the requested rates are forgotten.
+    reboot_at: Option<Duration>,
+    reboot_silence: Duration,
+    /// Also forward a companion computer's heartbeat as sysid/191.
+    forward_companion: bool,
+    run_for: Duration,
+}
+
+impl Behaviour {
+    fn ardupilot(sysid: u8) -> Self {
+        Self {
+            sysid,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            streams_by_default: false,
+            reboot_at: None,
+            reboot_silence: Duration::from_millis(800),
+            forward_companion: false,
+            run_for: Duration::from_millis(2500),
+        }
+    }
+}
 
 /// What the vehicle heard from savsim.
 #[derive(Debug, Default)]
 struct Heard {
     gcs_heartbeats: usize,
+    /// SET_MESSAGE_INTERVAL addressed to this vehicle: message id -> interval, us.
     interval_requests: BTreeMap<u32, f32>,
+    /// Commands or requests addressed to anyone else (the forwarded companion).
+    misaddressed: usize,
+    data_stream_requests: usize,
     sent_positions: usize,
+    positions_after_reboot: usize,
     last_position: Option<(i32, i32, i32)>,
 }
 
-fn encode(seq: &mut u8, message: &MavMessage) -> Vec<u8> {
-    let mut buf = Vec::new();
-    let header = MavHeader {
-        system_id: 7,
-        component_id: 1,
-        sequence: *seq,
-    };
-    *seq = seq.wrapping_add(1);
-    mavlink::write_versioned_msg(&mut buf, MavlinkVersion::V2, header, message).unwrap();
-    buf
+struct Encoder {
+    sysid: u8,
+    seq: u8,
 }
 
-/// The vehicle: streams a flight at 50 Hz for `duration`, answers interval requests.
-async fn vehicle(
-    socket: UdpSocket,
-    savsim: SocketAddr,
-    duration: Duration,
-    heard: Arc<Mutex<Heard>>,
-) {
-    let mut seq = 0u8;
-    let mut buf = [0u8; 2048];
+impl Encoder {
+    fn encode(&mut self, compid: u8, message: &MavMessage) -> Vec<u8> {
+        let mut buf = Vec::new();
+        let header = MavHeader {
+            system_id: self.sysid.into(),
+            component_id: compid,
+            sequence: self.seq,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        mavlink::write_versioned_msg(&mut buf, MavlinkVersion::V2, header, message).unwrap();
+        buf
+    }
+}
+
+fn heartbeat(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype,
+        autopilot,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// Where the vehicle sends, and how it reaches savsim.
+enum Wire {
+    Udp(UdpSocket, SocketAddr),
+    Tcp(tokio::net::TcpStream),
+}
+
+/// The vehicle: heartbeats at 1 Hz, positions and attitude at the requested rate (checked
+/// every 10 ms), answers SET_MESSAGE_INTERVAL addressed to it.
+// REQUEST_DATA_STREAM is deprecated; the played ArduPilot still counts what it gets.
+#[allow(deprecated)]
+async fn vehicle(wire: Wire, b: Behaviour, heard: Arc<Mutex<Heard>>) {
+    let mut enc = Encoder {
+        sysid: b.sysid,
+        seq: 0,
+    };
+    // The companion numbers its own frames; only every third reaches this link.
+    let mut companion = Encoder {
+        sysid: b.sysid,
+        seq: 0,
+    };
+    // The vehicle was up for a minute before savsim; after a reboot its clock starts at 0.
+    let mut clock_offset_ms = 60_000u32;
+    let (udp, mut tcp) = match wire {
+        Wire::Udp(socket, to) => (Some((socket, to)), None),
+        Wire::Tcp(stream) => (None, Some(stream)),
+    };
     let start = tokio::time::Instant::now();
-    let mut tick = tokio::time::interval(Duration::from_millis(20));
+    let mut boot = start;
+    let mut rebooted = false;
+    let default_interval = b.streams_by_default.then_some(Duration::from_millis(20));
+    let mut interval: BTreeMap<u32, Duration> = BTreeMap::new();
+    let mut next_stream = start;
+    let mut next_heartbeat = start;
+    let mut tick = tokio::time::interval(Duration::from_millis(10));
+    let mut buf = vec![0u8; 4096];
     let mut n = 0i32;
-    while start.elapsed() < duration {
+    while start.elapsed() < b.run_for {
+        let mut out = Vec::new();
+        let mut forwarded: Vec<Vec<u8>> = Vec::new();
         tokio::select! {
             _ = tick.tick() => {
-                n += 1;
-                let lat = -353_632_610 + n * 10;
-                let lon = 1_491_652_300 + n * 5;
-                let alt = 600_000 + n;
-                let mut out = Vec::new();
-                if n % 50 == 1 {
-                    out.push(MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                        custom_mode: 0,
-                        mavtype: MavType::MAV_TYPE_QUADROTOR,
-                        autopilot: MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
-                        base_mode: MavModeFlag::empty(),
-                        system_status: MavState::MAV_STATE_ACTIVE,
-                        mavlink_version: 3,
-                    }));
+                let now = tokio::time::Instant::now();
+                if let Some(at) = b.reboot_at {
+                    if !rebooted && now - start >= at {
+                        rebooted = true;
+                        tokio::time::sleep(b.reboot_silence).await;
+                        boot = tokio::time::Instant::now();
+                        clock_offset_ms = 0;
+                        enc.seq = 0;
+                        interval.clear();
+                        continue;
+                    }
                 }
-                out.push(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-                    time_boot_ms: 10_000 + 20 * n as u32, lat, lon, alt, relative_alt: 16_000,
-                    vx: 50, vy: 25, vz: 0, hdg: 4500,
-                }));
-                out.push(MavMessage::ATTITUDE(ATTITUDE_DATA {
-                    time_boot_ms: 10_000 + 20 * n as u32, roll: 0.0, pitch: 0.0, yaw: 0.785,
-                    rollspeed: 0.0, pitchspeed: 0.0, yawspeed: 0.0,
-                }));
-                for m in &out {
-                    socket.send_to(&encode(&mut seq, m), savsim).await.unwrap();
+                if now >= next_heartbeat {
+                    next_heartbeat = now + Duration::from_secs(1);
+                    out.push((1, heartbeat(MavType::MAV_TYPE_QUADROTOR, b.autopilot)));
+                    if b.forward_companion {
+                        let hb = heartbeat(MavType::MAV_TYPE_ONBOARD_CONTROLLER, MavAutopilot::MAV_AUTOPILOT_INVALID);
+                        forwarded.push(companion.encode(191, &hb));
+                        companion.seq = companion.seq.wrapping_add(2);
+                    }
                 }
-                let mut h = heard.lock().unwrap();
-                h.sent_positions += 1;
-                h.last_position = Some((lat, lon, alt));
+                let period = interval.get(&33).copied().or(default_interval);
+                if let Some(period) = period {
+                    if now >= next_stream {
+                        next_stream = now + period;
+                        n += 1;
+                        let ms = (now - boot).as_millis() as u32 + clock_offset_ms;
+                        let (lat, lon, alt) = (-353_632_610 + n * 10, 1_491_652_300 + n * 5, 600_000 + n);
+                        out.push((1, MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                            time_boot_ms: ms, lat, lon, alt, relative_alt: 16_000,
+                            vx: 50, vy: 25, vz: 0, hdg: 4500,
+                        })));
+                        out.push((1, MavMessage::ATTITUDE(ATTITUDE_DATA {
+                            time_boot_ms: ms, roll: 0.0, pitch: 0.0, yaw: 0.785,
+                            rollspeed: 0.0, pitchspeed: 0.0, yawspeed: 0.0,
+                        })));
+                        let mut h = heard.lock().unwrap();
+                        h.sent_positions += 1;
+                        h.positions_after_reboot += usize::from(rebooted);
+                        h.last_position = Some((lat, lon, alt));
+                    }
+                }
             }
-            received = socket.recv_from(&mut buf) => {
-                let Ok((len, from)) = received else { continue };
+            received = async {
+                match (&udp, &mut tcp) {
+                    (Some((socket, _)), _) => socket.recv(&mut buf).await,
+                    (None, Some(stream)) => {
+                        use tokio::io::AsyncReadExt;
+                        stream.read(&mut buf).await
+                    }
+                    _ => unreachable!(),
+                }
+            } => {
+                let Ok(len) = received else { break };
+                if len == 0 { break }
                 let mut reader = mavlink::MavlinkReader::new(&buf[..len]);
                 while let Ok((_, message)) = reader.read_any_message::<MavMessage>() {
+                    let mut h = heard.lock().unwrap();
                     match message {
-                        MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
-                            heard.lock().unwrap().gcs_heartbeats += 1;
+                        MavMessage::HEARTBEAT(hb) if hb.mavtype == MavType::MAV_TYPE_GCS => h.gcs_heartbeats += 1,
+                        MavMessage::COMMAND_LONG(c) if (c.target_system, c.target_component) != (b.sysid, 1) => h.misaddressed += 1,
+                        MavMessage::REQUEST_DATA_STREAM(r) => {
+                            h.data_stream_requests += 1;
+                            if (r.target_system, r.target_component) != (b.sysid, 1) { h.misaddressed += 1 }
                         }
                         MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
-                            assert_eq!((c.target_system, c.target_component), (7, 1));
-                            heard.lock().unwrap().interval_requests.insert(c.param1 as u32, c.param2);
-                            let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+                            h.interval_requests.insert(c.param1 as u32, c.param2);
+                            interval.insert(c.param1 as u32, Duration::from_micros(c.param2 as u64));
+                            out.push((1, MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                                 command: c.command,
                                 result: MavResult::MAV_RESULT_ACCEPTED,
-                            });
-                            socket.send_to(&encode(&mut seq, &ack), from).await.unwrap();
+                            })));
                         }
                         _ => {}
                     }
                 }
             }
         }
+        let own = out
+            .iter()
+            .map(|(compid, m)| enc.encode(*compid, m))
+            .collect::<Vec<_>>();
+        for bytes in own.into_iter().chain(forwarded) {
+            match (&udp, &mut tcp) {
+                (Some((socket, to)), _) => {
+                    socket.send_to(&bytes, to).await.unwrap();
+                }
+                (None, Some(stream)) => {
+                    use tokio::io::AsyncWriteExt;
+                    if stream.write_all(&bytes).await.is_err() {
+                        return;
+                    }
+                }
+                _ => unreachable!(),
+            }
+        }
     }
 }
 
-fn run_vehicle_and_savsim(record: Option<&std::path::Path>) -> (Session, Heard) {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let (savsim_socket, vehicle_socket) = runtime.block_on(async {
-        (
-            UdpSocket::bind("127.0.0.1:0").await.unwrap(),
-            UdpSocket::bind("127.0.0.1:0").await.unwrap(),
-        )
-    });
-    let savsim_addr = savsim_socket.local_addr().unwrap();
-    let heard = Arc::new(Mutex::new(Heard::default()));
-    runtime.spawn(vehicle(
-        vehicle_socket,
-        savsim_addr,
-        Duration::from_millis(1800),
-        heard.clone(),
-    ));
-    let options = LiveOptions {
-        address: ConnectAddress::UdpIn(savsim_addr),
-        rate_hz: 20.0,
-        duration: Some(Duration::from_millis(2500)),
-        ..LiveOptions::default()
-    };
+/// Start one UDP vehicle per behaviour, each on its own socket (its own source port), all
+/// sending to one savsim udpin link; run savsim for `run_for`.
+fn vehicles_on_one_udp_link(
+    behaviours: &[Behaviour],
+    run_for: Duration,
+    record: Option<&std::path::Path>,
+) -> (LiveRun, Vec<Heard>) {
+    let runtime = runtime();
+    let (link, savsim) = udp_link(&runtime);
+    let heard: Vec<_> = behaviours
+        .iter()
+        .map(|b| {
+            let h = Arc::new(Mutex::new(Heard::default()));
+            let socket = runtime.block_on(UdpSocket::bind("127.0.0.1:0")).unwrap();
+            runtime.spawn(vehicle(Wire::Udp(socket, savsim), *b, h.clone()));
+            h
+        })
+        .collect();
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let link = Link::Udp {
-        socket: savsim_socket,
-        peer: None,
-        fixed_peer: false,
-    };
-    let shutdown = Arc::new(AtomicBool::new(false));
-    let session = run_link(&runtime, link, options, session, record, shutdown.clone()).unwrap();
-    assert!(!shutdown.load(Ordering::Relaxed));
-    let heard = std::mem::take(&mut *heard.lock().unwrap());
-    (session, heard)
+    let run = run_live(&runtime, vec![link], run_for, session, record);
+    let heard = heard
+        .iter()
+        .map(|h| std::mem::take(&mut *h.lock().unwrap()))
+        .collect();
+    (run, heard)
+}
+
+fn sender(sysid: u8) -> SenderId {
+    SenderId {
+        system_id: sysid,
+        component_id: 1,
+    }
 }
 
 #[test]
 fn live_udp_mirrors_the_vehicle_and_requests_rates() {
-    let (session, heard) = run_vehicle_and_savsim(None);
-    let sender = SenderId {
-        system_id: 7,
-        component_id: 1,
-    };
-    // Every position sent was received and decoded (loopback loses nothing at 50 Hz).
+    let (run, heard) = vehicles_on_one_udp_link(
+        &[Behaviour::ardupilot(7)],
+        Duration::from_millis(3000),
+        None,
+    );
+    let (session, heard) = (&run.session, &heard[0]);
+    // Every position sent was received and decoded (loopback loses nothing at 20 Hz).
     let stats = &session.ingestor.stats;
+    assert!(heard.sent_positions > 20, "{heard:?}");
     assert_eq!(stats.count_of(33) as usize, heard.sent_positions);
     assert_eq!(stats.dropped_chunks, 0);
-    let track = &session.world.vehicles[&sender];
+    let track = &session.world.vehicles[&sender(7)];
     let latest = track.history.latest().unwrap();
     let (lat, lon, alt) = heard.last_position.unwrap();
     let want = Geodetic::new(lat as f64 * 1e-7, lon as f64 * 1e-7, alt as f64 * 1e-3);
@@ -172,7 +297,7 @@ fn live_udp_mirrors_the_vehicle_and_requests_rates() {
     assert!((latest.position.alt_m - want.alt_m).abs() < 1e-9);
     assert_eq!(track.vehicle_type, Some(MavType::MAV_TYPE_QUADROTOR));
     // savsim spoke to the vehicle: heartbeats and both interval requests at 20 Hz.
-    assert!(heard.gcs_heartbeats >= 1, "{heard:?}");
+    assert!(heard.gcs_heartbeats >= 2, "{heard:?}");
     assert_eq!(
         heard.interval_requests.get(&33),
         Some(&50_000.0),
@@ -183,16 +308,108 @@ fn live_udp_mirrors_the_vehicle_and_requests_rates() {
         Some(&50_000.0),
         "{heard:?}"
     );
-    // The vehicle accepted, so no REQUEST_DATA_STREAM fallback.
-    assert_eq!(stats.stream_requests, 0);
+    // The vehicle accepted, so no REQUEST_DATA_STREAM fallback; the latency was measured.
+    assert_eq!(run.report.counts.stream_requests, 0);
+    assert_eq!(heard.data_stream_requests, 0);
+    let latency = run.report.latency.unwrap();
+    assert!(latency.chunks > 0 && latency.p50_us <= latency.p99_us);
+}
+
+#[test]
+fn two_vehicles_on_one_udpin_link_are_each_asked_at_their_own_address() {
+    let behaviours = [Behaviour::ardupilot(1), Behaviour::ardupilot(2)];
+    let (run, heard) = vehicles_on_one_udp_link(&behaviours, Duration::from_millis(3000), None);
+    for (b, h) in behaviours.iter().zip(&heard) {
+        // An ArduPilot streams only once asked at its own (sysid, compid): both were.
+        assert!(h.gcs_heartbeats >= 2, "{b:?} {h:?}");
+        assert!(h.interval_requests.contains_key(&33), "{b:?} {h:?}");
+        assert_eq!(h.misaddressed, 0, "{b:?} {h:?}");
+        let seen = run.session.world.seen[&sender(b.sysid)];
+        assert_eq!(seen.positions as usize, h.sent_positions, "{b:?}");
+        assert!(h.sent_positions > 10, "{b:?} {h:?}");
+    }
+    assert_eq!(run.report.vehicles.len(), 2);
+}
+
+#[test]
+fn a_rebooted_ardupilot_is_asked_again_and_its_sequence_restarts() {
+    let b = Behaviour {
+        reboot_at: Some(Duration::from_millis(1500)),
+        reboot_silence: Duration::from_millis(800),
+        run_for: Duration::from_millis(5000),
+        ..Behaviour::ardupilot(3)
+    };
+    let (run, heard) = vehicles_on_one_udp_link(&[b], Duration::from_millis(5500), None);
+    let h = &heard[0];
+    // Streams came back after the reboot because savsim asked again.
+    assert!(h.positions_after_reboot > 10, "{h:?}");
+    let stats = &run.session.ingestor.stats;
+    assert_eq!(stats.count_of(33) as usize, h.sent_positions);
+    let seq = stats.sequence[&sender(3)];
+    assert_eq!((seq.lost, seq.late), (0, 0), "{seq:?}");
+    assert!(seq.restarts >= 1, "{seq:?}");
+    let v = &run.report.vehicles[0];
+    assert!(v.reboots + v.returns + v.re_requests >= 1, "{v:?}");
+    assert_eq!(run.session.world.seen[&sender(3)].boot_resets, 1);
+}
+
+#[test]
+fn a_px4_reboot_restores_the_asked_rate() {
+    let b = Behaviour {
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        streams_by_default: true,
+        reboot_at: Some(Duration::from_millis(1500)),
+        reboot_silence: Duration::from_millis(300),
+        run_for: Duration::from_millis(4000),
+        ..Behaviour::ardupilot(4)
+    };
+    let (run, heard) = vehicles_on_one_udp_link(&[b], Duration::from_millis(4500), None);
+    let v = &run.report.vehicles[0];
+    assert_eq!(v.reboots, 1, "{v:?}");
+    // Asked twice per message: at the start and after the reboot; never REQUEST_DATA_STREAM.
+    assert_eq!(
+        run.report.counts.interval_requests, 4,
+        "{:?}",
+        run.report.counts
+    );
+    assert_eq!(heard[0].data_stream_requests, 0);
+    let seq = run.session.ingestor.stats.sequence[&sender(4)];
+    assert_eq!((seq.lost, seq.late), (0, 0), "{seq:?}");
+}
+
+#[test]
+fn a_forwarded_companion_is_never_asked_and_counted_apart() {
+    let b = Behaviour {
+        forward_companion: true,
+        ..Behaviour::ardupilot(5)
+    };
+    let (run, heard) = vehicles_on_one_udp_link(&[b], Duration::from_millis(3000), None);
+    let h = &heard[0];
+    assert_eq!(h.misaddressed, 0, "{h:?}");
+    assert_eq!(run.report.vehicles.len(), 1);
+    // The companion's frames share the vehicle's sequence (one router), so as a sender of its
+    // own it shows gaps: those are counted apart from the vehicle's link quality.
+    let summary = run.session.ingestor.stats.to_summary();
+    assert_eq!(summary.sequence.senders, 1);
+    assert_eq!(summary.sequence.lost, 0);
+    assert_eq!(summary.forwarded_sequence.senders, 1);
+    assert!(
+        summary.forwarded_sequence.lost > 0,
+        "{:?}",
+        summary.forwarded_sequence
+    );
 }
 
 #[test]
 fn recording_is_a_tlog_pymavlink_reads_with_the_same_counts() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("rec.tlog");
-    let (session, _) = run_vehicle_and_savsim(Some(&path));
-    let ours = session.ingestor.stats.messages_by_name();
+    let (run, _) = vehicles_on_one_udp_link(
+        &[Behaviour::ardupilot(7)],
+        Duration::from_millis(2500),
+        Some(&path),
+    );
+    let ours = run.session.ingestor.stats.messages_by_name();
     // savsim reads its own recording back identically.
     let again = crate::common::replay_into_session(&path, None);
     assert_eq!(again.ingestor.stats.messages_by_name(), ours);
@@ -211,11 +428,7 @@ fn recording_is_a_tlog_pymavlink_reads_with_the_same_counts() {
 /// A SITL-like TCP server on 127.0.0.1:0: accepts savsim, streams frames cut into odd pieces.
 #[test]
 fn live_tcp_reassembles_frames_across_reads() {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
+    let runtime = runtime();
     let listener = runtime
         .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
         .unwrap();
@@ -224,11 +437,11 @@ fn live_tcp_reassembles_frames_across_reads() {
     runtime.spawn(async move {
         use tokio::io::AsyncWriteExt;
         let (mut stream, _) = listener.accept().await.unwrap();
-        let mut seq = 0u8;
+        let mut enc = Encoder { sysid: 7, seq: 0 };
         let mut bytes = Vec::new();
         for n in 0..sent as i32 {
-            bytes.extend(encode(
-                &mut seq,
+            bytes.extend(enc.encode(
+                1,
                 &MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: 1000 + n as u32,
                     lat: -353_632_610 + n,
@@ -247,67 +460,157 @@ fn live_tcp_reassembles_frames_across_reads() {
             stream.write_all(piece).await.unwrap();
             tokio::time::sleep(Duration::from_micros(200)).await;
         }
-        // Closing the connection ends savsim's run.
     });
     let link = runtime
-        .block_on(Link::open(&ConnectAddress::TcpOut(addr.to_string())))
+        .block_on(Link::open(&ConnectAddress::TcpOut(addr.into())))
         .unwrap();
-    let options = LiveOptions {
-        address: ConnectAddress::TcpOut(addr.to_string()),
-        duration: Some(Duration::from_secs(20)),
-        ..LiveOptions::default()
-    };
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let session = run_link(
-        &runtime,
-        link,
-        options,
-        session,
-        None,
-        Arc::new(AtomicBool::new(false)),
-    )
-    .unwrap();
-    let stats = &session.ingestor.stats;
+    let run = run_live(&runtime, vec![link], Duration::from_secs(2), session, None);
+    let stats = &run.session.ingestor.stats;
     assert_eq!(stats.count_of(33) as usize, sent);
     assert_eq!(stats.garbage_bytes as usize, 2 * sent);
     assert_eq!(stats.bad_crc, 0);
 }
 
-/// SIGINT during `savsim live` leaves a complete summary and events file.
+/// tcpout started before its server: savsim retries until the server is up, and reconnects
+/// after the server closes and comes back; a vehicle on a UDP link is mirrored beside it.
+#[test]
+fn tcpout_waits_for_its_server_and_reconnects_beside_a_udp_link() {
+    let runtime = runtime();
+    // A port nothing listens on yet.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let tcp = runtime
+        .block_on(Link::open(&ConnectAddress::TcpOut(
+            SocketAddr::from(([127, 0, 0, 1], port)).into(),
+        )))
+        .unwrap();
+    let (udp, savsim_udp) = udp_link(&runtime);
+    let tcp_heard = Arc::new(Mutex::new(Heard::default()));
+    let server_heard = tcp_heard.clone();
+    runtime.spawn(async move {
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let listener = tokio::net::TcpListener::bind(("127.0.0.1", port))
+            .await
+            .unwrap();
+        for round in 0..2 {
+            let (stream, _) = listener.accept().await.unwrap();
+            let b = Behaviour {
+                run_for: Duration::from_millis(800),
+                ..Behaviour::ardupilot(10 + round)
+            };
+            // The vehicle closes the connection when its time is up.
+            vehicle(Wire::Tcp(stream), b, server_heard.clone()).await;
+            tokio::time::sleep(Duration::from_millis(300)).await;
+        }
+    });
+    let udp_heard = Arc::new(Mutex::new(Heard::default()));
+    let socket = runtime.block_on(UdpSocket::bind("127.0.0.1:0")).unwrap();
+    runtime.spawn(vehicle(
+        Wire::Udp(socket, savsim_udp),
+        Behaviour {
+            run_for: Duration::from_millis(3500),
+            ..Behaviour::ardupilot(20)
+        },
+        udp_heard.clone(),
+    ));
+    let session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    let run = run_live(
+        &runtime,
+        vec![tcp, udp],
+        Duration::from_secs(4),
+        session,
+        None,
+    );
+    // Two rounds served; savsim may have connected once more before the server went away.
+    assert!(run.report.connects >= 2, "{:?}", run.report);
+    assert!(run.report.closes >= 2, "{:?}", run.report);
+    let seen = &run.session.world.seen;
+    for sysid in [10, 11, 20] {
+        assert!(
+            seen.get(&sender(sysid)).is_some_and(|s| s.positions > 5),
+            "{sysid}: {seen:?}"
+        );
+    }
+    let stats = &run.session.ingestor.stats;
+    let sent = tcp_heard.lock().unwrap().sent_positions + udp_heard.lock().unwrap().sent_positions;
+    assert_eq!(stats.count_of(33) as usize, sent);
+}
+
+/// tcpin waits for a connection; a shutdown during the wait ends the run with its report.
+#[test]
+fn tcpin_interrupted_while_waiting_ends_cleanly() {
+    let runtime = runtime();
+    let address = ConnectAddress::TcpIn("127.0.0.1:0".parse::<SocketAddr>().unwrap().into());
+    let link = runtime.block_on(Link::open(&address)).unwrap();
+    let shutdown = Arc::new(AtomicBool::new(false));
+    let flag = shutdown.clone();
+    std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(300));
+        flag.store(true, Ordering::Relaxed);
+    });
+    let started = std::time::Instant::now();
+    let options = savsim::app::live::LiveOptions {
+        duration: Some(Duration::from_secs(30)),
+        ..Default::default()
+    };
+    let session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    let run = savsim::app::live::run_links(
+        runtime.handle(),
+        vec![link],
+        &options,
+        session,
+        None,
+        shutdown,
+    )
+    .unwrap();
+    assert!(run.ended.is_ok());
+    assert!(run.session.interrupted);
+    assert!(started.elapsed() < Duration::from_secs(5));
+}
+
+/// SIGINT during `savsim live` leaves a complete summary and events file, whether it waits on
+/// a UDP socket or for a TCP connection.
 #[test]
 fn sigint_during_live_writes_the_summary() {
-    let dir = tempfile::tempdir().unwrap();
-    let summary = dir.path().join("s.json");
-    let events = dir.path().join("e.jsonl");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
-        .current_dir(root())
-        .args([
-            "live",
-            "--connect",
-            "udpin:127.0.0.1:0",
-            "--scene",
-            "scenes/city.toml",
-            "--duration-s",
-            "30",
-            "--summary-json",
-        ])
-        .arg(&summary)
-        .arg("--events")
-        .arg(&events)
-        .stdout(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    let killed = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let status = child.wait().unwrap();
-    assert!(status.success(), "{status:?}");
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    assert_eq!(s["interrupted"], true);
-    assert_eq!(s["command"], "live");
-    assert!(events.exists());
+    for connect in ["udpin:127.0.0.1:0", "tcpin:localhost:0"] {
+        let dir = tempfile::tempdir().unwrap();
+        let summary = dir.path().join("s.json");
+        let events = dir.path().join("e.jsonl");
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
+            .current_dir(root())
+            .args([
+                "live",
+                "--connect",
+                connect,
+                "--scene",
+                "scenes/city.toml",
+                "--duration-s",
+                "30",
+                "--summary-json",
+            ])
+            .arg(&summary)
+            .arg("--events")
+            .arg(&events)
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(1500));
+        let killed = std::process::Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let status = child.wait().unwrap();
+        assert!(status.success(), "{connect}: {status:?}");
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        assert_eq!(s["interrupted"], true, "{connect}");
+        assert_eq!(s["command"], "live");
+        assert_eq!(s["link"]["endpoints"][0], connect);
+        assert!(events.exists());
+    }
 }

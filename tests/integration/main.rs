@@ -5,6 +5,8 @@
 //! - `ingest`: framing, decoding, bad input, and tlogs written by pymavlink.
 //! - `shared_fixtures`: the real tlogs of ../shared/fixtures against pymavlink's counts.
 //! - `live`: a UDP link to a vehicle played by a tokio task using the mavlink crate; recording.
+//! - `supervisor`: per-vehicle routing, requests, fallback, stale streams and reboots, on
+//!   frames and times the test chooses.
 //! - `faults`: live faults (garbage, truncation, repeats, reordering, reboots) and a 10 s burst
 //!   of 100k messages/s, every frame accounted for.
 //! - `extremes`: numerics at the poles, the antimeridian, -400 m to 20 km, 0 to 300 m/s, rays
@@ -41,6 +43,7 @@ mod live;
 mod properties;
 mod scenes;
 mod shared_fixtures;
+mod supervisor;
 mod terrain;
 #[cfg(feature = "viz")]
 mod viz;

@@ -1,5 +1,7 @@
 //! The one place that wires things together: commands, threads, channels, signals, files.
 
+pub mod live;
+
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -14,10 +16,12 @@ use crate::collision::events::EventKind;
 use crate::collision::pipeline::CollisionConfig;
 use crate::collision::threat::AhpWeights;
 use crate::error::{Error, Result};
-use crate::ingest::live::{self, ConnectAddress, LiveOptions};
+use crate::ingest::address::ConnectAddress;
+use crate::ingest::stats::SenderId;
 use crate::replay::{replay, Speed};
 use crate::scene::{self, gen, Scene};
 use crate::session::{write_json_atomic, Session};
+use live::{LiveOptions, LiveRun};
 
 fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
     for (name, v) in [
@@ -244,6 +248,15 @@ fn write_summary(
     }
 }
 
+/// A live run's summary: the session's, with the links' report under `link`.
+fn write_live_summary(run: &LiveRun, command: &str, path: Option<&Path>) -> Result<()> {
+    let Some(path) = path else { return Ok(()) };
+    let input = run.report.endpoints.join(",");
+    let mut summary = run.session.summary(command, &input);
+    summary["link"] = serde_json::to_value(&run.report).unwrap_or_default();
+    write_json_atomic(path, &summary)
+}
+
 fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
     if args.collision.scene.is_none() {
         args.collision.scene = Some(bundled(DEMO_SCENE));
@@ -330,7 +343,7 @@ pub fn print_report(session: &Session) {
     }
 }
 
-fn live_options(connect: &str, rate_hz: f64, duration_s: Option<f64>) -> Result<LiveOptions> {
+fn live_options(connect: &[String], rate_hz: f64, duration_s: Option<f64>) -> Result<LiveOptions> {
     if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1000.0) {
         return Err(Error::Usage(format!(
             "--rate-hz {rate_hz}: give 0 < rate <= 1000"
@@ -343,10 +356,20 @@ fn live_options(connect: &str, rate_hz: f64, duration_s: Option<f64>) -> Result<
             )));
         }
     }
+    if connect.is_empty() {
+        return Err(Error::Usage("give at least one --connect".into()));
+    }
     Ok(LiveOptions {
-        address: connect.parse::<ConnectAddress>()?,
+        connect: connect
+            .iter()
+            .map(|c| c.parse::<ConnectAddress>())
+            .collect::<Result<_>>()?,
         rate_hz,
         duration: duration_s.map(Duration::from_secs_f64),
+        gcs: SenderId {
+            system_id: 255,
+            component_id: 190,
+        },
         ..LiveOptions::default()
     })
 }
@@ -354,30 +377,50 @@ fn live_options(connect: &str, rate_hz: f64, duration_s: Option<f64>) -> Result<
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
     let session = session_for(&args.collision)?;
-    let mut session = live::run_blocking(options, session, args.record.as_deref(), shutdown)?;
-    let finished = session.finish();
-    write_summary(
-        &session,
-        "live",
-        Path::new(&args.connect),
-        args.collision.summary_json.as_deref(),
-    )?;
-    finished?;
-    print_report(&session);
-    Ok(())
+    let mut run = live::run_blocking(&options, session, args.record.as_deref(), shutdown)?;
+    let finished = run.session.finish();
+    write_live_summary(&run, "live", args.collision.summary_json.as_deref())?;
+    print_report(&run.session);
+    print_links(&run);
+    run.ended?;
+    finished
 }
 
 fn record_command(args: &RecordArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
     let session = Session::new(None, CollisionConfig::default(), None)?;
-    let mut session = live::run_blocking(options, session, Some(&args.out), shutdown)?;
-    session.finish()?;
-    write_summary(
-        &session,
-        "record",
-        Path::new(&args.connect),
-        args.summary_json.as_deref(),
-    )?;
-    print_report(&session);
-    Ok(())
+    let mut run = live::run_blocking(&options, session, Some(&args.out), shutdown)?;
+    let finished = run.session.finish();
+    write_live_summary(&run, "record", args.summary_json.as_deref())?;
+    print_report(&run.session);
+    print_links(&run);
+    run.ended?;
+    finished
+}
+
+/// One line per autopilot: where it is, what it streams, what happened to its link.
+fn print_links(run: &LiveRun) {
+    let r = &run.report;
+    for v in &r.vehicles {
+        let streams: Vec<String> = v
+            .streams
+            .iter()
+            .map(|(name, state)| format!("{name} {state:?}").to_lowercase())
+            .collect();
+        println!(
+            "  vehicle {} on {}: {}; {} reboot(s), {} return(s), {} re-request(s)",
+            v.vehicle,
+            v.endpoint,
+            streams.join(", "),
+            v.reboots,
+            v.returns,
+            v.re_requests
+        );
+    }
+    if let Some(l) = &r.latency {
+        println!(
+            "  latency received -> processed: p50 {} us, p99 {} us, max {} us over {} chunks",
+            l.p50_us, l.p99_us, l.max_us, l.chunks
+        );
+    }
 }

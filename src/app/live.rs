@@ -1,0 +1,339 @@
+//! `savsim live` and `savsim record`: the session thread and its wiring.
+//!
+//! The network runtime's worker runs one task per link ([`crate::ingest::live`]); this thread
+//! frames each chunk (one framer per TCP link, restarted at each connection), lets the
+//! [`Supervisor`] route and supervise, records, runs the session, and sends what the
+//! supervisor says is due to the endpoint it names. It stops on SIGINT/SIGTERM, at the
+//! deadline, or when a link fails; what was queued is still processed, so the summary counts
+//! every byte received.
+
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::RecvTimeoutError;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::ardupilotmega::MavMessage;
+use mavlink::{MavHeader, MavlinkVersion};
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::ingest::address::ConnectAddress;
+use crate::ingest::frame::RawFrame;
+use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Link, Network, Outgoing};
+use crate::ingest::stats::SenderId;
+use crate::ingest::stream::{frames_in_datagram, Skipped, StreamFramer};
+use crate::ingest::supervisor::{
+    LinkId, Supervisor, SupervisorConfig, SupervisorCounts, VehicleLink,
+};
+use crate::ingest::tlog::TlogWriter;
+use crate::session::Session;
+
+/// How a live run behaves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiveOptions {
+    /// Where to connect: one link per address.
+    pub connect: Vec<ConnectAddress>,
+    /// Rate asked for GLOBAL_POSITION_INT and ATTITUDE, Hz. Default 20.
+    pub rate_hz: f64,
+    /// Stop after this long (default: run until shutdown).
+    pub duration: Option<Duration>,
+    /// savsim's own identity as a GCS. Default 255/190 (MAV_COMP_ID_MISSIONPLANNER).
+    pub gcs: SenderId,
+    /// Chunks the channel to the session thread holds before dropping. Default 65536.
+    pub queue_len: usize,
+}
+
+impl Default for LiveOptions {
+    fn default() -> Self {
+        Self {
+            connect: Vec::new(),
+            rate_hz: 20.0,
+            duration: None,
+            gcs: SupervisorConfig::default().gcs,
+            queue_len: 65_536,
+        }
+    }
+}
+
+/// Datagram (or TCP read) received -> its frames decoded, run through the session and their
+/// events written, microseconds.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Latency {
+    /// Chunks measured.
+    pub chunks: u64,
+    /// Median.
+    pub p50_us: u64,
+    /// 99th percentile.
+    pub p99_us: u64,
+    /// Largest.
+    pub max_us: u64,
+}
+
+/// What the links did, for the summary's `link` object.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkReport {
+    /// The addresses, in `--connect` order (a link's index).
+    pub endpoints: Vec<String>,
+    /// Requests, re-requests, reboots, heartbeats.
+    #[serde(flatten)]
+    pub counts: SupervisorCounts,
+    /// Each autopilot: where it was last heard, its requests, reboots and returns.
+    pub vehicles: Vec<VehicleLink>,
+    /// Chunks dropped because the session thread was behind.
+    pub dropped_chunks: u64,
+    /// Bytes in those.
+    pub dropped_bytes: u64,
+    /// Messages to send that could not be (no connection yet, a full queue, an error).
+    pub unsent: u64,
+    /// TCP connections made or accepted.
+    pub connects: u64,
+    /// TCP connections the peer closed.
+    pub closes: u64,
+    /// Receive -> processed.
+    pub latency: Option<Latency>,
+}
+
+/// A finished live run: the session (for its summary), what the links did, and how the run
+/// ended (a link's error, a recording that could not be written). The summary is written
+/// whatever the ending.
+pub struct LiveRun {
+    /// The session.
+    pub session: Session,
+    /// The links.
+    pub report: LinkReport,
+    /// Ok, or why the run ended early.
+    pub ended: Result<()>,
+}
+
+/// Encodes savsim's outgoing messages as a GCS.
+struct Outbox {
+    header: MavHeader,
+    buf: Vec<u8>,
+}
+
+impl Outbox {
+    fn encode(&mut self, message: &MavMessage) -> Vec<u8> {
+        self.buf.clear();
+        // Writing into a Vec cannot fail.
+        let _ =
+            mavlink::write_versioned_msg(&mut self.buf, MavlinkVersion::V2, self.header, message);
+        self.header.sequence = self.header.sequence.wrapping_add(1);
+        self.buf.clone()
+    }
+}
+
+/// Open every link `options` names on a runtime of its own and run until the end.
+pub fn run_blocking(
+    options: &LiveOptions,
+    session: Session,
+    record: Option<&Path>,
+    shutdown: Arc<AtomicBool>,
+) -> Result<LiveRun> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .thread_name("savsim-net")
+        .enable_all()
+        .build()
+        .map_err(|source| Error::Net {
+            what: "start the network runtime".into(),
+            source,
+        })?;
+    let links = runtime.block_on(async {
+        let mut links = Vec::new();
+        for address in &options.connect {
+            links.push(Link::open(address).await?);
+        }
+        Ok::<_, Error>(links)
+    })?;
+    run_links(runtime.handle(), links, options, session, record, shutdown)
+}
+
+/// The session thread's state while a run lasts.
+struct SessionThread {
+    session: Session,
+    supervisor: Supervisor,
+    recorder: Option<TlogWriter<BufWriter<std::fs::File>>>,
+    framers: BTreeMap<LinkId, StreamFramer>,
+    latency_us: hdrhistogram::Histogram<u64>,
+    result: Result<()>,
+}
+
+impl SessionThread {
+    fn process(&mut self, chunk: &Chunk) {
+        let from = chunk.endpoint();
+        let t_us = (chunk.t_s * 1e6) as u64;
+        let Self {
+            session,
+            supervisor,
+            recorder,
+            result,
+            ..
+        } = self;
+        let mut on_frame = |frame: &RawFrame<'_>| {
+            if supervisor.observe(from, chunk.t_s, frame).rebooted {
+                let sender = SenderId {
+                    system_id: frame.system_id,
+                    component_id: frame.component_id,
+                };
+                session
+                    .ingestor
+                    .stats
+                    .restart_sequence(sender, frame.sequence);
+            }
+            if let Some(rec) = recorder.as_mut() {
+                if let Err(e) = rec.write_record(t_us, frame.bytes) {
+                    *result = Err(Error::file("recording", e));
+                }
+            }
+            if let Err(e) = session.on_frame(chunk.t_s, frame) {
+                *result = Err(e);
+            }
+        };
+        let skipped = match chunk.kind {
+            ChunkKind::Datagram => frames_in_datagram(&chunk.bytes, &mut on_frame),
+            ChunkKind::Connected => {
+                // A new byte stream: what the last connection left half-framed is gone.
+                self.framers.insert(chunk.link, StreamFramer::default());
+                Skipped::default()
+            }
+            ChunkKind::Stream => {
+                let framer = self.framers.entry(chunk.link).or_default();
+                let mut skipped = Skipped::default();
+                let mut rest = &chunk.bytes[..];
+                while !rest.is_empty() {
+                    let spare = framer.spare();
+                    let n = spare.len().min(rest.len());
+                    spare[..n].copy_from_slice(&rest[..n]);
+                    rest = &rest[n..];
+                    let s = framer.commit(n, &mut on_frame);
+                    skipped.bytes += s.bytes;
+                    skipped.runs += s.runs;
+                }
+                skipped
+            }
+        };
+        skipped.count_into(&mut self.session.ingestor.stats);
+        if chunk.kind != ChunkKind::Connected {
+            let waited_us = ((unix_now_s() - chunk.t_s) * 1e6).max(0.0) as u64;
+            self.latency_us.saturating_record(waited_us);
+        }
+    }
+}
+
+/// [`run_blocking`] on links already open on `runtime` (tests bind them to port 0).
+pub fn run_links(
+    runtime: &tokio::runtime::Handle,
+    links: Vec<Link>,
+    options: &LiveOptions,
+    session: Session,
+    record: Option<&Path>,
+    shutdown: Arc<AtomicBool>,
+) -> Result<LiveRun> {
+    let recorder = record
+        .map(|p| {
+            std::fs::File::create(p)
+                .map(|f| TlogWriter::new(BufWriter::new(f)))
+                .map_err(|e| Error::file(p, e))
+        })
+        .transpose()?;
+    let mut supervisor = Supervisor::new(SupervisorConfig {
+        gcs: options.gcs,
+        rate_hz: options.rate_hz,
+        ..SupervisorConfig::default()
+    });
+    for (index, link) in links.iter().enumerate() {
+        if let Some(endpoint) = link.fixed_endpoint(index as LinkId) {
+            supervisor.add_fixed(endpoint);
+        }
+    }
+    // What the user typed names the links best; links opened by a caller describe themselves.
+    let endpoints: Vec<String> = if options.connect.len() == links.len() {
+        options.connect.iter().map(ToString::to_string).collect()
+    } else {
+        links.iter().map(Link::describe).collect()
+    };
+    let (network, chunks) = Network::start(runtime, links, options.queue_len);
+    let mut outbox = Outbox {
+        header: MavHeader {
+            system_id: u32::from(options.gcs.system_id),
+            component_id: options.gcs.component_id,
+            sequence: 0,
+        },
+        buf: Vec::with_capacity(300),
+    };
+    let mut thread = SessionThread {
+        session,
+        supervisor,
+        recorder,
+        framers: BTreeMap::new(),
+        latency_us: hdrhistogram::Histogram::new(3).expect("3 significant figures is valid"),
+        result: Ok(()),
+    };
+    let deadline = options.duration.map(|d| Instant::now() + d);
+    let mut next_due_t_s = f64::NEG_INFINITY;
+    loop {
+        let stop = shutdown.load(Ordering::Relaxed)
+            || deadline.is_some_and(|d| Instant::now() >= d)
+            || !network.running()
+            || thread.result.is_err();
+        if stop {
+            break;
+        }
+        match chunks.recv_timeout(Duration::from_millis(20)) {
+            Ok(chunk) => thread.process(&chunk),
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        let now_s = unix_now_s();
+        if now_s >= next_due_t_s {
+            next_due_t_s = now_s + 0.02;
+            for (to, message) in thread.supervisor.due(now_s) {
+                network.send(Outgoing {
+                    to,
+                    bytes: outbox.encode(&message),
+                });
+            }
+        }
+    }
+    let counters = network.counters.clone();
+    let stopped = network.stop();
+    // What the links had queued is still counted and processed.
+    while let Ok(chunk) = chunks.try_recv() {
+        thread.process(&chunk);
+    }
+    if let Some(rec) = thread.recorder.as_mut() {
+        if let Err(e) = rec.flush() {
+            thread.result = thread.result.and(Err(Error::file("recording", e)));
+        }
+    }
+    let mut session = thread.session;
+    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    session.ingestor.stats.dropped_chunks = load(&counters.dropped_chunks);
+    session.ingestor.stats.dropped_bytes = load(&counters.dropped_bytes);
+    session.interrupted = shutdown.load(Ordering::Relaxed);
+    let h = &thread.latency_us;
+    let report = LinkReport {
+        endpoints,
+        counts: thread.supervisor.counts,
+        vehicles: thread.supervisor.vehicles(),
+        dropped_chunks: session.ingestor.stats.dropped_chunks,
+        dropped_bytes: session.ingestor.stats.dropped_bytes,
+        unsent: load(&counters.unsent),
+        connects: load(&counters.connects),
+        closes: load(&counters.closes),
+        latency: (!h.is_empty()).then(|| Latency {
+            chunks: h.len(),
+            p50_us: h.value_at_quantile(0.5),
+            p99_us: h.value_at_quantile(0.99),
+            max_us: h.max(),
+        }),
+    };
+    Ok(LiveRun {
+        session,
+        report,
+        ended: stopped.and(thread.result),
+    })
+}
