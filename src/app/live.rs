@@ -151,8 +151,10 @@ pub fn run_blocking(
     run_links(runtime.handle(), links, options, session, record, shutdown)
 }
 
-/// The session thread's state while a run lasts.
-struct SessionThread {
+/// What the session thread holds while a run lasts: the session, the supervisor, the
+/// recording, a framer per TCP link and the latency histogram. The fuzz target `live_links`
+/// drives it with chunks as the links would.
+pub struct LiveSession {
     session: Session,
     supervisor: Supervisor,
     recorder: Option<TlogWriter<BufWriter<std::fs::File>>>,
@@ -161,8 +163,35 @@ struct SessionThread {
     result: Result<()>,
 }
 
-impl SessionThread {
-    fn process(&mut self, chunk: &Chunk) {
+impl LiveSession {
+    /// A live session over `session`, recording to `recorder` if given.
+    pub fn new(
+        session: Session,
+        supervisor: Supervisor,
+        recorder: Option<TlogWriter<BufWriter<std::fs::File>>>,
+    ) -> Self {
+        Self {
+            session,
+            supervisor,
+            recorder,
+            framers: BTreeMap::new(),
+            latency_us: hdrhistogram::Histogram::new(3).expect("3 significant figures is valid"),
+            result: Ok(()),
+        }
+    }
+
+    /// The session.
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    /// The supervisor.
+    pub fn supervisor(&mut self) -> &mut Supervisor {
+        &mut self.supervisor
+    }
+
+    /// Frame, supervise, record and run one chunk through the session.
+    pub fn process(&mut self, chunk: &Chunk) {
         let from = chunk.endpoint();
         let t_us = (chunk.t_s * 1e6) as u64;
         let Self {
@@ -264,14 +293,7 @@ pub fn run_links(
         },
         buf: Vec::with_capacity(300),
     };
-    let mut thread = SessionThread {
-        session,
-        supervisor,
-        recorder,
-        framers: BTreeMap::new(),
-        latency_us: hdrhistogram::Histogram::new(3).expect("3 significant figures is valid"),
-        result: Ok(()),
-    };
+    let mut thread = LiveSession::new(session, supervisor, recorder);
     let deadline = options.duration.map(|d| Instant::now() + d);
     let mut next_due_t_s = f64::NEG_INFINITY;
     loop {

@@ -27,14 +27,17 @@ impl std::fmt::Display for SenderId {
     }
 }
 
-const COUNTED_IDS: usize = 1 << 16;
+/// Ids below this are counted in an array (every common.xml message and ArduPilot's 150-230);
+/// the rest (ArduPilot's 11000s, 42000s) in a map. 4 KiB per input instead of 512 KiB keeps a
+/// session cheap to make (the fuzz targets and `savsim batch` make one per input).
+const COUNTED_IDS: usize = 512;
 
 /// Counters for one input (a tlog, a connection).
 #[derive(Debug, Clone)]
 pub struct IngestStats {
-    /// Valid frames per message id, for ids below 2^16 (indexed by id).
+    /// Valid frames per message id, for ids below 512 (indexed by id).
     by_id: Vec<u64>,
-    /// Valid frames with ids of 2^16 and above.
+    /// Valid frames with larger ids.
     by_large_id: BTreeMap<u32, u64>,
     /// Valid frames per sender.
     pub by_sender: BTreeMap<SenderId, u64>,
@@ -142,10 +145,12 @@ impl IngestStats {
         }
     }
 
-    /// Restart a sender's sequence bookkeeping at `sequence` (its next frame): it rebooted.
+    /// Restart a sender's sequence bookkeeping at `sequence` (its next frame): it rebooted
+    /// (its clock went back). Once per reboot: the pause before it may have restarted it already.
     pub fn restart_sequence(&mut self, sender: SenderId, sequence: u8) {
+        let t_s = self.time_span_s.map_or(0.0, |(_, last)| last);
         if let Some(counts) = self.sequence.get_mut(&sender) {
-            counts.restart(sequence);
+            counts.rebooted(sequence, t_s);
         }
     }
 
@@ -411,6 +416,9 @@ pub struct SequenceCounts {
     /// When the last frame came, s.
     #[serde(skip)]
     last_t_s: Option<f64>,
+    /// When the bookkeeping last restarted, s.
+    #[serde(skip)]
+    restarted_t_s: Option<f64>,
 }
 
 impl SequenceCounts {
@@ -438,12 +446,23 @@ impl SequenceCounts {
     /// continues the count anyway).
     pub const REBOOT_PAUSE_S: f64 = 0.5;
 
+    /// The sender rebooted (told by its clock, at `t_s`): restart at `sequence`, unless a pause
+    /// restarted the bookkeeping in the last 60 s (the same reboot, seen first by its silence).
+    pub fn rebooted(&mut self, sequence: u8, t_s: f64) {
+        if self.restarted_t_s.is_some_and(|r| t_s - r < 60.0) {
+            return;
+        }
+        self.restart(sequence);
+        self.restarted_t_s = Some(t_s);
+    }
+
     /// Note the next frame's sequence number, received at `t_s`.
     pub fn observe_at(&mut self, sequence: u8, t_s: f64) {
         let pause_s = self.last_t_s.map_or(0.0, |last| t_s - last);
         let restarted_at_zero = sequence == 0 && sequence != self.last.wrapping_add(1);
         if pause_s > Self::SILENCE_S || (pause_s > Self::REBOOT_PAUSE_S && restarted_at_zero) {
             self.restart(sequence);
+            self.restarted_t_s = Some(t_s);
         }
         self.last_t_s = Some(t_s);
         self.observe(sequence);

@@ -431,7 +431,8 @@ impl Supervisor {
                     RequestState::Pending | RequestState::Refused => false,
                 };
                 let last = stream.last_message_t_s.unwrap_or(f64::NEG_INFINITY);
-                if waiting && t_s - last.max(stream.since_t_s) > stale_s {
+                let quiet_s = t_s - last.max(stream.since_t_s);
+                if waiting && quiet_s > stale_s {
                     stream.state = RequestState::Pending;
                     stream.attempts = 0;
                     stream.since_t_s = t_s;
@@ -439,9 +440,8 @@ impl Supervisor {
                     self.counts.re_requests += 1;
                     autopilot.fallback_sent = false;
                     tracing::info!(
-                        "vehicle {id}: no {} for {:.1} s while its heartbeats go on: asking again",
+                        "vehicle {id}: no {} for {quiet_s:.1} s while its heartbeats go on: asking again",
                         message_info(stream.message_id).map_or("?", |m| m.name),
-                        t_s - last.max(stream.since_t_s)
                     );
                 }
             }

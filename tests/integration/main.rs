@@ -5,6 +5,8 @@
 //! - `ingest`: framing, decoding, bad input, and tlogs written by pymavlink.
 //! - `shared_fixtures`: the real tlogs of ../shared/fixtures against pymavlink's counts.
 //! - `live`: a UDP link to a vehicle played by a tokio task using the mavlink crate; recording.
+//! - `sitl`: two ArduCopter SITLs on one UDP link, one rebooted (needs `SAVSIM_ARDUCOPTER`;
+//!   runs in a network namespace of its own).
 //! - `supervisor`: per-vehicle routing, requests, fallback, stale streams and reboots, on
 //!   frames and times the test chooses.
 //! - `faults`: live faults (garbage, truncation, repeats, reordering, reboots) and a 10 s burst
@@ -43,6 +45,7 @@ mod live;
 mod properties;
 mod scenes;
 mod shared_fixtures;
+mod sitl;
 mod supervisor;
 mod terrain;
 #[cfg(feature = "viz")]
