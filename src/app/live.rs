@@ -72,6 +72,9 @@ pub struct Latency {
     pub max_us: u64,
 }
 
+/// A link that brings nothing for this long is logged (once per silence), s.
+const SILENT_LINK_S: f64 = 5.0;
+
 /// What the links did, for the summary's `link` object.
 #[derive(Debug, Clone, Serialize)]
 pub struct LinkReport {
@@ -92,6 +95,8 @@ pub struct LinkReport {
     pub connects: u64,
     /// TCP connections the peer closed.
     pub closes: u64,
+    /// Times a link brought nothing for 5 s (each logged as a warning).
+    pub silences: u64,
     /// Receive -> processed.
     pub latency: Option<Latency>,
 }
@@ -295,6 +300,9 @@ pub fn run_links(
     };
     let mut thread = LiveSession::new(session, supervisor, recorder);
     let deadline = options.duration.map(|d| Instant::now() + d);
+    // Per link: when it last brought anything, and whether its silence was logged.
+    let mut heard_t_s = vec![(unix_now_s(), false); endpoints.len()];
+    let mut silences = 0u64;
     let mut next_due_t_s = f64::NEG_INFINITY;
     loop {
         let stop = shutdown.load(Ordering::Relaxed)
@@ -305,13 +313,28 @@ pub fn run_links(
             break;
         }
         match chunks.recv_timeout(Duration::from_millis(20)) {
-            Ok(chunk) => thread.process(&chunk),
+            Ok(chunk) => {
+                if let Some(heard) = heard_t_s.get_mut(usize::from(chunk.link)) {
+                    *heard = (chunk.t_s, false);
+                }
+                thread.process(&chunk);
+            }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => break,
         }
         let now_s = unix_now_s();
         if now_s >= next_due_t_s {
             next_due_t_s = now_s + 0.02;
+            for (index, (heard, logged)) in heard_t_s.iter_mut().enumerate() {
+                if !*logged && now_s - *heard > SILENT_LINK_S {
+                    *logged = true;
+                    silences += 1;
+                    tracing::warn!(
+                        "{}: nothing received for {SILENT_LINK_S} s",
+                        endpoints[index]
+                    );
+                }
+            }
             for (to, message) in thread.supervisor.due(now_s) {
                 network.send(Outgoing {
                     to,
@@ -344,6 +367,7 @@ pub fn run_links(
         dropped_chunks: session.ingestor.stats.dropped_chunks,
         dropped_bytes: session.ingestor.stats.dropped_bytes,
         unsent: load(&counters.unsent),
+        silences,
         connects: load(&counters.connects),
         closes: load(&counters.closes),
         latency: (!h.is_empty()).then(|| Latency {
