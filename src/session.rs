@@ -65,10 +65,30 @@ impl Session {
         collision: CollisionConfig,
         events_path: Option<&Path>,
     ) -> Result<Self> {
+        let pipeline = scene.as_ref().map(|s| Pipeline::new(s, collision));
+        Self::build(scene, pipeline, events_path)
+    }
+
+    /// A session over `scene` with a pipeline already built for it: a clone of one pipeline
+    /// built once (its exact shapes, and any meshes made resident with
+    /// [`Pipeline::build_every_mesh`]) serves many runs over one scene without building them
+    /// again.
+    pub fn with_pipeline(
+        scene: Arc<Scene>,
+        pipeline: Pipeline,
+        events_path: Option<&Path>,
+    ) -> Result<Self> {
+        Self::build(Some(scene), Some(pipeline), events_path)
+    }
+
+    fn build(
+        scene: Option<Arc<Scene>>,
+        pipeline: Option<Pipeline>,
+        events_path: Option<&Path>,
+    ) -> Result<Self> {
         let origin = scene
             .as_ref()
             .map_or(crate::scene::gen::DEFAULT_ORIGIN, |s| s.origin);
-        let pipeline = scene.as_ref().map(|s| Pipeline::new(s, collision));
         let events_out = events_path
             .map(|p| {
                 File::create(p)

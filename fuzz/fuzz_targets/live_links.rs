@@ -30,7 +30,10 @@ fuzz_target!(|data: &[u8]| {
         let link = u16::from(who >> 7);
         let (from, kind) = if link == 0 {
             let port = 5000 + u16::from(who & 3);
-            (Some(SocketAddr::from(([127, 0, 0, 1], port))), ChunkKind::Datagram)
+            (
+                Some(SocketAddr::from(([127, 0, 0, 1], port))),
+                ChunkKind::Datagram,
+            )
         } else if who & 0x40 != 0 {
             (None, ChunkKind::Connected)
         } else {

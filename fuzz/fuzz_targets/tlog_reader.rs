@@ -5,23 +5,27 @@
 use std::sync::{Arc, OnceLock};
 
 use libfuzzer_sys::fuzz_target;
-use savsim::collision::pipeline::CollisionConfig;
+use savsim::collision::pipeline::{CollisionConfig, Pipeline};
 use savsim::ingest::tlog::TlogReader;
 use savsim::scene::Scene;
 use savsim::session::Session;
 
-fn scene() -> Arc<Scene> {
-    static SCENE: OnceLock<Arc<Scene>> = OnceLock::new();
-    SCENE
-        .get_or_init(|| {
-            let text = include_str!("../scene.toml");
-            Arc::new(savsim::scene::format::parse(text, "fuzz/scene.toml".as_ref(), "fuzz").unwrap())
-        })
-        .clone()
+/// What no input can change, built once: the scene, and its pipeline with every mesh and
+/// exact shape built (each input runs on a clone, which shares them).
+fn scene_and_pipeline() -> &'static (Arc<Scene>, Pipeline) {
+    static BUILT: OnceLock<(Arc<Scene>, Pipeline)> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let text = include_str!("../scene.toml");
+        let scene = savsim::scene::format::parse(text, "fuzz/scene.toml".as_ref(), "fuzz").unwrap();
+        let mut pipeline = Pipeline::new(&scene, CollisionConfig::default());
+        pipeline.build_every_mesh(&scene);
+        (Arc::new(scene), pipeline)
+    })
 }
 
 fuzz_target!(|data: &[u8]| {
-    let mut session = Session::new(Some(scene()), CollisionConfig::default(), None).unwrap();
+    let (scene, pipeline) = scene_and_pipeline();
+    let mut session = Session::with_pipeline(scene.clone(), pipeline.clone(), None).unwrap();
     let mut reader = TlogReader::new(data);
     loop {
         let record = match reader.next_record(&mut session.ingestor.stats) {

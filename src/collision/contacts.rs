@@ -67,7 +67,7 @@ impl Motion {
 }
 
 /// The contact layer's scratch buffers and this interval's results.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct Contacts {
     ws: OctreeWorkspace,
     candidates: Vec<ObstacleRef>,

@@ -10,7 +10,7 @@ use parry3d::shape::TriMesh;
 use crate::scene::geometry::Geometry;
 
 /// Built meshes by geometry index.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct MeshCache {
     meshes: Vec<Option<(Arc<TriMesh>, usize)>>,
     /// The tick at which each built mesh was last used (same index as `meshes`).

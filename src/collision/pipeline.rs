@@ -114,7 +114,7 @@ pub struct PipelineTotals {
 }
 
 /// The collision pipeline for a scene.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Pipeline {
     /// Settings.
     pub config: CollisionConfig,
@@ -142,21 +142,15 @@ impl Pipeline {
     /// `mesh` mode every obstacle's mesh (what "every obstacle a mesh" costs).
     pub fn new(scene: &Scene, config: CollisionConfig) -> Self {
         let boxes: Vec<Aabb64> = scene.obstacles.iter().map(|o| o.aabb_enu_m).collect();
-        let mut meshes = MeshCache::new(scene.geometries.len());
-        if config.mode == Mode::Mesh {
-            for o in &scene.obstacles {
-                meshes.get(o.geometry_index, &o.geometry);
-            }
-        }
         let shapes = if config.mode == Mode::Exact {
             ExactShapes::new(&scene.geometries)
         } else {
             ExactShapes::default()
         };
-        Self {
+        let mut pipeline = Self {
             config,
             octree: Octree::build(&boxes, config.octree),
-            meshes,
+            meshes: MeshCache::new(scene.geometries.len()),
             shapes,
             reference: (config.mode == Mode::Reference).then(Reference::default),
             vehicles: BTreeMap::new(),
@@ -170,6 +164,18 @@ impl Pipeline {
                 .map(|o| o.geometry.triangle_count())
                 .sum(),
             has_terrain: scene.obstacles.iter().any(|o| o.geometry.is_terrain()),
+        };
+        if config.mode == Mode::Mesh {
+            pipeline.build_every_mesh(scene);
+        }
+        pipeline
+    }
+
+    /// Build the mesh of every obstacle of `scene` now (within the cache's budget), instead of
+    /// when the sensing layer or a contact first needs it.
+    pub fn build_every_mesh(&mut self, scene: &Scene) {
+        for o in &scene.obstacles {
+            self.meshes.get(o.geometry_index, &o.geometry);
         }
     }
 

@@ -81,7 +81,7 @@ struct VehicleTruth {
 }
 
 /// The reference: shapes built on demand, per-vehicle contact state.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct Reference {
     parts: Vec<Option<Arc<Parts>>>,
     vehicles: HashMap<(u16, u8), VehicleTruth>,

@@ -124,7 +124,7 @@ impl Frame<'_> {
 }
 
 /// The layer's scratch buffers; the state comes in per vehicle.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct Sensing {
     ws: OctreeWorkspace,
     desired: Vec<ObstacleRef>,

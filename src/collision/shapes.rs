@@ -12,7 +12,7 @@ use crate::collision::meshes::MeshCache;
 use crate::scene::geometry::{Geometry, GeometrySource};
 
 /// The solids built for block geometries, by geometry index.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct ExactShapes {
     solids: Vec<Option<SharedShape>>,
     /// Some geometry's exact shape is a triangle mesh (terrain, a loaded mesh).

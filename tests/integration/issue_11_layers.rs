@@ -497,3 +497,55 @@ fn a_fast_low_pass_counts_every_reentry_into_the_ground() {
         assert!((a.1 - b.1).abs() <= 1e-3, "{a:?} vs {b:?}");
     }
 }
+
+/// A session on a clone of one pipeline built once with every mesh resident (what the fuzz
+/// targets share between inputs) reports what a session of its own reports, builds no mesh
+/// again, and leaves the shared pipeline as it was for the next run.
+#[test]
+fn a_session_on_a_shared_pipeline_reports_what_a_fresh_one_does() {
+    let s = Arc::new(scene(concat!(
+        "[[obstacle]]\nid = \"u-plan\"\nkind = \"building\"\n",
+        "shape = { blocks = [[-20.0, -20.0, 0.0, 20.0, -10.0, 30.0], [-20.0, -20.0, 0.0, -10.0, 20.0, 30.0], [10.0, -20.0, 0.0, 20.0, 20.0, 30.0]], tessellate_m = 3 }\n",
+        "position_enu_m = [60.0, 0.0, 0.0]\n",
+        "[[obstacle]]\nid = \"mast\"\nkind = \"building\"\nshape = { box = [2.0, 2.0, 40.0] }\n",
+        "position_enu_m = [20.0, 4.0, 0.0]\n",
+        "[[terrain]]\nid = \"hill\"\nkind = \"mountain\"\n",
+        "generated = { seed = 3, size_m = [200, 200], cell_m = 20, relief_m = 10 }\n",
+        "position_enu_m = [-50.0, -100.0, -10.0]\n",
+    )));
+    let plane = LocalTangentPlane::new(s.origin);
+    // East at 4 m/s, 15 m up: past the mast 2.5 m away, into the U's west wing at x = 40 m.
+    let fly = |session: &mut Session| {
+        let mut seq = 0u8;
+        for i in 0..300u32 {
+            let t = 1000.0 + f64::from(i) * 0.1;
+            let p = DVec3::new(f64::from(i) * 0.4, 0.5, 15.0);
+            let bytes = position_frames(&plane, 1, &mut seq, 5_000 + i * 100, p, DVec3::X * 4.0);
+            feed(session, t, &bytes);
+        }
+        session.finish().unwrap();
+    };
+    let mut fresh = Session::new(Some(s.clone()), CollisionConfig::default(), None).unwrap();
+    fly(&mut fresh);
+    let fresh_pipeline = fresh.pipeline.as_ref().unwrap();
+    assert_eq!(collisions_on(&fresh.notable, 1)[0].0, "u-plan");
+    // The terrain's exact shape is a mesh: the sensing layer builds it when the rays find it.
+    assert_eq!(
+        fresh_pipeline.meshes.built, 1,
+        "the sensing layer built the terrain's mesh"
+    );
+
+    let mut shared = Pipeline::new(&s, CollisionConfig::default());
+    shared.build_every_mesh(&s);
+    let built = shared.meshes.built;
+    assert_eq!(built, 3);
+    for _ in 0..2 {
+        let mut session = Session::with_pipeline(s.clone(), shared.clone(), None).unwrap();
+        fly(&mut session);
+        let pipeline = session.pipeline.as_ref().unwrap();
+        assert_eq!(session.notable, fresh.notable);
+        assert_eq!(pipeline.totals, fresh_pipeline.totals);
+        assert_eq!(pipeline.meshes.built, built, "no mesh was built again");
+    }
+    assert_eq!(shared.totals.ticks, 0, "the shared pipeline is untouched");
+}

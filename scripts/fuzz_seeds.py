@@ -1,0 +1,47 @@
+#!/usr/bin/env python3
+"""Write the fuzz targets' seed corpora (fuzz/corpus/<target>/) from the bundled demo flight.
+
+Run from the repository root: python3 scripts/fuzz_seeds.py
+"""
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+FUZZ = ROOT / "fuzz"
+TLOG = (ROOT / "scenes/flights/copter_square_10ms.tlog").read_bytes()
+
+
+def frames(tlog: bytes, most: int) -> list[bytes]:
+    """The MAVLink frames of a tlog (each record: 8-byte timestamp, then one frame)."""
+    out, p = [], 0
+    while p + 8 < len(tlog) and len(out) < most:
+        q = p + 8
+        if tlog[q] == 0xFD:  # v2: 10-byte header, payload, 2-byte CRC, 13-byte signature if signed
+            n = tlog[q + 1] + 12 + (13 if tlog[q + 2] & 1 else 0)
+        elif tlog[q] == 0xFE:  # v1: 6-byte header, payload, 2-byte CRC
+            n = tlog[q + 1] + 8
+        else:
+            break
+        out.append(tlog[q:q + n])
+        p = q + n
+    return out
+
+
+def write(target: str, name: str, data: bytes) -> None:
+    directory = FUZZ / "corpus" / target
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / name).write_bytes(data)
+
+
+for i in range(0, min(len(TLOG), 4096 * 40), 4096):
+    write("tlog_reader", f"seed{i // 4096:03d}", TLOG[i:i + 4096])
+blob = b"".join(frames(TLOG, 400))
+# datagram_decode: the first byte sets the datagram (and TCP read) size.
+write("datagram_decode", "seed0", bytes([40]) + blob[:2048])
+write("datagram_decode", "seed1", bytes([255]) + blob[2048:4096])
+# live_links: per chunk (who, time step, length, bytes); alternate links and UDP senders.
+chunks = bytearray()
+for i, f in enumerate(frames(TLOG, 120)):
+    chunks += bytes([(i % 2) << 7 | (i % 4), 5, len(f)]) + f
+write("live_links", "seed0", bytes(chunks))
+write("scene_parser", "seed0", (FUZZ / "scene.toml").read_bytes().split(b"[[terrain]]")[0])
+print("seeds written under", FUZZ / "corpus")
