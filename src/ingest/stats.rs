@@ -441,10 +441,11 @@ impl SequenceCounts {
         self.restarts += 1;
     }
 
-    /// A sequence starting again at 0 after a pause this long is a reboot, s (a rebooting
-    /// autopilot is silent longer; a stream this slow is only heartbeats, whose 0 after 255
-    /// continues the count anyway).
-    pub const REBOOT_PAUSE_S: f64 = 0.5;
+    /// A sequence starting again at 0 after a pause this long is a reboot, s: PX4 SITL is
+    /// silent for 0.49 s from its shutdown to its first frame after a restart (docs/live.md),
+    /// a real autopilot longer; a stream this slow is only heartbeats, whose 0 after 255
+    /// continues the count anyway.
+    pub const REBOOT_PAUSE_S: f64 = 0.2;
 
     /// The sender rebooted (told by its clock, at `t_s`): restart at `sequence`, unless a pause
     /// restarted the bookkeeping in the last 60 s (the same reboot, seen first by its silence).

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use savsim::geo::Geodetic;
 use savsim::ingest::decode::{decode, Rejection, Report};
 use savsim::ingest::frame::{scan, FrameStatus, Scan};
-use savsim::ingest::stats::{IngestStats, SenderId};
+use savsim::ingest::stats::{IngestStats, SenderId, SequenceCounts};
 use savsim::ingest::stream::frames_in_datagram;
 use savsim::ingest::tlog::{TlogReader, TlogWriter};
 use savsim::ingest::Ingestor;
@@ -252,4 +252,27 @@ fn tlog_written_by_pymavlink_matches_pymavlink_counts() {
     // Two vehicles and one ADS-B aircraft in the world.
     assert_eq!(session.world.seen.len(), 2);
     assert_eq!(session.world.traffic.len(), 1);
+}
+
+/// PX4 SITL started again after a shutdown is silent for 0.49 s and numbers its frames from 0
+/// in the middle of the old count (docs/live.md): a restart, not 69 late frames.
+#[test]
+fn a_sequence_from_zero_after_a_half_second_pause_is_a_restart() {
+    let mut counts = SequenceCounts::starting_at(0);
+    let mut t_s = 100.0;
+    for sequence in 0..=69u8 {
+        counts.observe_at(sequence, t_s);
+        t_s += 0.007;
+    }
+    t_s += 0.489;
+    for sequence in 0..=200u8 {
+        counts.observe_at(sequence, t_s);
+        t_s += 0.007;
+    }
+    assert_eq!((counts.lost, counts.late, counts.restarts), (0, 0, 1));
+    // A 20 ms gap of a 50 Hz stream that loses frames up to the wrap is no restart.
+    let mut counts = SequenceCounts::starting_at(250);
+    counts.observe_at(250, 200.0);
+    counts.observe_at(0, 200.12);
+    assert_eq!((counts.lost, counts.restarts), (5, 0));
 }

@@ -46,6 +46,7 @@ mod properties;
 mod scenes;
 mod shared_fixtures;
 mod sitl;
+mod sitl_px4;
 mod supervisor;
 mod terrain;
 #[cfg(feature = "viz")]

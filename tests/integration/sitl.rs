@@ -33,7 +33,7 @@ fn arducopter() -> Option<PathBuf> {
 }
 
 /// A SITL process, killed when dropped.
-struct Sitl(Child);
+pub(crate) struct Sitl(pub(crate) Child);
 
 impl Drop for Sitl {
     fn drop(&mut self) {
@@ -64,26 +64,31 @@ fn start_sitl(
     Sitl(command.spawn().expect("start ArduCopter SITL"))
 }
 
+/// Whether this is `test` running inside a network namespace of its own with only a loopback
+/// interface. If it is not, runs `test` again there (`unshare -n`), waits for it and returns
+/// false: the caller returns at once.
+pub(crate) fn inside_own_network_namespace(test: &str) -> bool {
+    if std::env::var_os(INSIDE).is_some() {
+        return true;
+    }
+    let exe = std::env::current_exe().unwrap();
+    let status = Command::new("unshare")
+        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
+        .arg(exe)
+        .args([test, "--exact", "--nocapture"])
+        .env(INSIDE, "1")
+        .status();
+    match status {
+        Ok(s) => assert!(s.success(), "the test inside the namespace failed: {s:?}"),
+        Err(e) => eprintln!("skipped: `unshare -n` is not available here ({e})"),
+    }
+    false
+}
+
 #[test]
 fn two_arducopters_on_one_udp_link_one_rebooted() {
     let Some(bin) = arducopter() else { return };
-    if std::env::var_os(INSIDE).is_none() {
-        // Run this very test again in a namespace with only a loopback interface.
-        let exe = std::env::current_exe().unwrap();
-        let status = Command::new("unshare")
-            .args(["-n", "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
-            .arg(exe)
-            .args([
-                "sitl::two_arducopters_on_one_udp_link_one_rebooted",
-                "--exact",
-                "--nocapture",
-            ])
-            .env(INSIDE, "1")
-            .status();
-        match status {
-            Ok(s) => assert!(s.success(), "the test inside the namespace failed: {s:?}"),
-            Err(e) => eprintln!("skipped: `unshare -n` is not available here ({e})"),
-        }
+    if !inside_own_network_namespace("sitl::two_arducopters_on_one_udp_link_one_rebooted") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
