@@ -11,7 +11,7 @@ use glam::DVec3;
 use crate::collision::approach::Approaches;
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::events::Event;
-use crate::collision::pipeline::{CollisionConfig, DynamicBody, Pipeline, VehicleKey};
+use crate::collision::pipeline::{DynamicBody, Pipeline, VehicleKey};
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::IngestStats;
 use crate::ingest::tlog::TlogReader;
@@ -131,10 +131,9 @@ pub fn track_from_tlog(path: &Path, scene: &Scene) -> Result<(Vec<Waypoint>, Ing
     Ok((track, ingestor.stats))
 }
 
-/// Fly `encounter` over `scene` with `config`.
-pub fn fly(scene: &Scene, config: CollisionConfig, encounter: &Encounter) -> Flown {
+/// Fly `encounter` over `scene` with `pipeline` (new, built for `scene`).
+pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flown {
     let plane = LocalTangentPlane::new(scene.origin);
-    let mut pipeline = Pipeline::new(scene, config);
     let mut events = Vec::new();
     let mut approaches = Approaches::default();
     let intruder_id: Arc<str> = Arc::from("intruder");

@@ -5,13 +5,13 @@ use std::collections::HashMap;
 use std::panic::AssertUnwindSafe;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use crate::batch::encounter::{self, Encounter};
 use crate::batch::manifest::{is_tlog_path, Run};
 use crate::batch::row::RunRow;
-use crate::collision::pipeline::{CollisionConfig, Mode};
+use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::ingest::stats::IngestStats;
 use crate::replay::{replay, Speed};
 use crate::scene::{self, Kind, Scene, Waypoint};
@@ -21,10 +21,13 @@ use crate::session::Session;
 pub const DEFAULT_RATE_HZ: f64 = 10.0;
 
 /// Every scene a manifest names, each loaded once and shared by its runs (a scene that does
-/// not load is kept as its error, for its rows).
+/// not load is kept as its error, for its rows), and each scene's pipeline per mode, built by
+/// the first run that needs it: every run flies a clone, sharing its octree's build, exact
+/// shapes and meshes.
 pub struct Scenes {
     open_air: Arc<Scene>,
     by_path: HashMap<String, Result<Arc<Scene>, String>>,
+    pipelines: Mutex<HashMap<(String, Mode), Arc<Pipeline>>>,
 }
 
 impl Scenes {
@@ -42,7 +45,22 @@ impl Scenes {
         Self {
             open_air: Arc::new(open_air()),
             by_path,
+            pipelines: Mutex::new(HashMap::new()),
         }
+    }
+
+    /// A pipeline for `scene` (the one at `path`) in `config`, as new: a clone of the one built
+    /// for that scene and mode.
+    fn pipeline(&self, path: Option<&str>, scene: &Scene, config: CollisionConfig) -> Pipeline {
+        let key = (path.unwrap_or_default().to_owned(), config.mode);
+        let built = {
+            let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+            pipelines
+                .entry(key)
+                .or_insert_with(|| Arc::new(Pipeline::new(scene, config)))
+                .clone()
+        };
+        (*built).clone()
     }
 
     fn get(&self, path: Option<&str>) -> Result<Arc<Scene>, String> {
@@ -117,8 +135,9 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
         mode,
         ..CollisionConfig::default()
     };
+    let pipeline = scenes.pipeline(run.scene.as_deref(), &scene, config);
     match (&run.tlog, &run.own, &run.intruder) {
-        (Some(tlog), None, None) => replay_tlog(Path::new(tlog), scene, config, row),
+        (Some(tlog), None, None) => replay_tlog(Path::new(tlog), scene, pipeline, row),
         (None, Some(own), Some(intruder)) => {
             let mut stats = IngestStats::default();
             let own = track(own, &scene, &mut stats).map_err(|e| format!("own: {e}"))?;
@@ -138,7 +157,7 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
                 rate_hz: positive("rate_hz", run.rate_hz.unwrap_or(DEFAULT_RATE_HZ))?,
                 duration_s,
             };
-            let flown = encounter::fly(&scene, config, &encounter);
+            let flown = encounter::fly(&scene, pipeline, &encounter);
             row.record_ingest(&stats);
             row.record_run(
                 &flown.pipeline.totals,
@@ -179,10 +198,10 @@ fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypo
 fn replay_tlog(
     path: &Path,
     scene: Arc<Scene>,
-    config: CollisionConfig,
+    pipeline: Pipeline,
     row: &mut RunRow,
 ) -> Result<(), String> {
-    let mut session = Session::new(Some(scene), config, None).map_err(|e| e.to_string())?;
+    let mut session = Session::with_pipeline(scene, pipeline, None).map_err(|e| e.to_string())?;
     let never = AtomicBool::new(false);
     replay(path, Speed::Max, false, None, &mut session, &never).map_err(|e| e.to_string())?;
     session.finish().map_err(|e| e.to_string())?;
