@@ -4,7 +4,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use glam::{DQuat, DVec3};
-use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, ATTITUDE_DATA,
+    GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
+};
 use mavlink::{MavHeader, MavlinkVersion};
 use savsim::geo::{Geodetic, LocalTangentPlane};
 use savsim::ingest::frame::{scan, Scan};
@@ -196,15 +199,44 @@ pub fn position_frames(
             hdg: 9000,
         }),
     ] {
-        let header = MavHeader {
-            system_id: u32::from(sysid),
-            component_id: 1,
-            sequence: *seq,
-        };
+        bytes.extend(frame_v2(sysid, 1, *seq, &message));
         *seq = seq.wrapping_add(1);
-        mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, &message).unwrap();
     }
     bytes
+}
+
+/// One MAVLink 2 frame of `message` from `sysid`/`compid`, numbered `seq`.
+pub fn frame_v2(sysid: u8, compid: u8, seq: u8, message: &MavMessage) -> Vec<u8> {
+    let header = MavHeader {
+        system_id: u32::from(sysid),
+        component_id: compid,
+        sequence: seq,
+    };
+    let mut bytes = Vec::new();
+    mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, message).unwrap();
+    bytes
+}
+
+/// An active HEARTBEAT of `mavtype` and `autopilot`.
+pub fn heartbeat(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype,
+        autopilot,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// Send `signal` (`INT`, `TERM`) to `child` with kill(1) and wait for it to exit.
+pub fn signal_and_wait(child: &mut std::process::Child, signal: &str) -> std::process::ExitStatus {
+    let killed = Command::new("kill")
+        .args([format!("-{signal}"), child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    child.wait().unwrap()
 }
 
 /// Feed every frame in `bytes` to `session` as received at `t_s`.

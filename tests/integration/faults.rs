@@ -7,19 +7,12 @@ use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, GLOBAL_POSITION_INT_DATA};
-use mavlink::{MavHeader, MavlinkVersion};
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::stats::SenderId;
 use savsim::session::Session;
 
 /// One GLOBAL_POSITION_INT frame (v2) from `system_id` with sequence `seq`.
 fn position(system_id: u8, seq: u8, time_boot_ms: u32, n: i32) -> Vec<u8> {
-    let mut buf = Vec::new();
-    let header = MavHeader {
-        system_id: system_id.into(),
-        component_id: 1,
-        sequence: seq,
-    };
     let message = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
         time_boot_ms,
         lat: -353_632_610 + n,
@@ -31,8 +24,7 @@ fn position(system_id: u8, seq: u8, time_boot_ms: u32, n: i32) -> Vec<u8> {
         vz: 0,
         hdg: 9000,
     });
-    mavlink::write_versioned_msg(&mut buf, MavlinkVersion::V2, header, &message).unwrap();
-    buf
+    crate::common::frame_v2(system_id, 1, seq, &message)
 }
 
 /// Run savsim's live path on a UDP socket bound to 127.0.0.1:0 while `sender` (given the

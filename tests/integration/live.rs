@@ -12,10 +12,9 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, ATTITUDE_DATA,
-    COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
+    MavAutopilot, MavCmd, MavMessage, MavResult, MavType, ATTITUDE_DATA, COMMAND_ACK_DATA,
+    GLOBAL_POSITION_INT_DATA,
 };
-use mavlink::{MavHeader, MavlinkVersion};
 use savsim::app::live::LiveRun;
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::geo::Geodetic;
@@ -25,7 +24,9 @@ use savsim::ingest::stats::SenderId;
 use savsim::session::Session;
 use tokio::net::UdpSocket;
 
-use crate::common::{have_pymavlink, python, root, run_live, runtime, udp_link};
+use crate::common::{
+    frame_v2, have_pymavlink, heartbeat, python, root, run_live, runtime, signal_and_wait, udp_link,
+};
 
 /// How the played autopilot behaves.
 #[derive(Debug, Clone, Copy)]
@@ -78,27 +79,10 @@ struct Encoder {
 
 impl Encoder {
     fn encode(&mut self, compid: u8, message: &MavMessage) -> Vec<u8> {
-        let mut buf = Vec::new();
-        let header = MavHeader {
-            system_id: self.sysid.into(),
-            component_id: compid,
-            sequence: self.seq,
-        };
+        let bytes = frame_v2(self.sysid, compid, self.seq, message);
         self.seq = self.seq.wrapping_add(1);
-        mavlink::write_versioned_msg(&mut buf, MavlinkVersion::V2, header, message).unwrap();
-        buf
+        bytes
     }
-}
-
-fn heartbeat(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype,
-        autopilot,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
 }
 
 /// Where the vehicle sends, and how it reaches savsim.
@@ -601,12 +585,7 @@ fn sigint_during_live_writes_the_summary() {
             .spawn()
             .unwrap();
         std::thread::sleep(Duration::from_millis(1500));
-        let killed = std::process::Command::new("kill")
-            .args(["-INT", &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(killed.success());
-        let status = child.wait().unwrap();
+        let status = signal_and_wait(&mut child, "INT");
         assert!(status.success(), "{connect}: {status:?}");
         let s: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();

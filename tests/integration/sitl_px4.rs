@@ -15,10 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA,
-};
-use mavlink::{MavHeader, MavlinkVersion};
+use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
@@ -26,6 +23,7 @@ use savsim::ingest::stats::SenderId;
 use savsim::ingest::supervisor::RequestState;
 use savsim::session::Session;
 
+use crate::common::{frame_v2, heartbeat};
 use crate::sitl::{inside_own_network_namespace, reboot_shutdown, two_vehicles_to_the_end, Sitl};
 
 fn px4() -> Option<PathBuf> {
@@ -64,16 +62,10 @@ fn start_px4(bin: &Path, instance: u8, dir: &Path, east_m: f64) -> Sitl {
     Sitl(child)
 }
 
+/// Send `message` as the companion computer, 1/191.
 fn send(socket: &UdpSocket, to: SocketAddr, sequence: &mut u8, message: &MavMessage) {
-    let header = MavHeader {
-        system_id: 1,
-        component_id: 191,
-        sequence: *sequence,
-    };
+    let _ = socket.send_to(&frame_v2(1, 191, *sequence, message), to);
     *sequence = sequence.wrapping_add(1);
-    let mut bytes = Vec::new();
-    mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, message).unwrap();
-    let _ = socket.send_to(&bytes, to);
 }
 
 #[test]
@@ -101,14 +93,10 @@ fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
             let mut sequence = 0u8;
             let mut vehicle = first;
             let mut restarted = false;
-            let heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                custom_mode: 0,
-                mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
-                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-                base_mode: MavModeFlag::empty(),
-                system_status: MavState::MAV_STATE_ACTIVE,
-                mavlink_version: 3,
-            });
+            let heartbeat = heartbeat(
+                MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+                MavAutopilot::MAV_AUTOPILOT_INVALID,
+            );
             while started.elapsed() < Duration::from_secs(70) {
                 send(&socket, onboard, &mut sequence, &heartbeat);
                 if !restarted && started.elapsed() > Duration::from_secs(25) {
@@ -134,18 +122,10 @@ fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
     let run = crate::common::run_live(&runtime, vec![link], Duration::from_secs(80), session, None);
     let _first = companion.join().expect("the companion thread");
-    let summary = two_vehicles_to_the_end(&run, "sitl-px4");
+    // PX4 puts a few frames on the wire out of order (6 and 8 late in docs/live.md's runs);
+    // none is lost on loopback, and its restart is a restart, not a hundred late frames.
+    let summary = two_vehicles_to_the_end(&run, "sitl-px4", 19);
     let world = &run.session.world;
-    for sysid in [1, 2] {
-        let id = SenderId {
-            system_id: sysid,
-            component_id: 1,
-        };
-        // PX4 puts a few frames on the wire out of order (6 and 8 late in docs/live.md's runs);
-        // none is lost on loopback, and its restart is a restart, not a hundred late frames.
-        let seq = run.session.ingestor.stats.sequence[&id];
-        assert!(seq.lost == 0 && seq.late < 20, "vehicle {sysid}: {seq:?}");
-    }
     // The forwarded companion was seen and never asked: only the two autopilots are routed.
     let asked: Vec<&str> = run
         .report

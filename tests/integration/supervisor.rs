@@ -5,35 +5,14 @@
 use std::net::SocketAddr;
 
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, ATTITUDE_DATA,
-    COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
+    MavAutopilot, MavCmd, MavMessage, MavResult, MavType, ATTITUDE_DATA, COMMAND_ACK_DATA,
+    GLOBAL_POSITION_INT_DATA,
 };
-use mavlink::{MavHeader, MavlinkVersion};
 use savsim::ingest::frame::{scan, Scan};
 use savsim::ingest::stats::SenderId;
 use savsim::ingest::supervisor::{Endpoint, RequestState, Supervisor, SupervisorConfig};
 
-fn frame_bytes(sysid: u8, compid: u8, seq: u8, message: &MavMessage) -> Vec<u8> {
-    let mut buf = Vec::new();
-    let header = MavHeader {
-        system_id: sysid.into(),
-        component_id: compid,
-        sequence: seq,
-    };
-    mavlink::write_versioned_msg(&mut buf, MavlinkVersion::V2, header, message).unwrap();
-    buf
-}
-
-fn heartbeat(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype,
-        autopilot,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
+use crate::common::{frame_v2, heartbeat};
 
 fn position(time_boot_ms: u32) -> MavMessage {
     MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
@@ -84,7 +63,7 @@ fn observe(
     compid: u8,
     message: &MavMessage,
 ) -> bool {
-    let bytes = frame_bytes(sysid, compid, 0, message);
+    let bytes = frame_v2(sysid, compid, 0, message);
     let Scan::Frame(frame) = scan(&bytes) else {
         panic!("the mavlink crate's frame scans")
     };

@@ -7,7 +7,7 @@ use std::process::Command;
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::session::Session;
 
-use crate::common::root;
+use crate::common::{root, signal_and_wait};
 
 /// Paths every replay over the bundled city must log (docs/rerun.md).
 const PATHS: [&str; 20] = [
@@ -234,12 +234,7 @@ fn sigterm_during_replay_leaves_complete_files() {
         child.try_wait().unwrap().is_none(),
         "savsim ended before the signal"
     );
-    let killed = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let status = child.wait().unwrap();
+    let status = signal_and_wait(&mut child, "TERM");
     assert!(status.success(), "{status:?}");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
