@@ -24,10 +24,7 @@ fuzz_target!(|data: &[u8]| {
     // As one TCP stream read in pieces of the same size.
     let mut framer = StreamFramer::default();
     for piece in rest.chunks(usize::from(split) + 1) {
-        let spare = framer.spare();
-        let n = piece.len().min(spare.len());
-        spare[..n].copy_from_slice(&piece[..n]);
-        let skipped = framer.commit(n, |frame| {
+        let skipped = framer.push(piece, |frame| {
             let _ = session.on_frame(t_s, frame);
         });
         skipped.count_into(&mut session.ingestor.stats);

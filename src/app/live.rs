@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
-use crate::ingest::frame::RawFrame;
+use crate::ingest::frame::{RawFrame, MAX_FRAME_LEN};
 use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Link, Network, Outgoing};
 use crate::ingest::stats::SenderId;
 use crate::ingest::stream::{frames_in_datagram, Skipped, StreamFramer};
@@ -116,17 +116,15 @@ pub struct LiveRun {
 /// Encodes savsim's outgoing messages as a GCS.
 struct Outbox {
     header: MavHeader,
-    buf: Vec<u8>,
 }
 
 impl Outbox {
     fn encode(&mut self, message: &MavMessage) -> Vec<u8> {
-        self.buf.clear();
+        let mut bytes = Vec::with_capacity(MAX_FRAME_LEN);
         // Writing into a Vec cannot fail.
-        let _ =
-            mavlink::write_versioned_msg(&mut self.buf, MavlinkVersion::V2, self.header, message);
+        let _ = mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, self.header, message);
         self.header.sequence = self.header.sequence.wrapping_add(1);
-        self.buf.clone()
+        bytes
     }
 }
 
@@ -233,21 +231,11 @@ impl LiveSession {
                 self.framers.insert(chunk.link, StreamFramer::default());
                 Skipped::default()
             }
-            ChunkKind::Stream => {
-                let framer = self.framers.entry(chunk.link).or_default();
-                let mut skipped = Skipped::default();
-                let mut rest = &chunk.bytes[..];
-                while !rest.is_empty() {
-                    let spare = framer.spare();
-                    let n = spare.len().min(rest.len());
-                    spare[..n].copy_from_slice(&rest[..n]);
-                    rest = &rest[n..];
-                    let s = framer.commit(n, &mut on_frame);
-                    skipped.bytes += s.bytes;
-                    skipped.runs += s.runs;
-                }
-                skipped
-            }
+            ChunkKind::Stream => self
+                .framers
+                .entry(chunk.link)
+                .or_default()
+                .push(&chunk.bytes, &mut on_frame),
         };
         skipped.count_into(&mut self.session.ingestor.stats);
         if chunk.kind != ChunkKind::Connected {
@@ -296,7 +284,6 @@ pub fn run_links(
             component_id: options.gcs.component_id,
             sequence: 0,
         },
-        buf: Vec::with_capacity(300),
     };
     let mut thread = LiveSession::new(session, supervisor, recorder);
     let deadline = options.duration.map(|d| Instant::now() + d);

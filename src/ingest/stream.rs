@@ -92,19 +92,33 @@ impl Default for StreamFramer {
 }
 
 impl StreamFramer {
-    /// Free space to read into; then call [`StreamFramer::commit`] with the bytes read.
-    pub fn spare(&mut self) -> &mut [u8] {
-        &mut self.buf[self.len..]
-    }
-
-    /// Take `n` newly read bytes and hand every complete frame to `on_frame`.
-    pub fn commit(&mut self, n: usize, mut on_frame: impl FnMut(&RawFrame<'_>)) -> Skipped {
-        self.len = (self.len + n).min(self.buf.len());
-        let (consumed, skipped) = frames_in(&self.buf[..self.len], &mut on_frame);
-        self.buf.copy_within(consumed..self.len, 0);
-        self.len -= consumed;
-        // What is left is one incomplete frame (< MAX_FRAME_LEN), so there is always room.
-        debug_assert!(self.buf.len() - self.len >= MAX_FRAME_LEN);
+    /// Take the bytes of one read, in order, and hand every frame they complete to `on_frame`.
+    ///
+    /// ```
+    /// use savsim::ingest::stream::StreamFramer;
+    /// let heartbeat = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
+    /// let mut framer = StreamFramer::default();
+    /// let mut n = 0;
+    /// framer.push(&heartbeat[..5], |_| n += 1);
+    /// assert_eq!(n, 0);
+    /// framer.push(&heartbeat[5..], |_| n += 1);
+    /// assert_eq!(n, 1);
+    /// ```
+    pub fn push(&mut self, mut bytes: &[u8], mut on_frame: impl FnMut(&RawFrame<'_>)) -> Skipped {
+        let mut skipped = Skipped::default();
+        while !bytes.is_empty() {
+            let n = (self.buf.len() - self.len).min(bytes.len());
+            self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
+            self.len += n;
+            bytes = &bytes[n..];
+            let (consumed, s) = frames_in(&self.buf[..self.len], &mut on_frame);
+            self.buf.copy_within(consumed..self.len, 0);
+            self.len -= consumed;
+            // What is left is one incomplete frame (< MAX_FRAME_LEN), so there is always room.
+            debug_assert!(self.buf.len() - self.len >= MAX_FRAME_LEN);
+            skipped.bytes += s.bytes;
+            skipped.runs += s.runs;
+        }
         skipped
     }
 }

@@ -126,6 +126,15 @@ struct Stream {
     last_message_t_s: Option<f64>,
 }
 
+impl Stream {
+    /// To be asked again from `t_s`, with every attempt.
+    fn ask_again(&mut self, t_s: f64) {
+        self.state = RequestState::Pending;
+        self.attempts = 0;
+        self.since_t_s = t_s;
+    }
+}
+
 /// What the supervisor knows of one autopilot.
 #[derive(Debug, Clone)]
 struct Autopilot {
@@ -146,9 +155,7 @@ struct Autopilot {
 impl Autopilot {
     fn ask_again(&mut self, t_s: f64) {
         for stream in &mut self.streams {
-            stream.state = RequestState::Pending;
-            stream.attempts = 0;
-            stream.since_t_s = t_s;
+            stream.ask_again(t_s);
         }
         self.outstanding = None;
         self.fallback_sent = false;
@@ -433,9 +440,7 @@ impl Supervisor {
                 let last = stream.last_message_t_s.unwrap_or(f64::NEG_INFINITY);
                 let quiet_s = t_s - last.max(stream.since_t_s);
                 if waiting && quiet_s > stale_s {
-                    stream.state = RequestState::Pending;
-                    stream.attempts = 0;
-                    stream.since_t_s = t_s;
+                    stream.ask_again(t_s);
                     autopilot.re_requests += 1;
                     self.counts.re_requests += 1;
                     autopilot.fallback_sent = false;
