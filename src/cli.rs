@@ -198,6 +198,34 @@ pub struct CollisionArgs {
     pub ahp_matrix: Option<String>,
 }
 
+/// The closed-loop feed (docs/closed-loop.md): savsim as the vehicle's range sensors and
+/// traffic source.
+#[derive(Debug, Clone, Args)]
+pub struct FeedArgs {
+    /// What to send each vehicle, comma-separated: proximity (DISTANCE_SENSOR, 8 levelled
+    /// sectors + up), rangefinder (DISTANCE_SENSOR down), obstacle-distance
+    /// (OBSTACLE_DISTANCE, 72 bins, body FRD), adsb (ADSB_VEHICLE for the other aircraft),
+    /// collision (COLLISION for savsim's threats). Off by default; needs --scene.
+    #[arg(long)]
+    pub feed: Option<String>,
+    /// Feed frames per second of the vehicle's clock (every sample when telemetry is slower).
+    #[arg(long, default_value_t = 20.0)]
+    pub feed_hz: f64,
+    /// The range sensors' nearest reading, metres.
+    #[arg(long, default_value_t = 0.2)]
+    pub feed_min_m: f64,
+    /// The range sensors' farthest reading, metres ("nothing seen" is sent as this + 1 cm).
+    #[arg(long, default_value_t = 40.0)]
+    pub feed_max_m: f64,
+    /// Proximity orientations sent (MAV_SENSOR_ORIENTATION): 0..7 the 45-degree sectors
+    /// clockwise from the nose, 24 up.
+    #[arg(long, value_delimiter = ',', default_value = "0,1,2,3,4,5,6,7,24")]
+    pub feed_orientations: Vec<u8>,
+    /// MAV_DISTANCE_SENSOR type of the readings (0 laser, 1 ultrasound, 2 infrared, 3 radar).
+    #[arg(long, default_value_t = 0)]
+    pub feed_sensor_type: u8,
+}
+
 /// `savsim demo`.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
@@ -210,6 +238,12 @@ pub struct DemoArgs {
     /// Stop this many seconds after the first message (the clock of the report's "+N s").
     #[arg(long, allow_negative_numbers = true)]
     pub until_s: Option<f64>,
+    /// The feed a live run would have sent.
+    #[command(flatten)]
+    pub feed: FeedArgs,
+    /// Write that feed here as a tlog, on the flight's time base (needs --feed).
+    #[arg(long)]
+    pub feed_out: Option<PathBuf>,
 }
 
 /// `savsim replay`.
@@ -230,6 +264,12 @@ pub struct ReplayArgs {
     /// a recording that ends at a moment of interest.
     #[arg(long, allow_negative_numbers = true)]
     pub until_s: Option<f64>,
+    /// The feed a live run would have sent.
+    #[command(flatten)]
+    pub feed: FeedArgs,
+    /// Write that feed here as a tlog, on the flight's time base (needs --feed).
+    #[arg(long)]
+    pub feed_out: Option<PathBuf>,
 }
 
 /// `savsim live`.
@@ -251,6 +291,9 @@ pub struct LiveArgs {
     /// Collision options.
     #[command(flatten)]
     pub collision: CollisionArgs,
+    /// The closed-loop feed.
+    #[command(flatten)]
+    pub feed: FeedArgs,
 }
 
 /// `savsim record`.

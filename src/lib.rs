@@ -12,6 +12,7 @@ pub mod bundled;
 pub mod cli;
 pub mod collision;
 pub mod error;
+pub mod feed;
 pub mod geo;
 pub mod ingest;
 pub mod replay;

@@ -16,8 +16,11 @@ use crate::collision::pipeline::{
     BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Pipeline, VehicleKey,
 };
 use crate::error::{Error, Result};
+use crate::feed::{Feed, FeedConfig, FeedMessage, FrameInput};
 use crate::ingest::frame::{FrameStatus, RawFrame};
+use crate::ingest::outbox::Outbox;
 use crate::ingest::stats::SenderId;
+use crate::ingest::tlog::TlogWriter;
 use crate::ingest::Ingestor;
 use crate::scene::{DynamicSource, Kind, Scene};
 use crate::world::{TrackSample, WorldConfig, WorldStore, WorldUpdate};
@@ -56,6 +59,15 @@ pub struct Session {
     #[cfg(feature = "viz")]
     viz: Option<crate::viz::Logger>,
     ticks: u64,
+    /// The closed-loop feed, when `--feed` is on.
+    pub feed: Option<Feed>,
+    /// Feed messages made and not yet sent (live) or written (replay).
+    pub feed_out: Vec<FeedMessage>,
+    /// Where replay writes the feed (`--feed-out`): a tlog, encoded as the feed's identity.
+    feed_tlog: Option<(PathBuf, TlogWriter<BufWriter<File>>, Outbox)>,
+    /// savsim's own MAVLink identities (its GCS, its feed): their frames, echoed back by a
+    /// router, are counted and never applied to the world.
+    pub own: Vec<SenderId>,
 }
 
 impl Session {
@@ -114,6 +126,10 @@ impl Session {
             #[cfg(feature = "viz")]
             viz: None,
             ticks: 0,
+            feed: None,
+            feed_out: Vec::new(),
+            feed_tlog: None,
+            own: Vec::new(),
         })
     }
 
@@ -154,6 +170,43 @@ impl Session {
         Ok(())
     }
 
+    /// Turn the closed-loop feed on (docs/closed-loop.md). Needs a scene.
+    pub fn start_feed(&mut self, config: FeedConfig) -> Result<()> {
+        if self.pipeline.is_none() {
+            return Err(Error::Usage("--feed needs --scene".into()));
+        }
+        config.validate().map_err(Error::Usage)?;
+        self.feed = Some(Feed::new(config));
+        Ok(())
+    }
+
+    /// Write the feed to `path` as a tlog (each message stamped with the receive time of the
+    /// sample it was cast from, sent as `from`) instead of keeping it in `feed_out`.
+    pub fn write_feed_to(&mut self, path: &Path, from: SenderId) -> Result<()> {
+        if self.feed.is_none() {
+            return Err(Error::Usage("--feed-out needs --feed".into()));
+        }
+        let file = File::create(path).map_err(|e| Error::file(path, e))?;
+        self.feed_tlog = Some((
+            path.to_path_buf(),
+            TlogWriter::new(BufWriter::new(file)),
+            Outbox::new(from),
+        ));
+        Ok(())
+    }
+
+    fn write_feed(&mut self) -> Result<()> {
+        let Some((path, out, outbox)) = &mut self.feed_tlog else {
+            return Ok(());
+        };
+        for m in self.feed_out.drain(..) {
+            let t_us = (m.t_s * 1e6).max(0.0) as u64;
+            out.write_record(t_us, &outbox.encode(&m.message))
+                .map_err(|e| Error::file(path.clone(), e))?;
+        }
+        Ok(())
+    }
+
     /// Seconds from the first message to `t_s`: the clock of the printed report's "+N s" and of
     /// the viewer's labels. `None` before the first message.
     pub fn elapsed_s(&self, t_s: f64) -> Option<f64> {
@@ -173,6 +226,9 @@ impl Session {
         let Some(decoded) = self.ingestor.frame(frame) else {
             return Ok(());
         };
+        if self.own.contains(&decoded.sender) {
+            return Ok(());
+        }
         if let WorldUpdate::VehicleMoved(sender) =
             self.world.apply(t_s, decoded.sender, &decoded.report)
         {
@@ -226,6 +282,17 @@ impl Session {
         );
         let cost_ns = started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64;
         self.tick_cost_ns.push(cost_ns);
+        if let Some(feed) = &mut self.feed {
+            let input = FrameInput {
+                scene: &scene,
+                plane: self.world.plane(),
+                sender,
+                key,
+                current: &current,
+                dynamic: &self.dynamic,
+            };
+            feed.on_sample(pipeline, &input, &mut self.feed_out);
+        }
         self.ticks += 1;
         #[cfg(not(feature = "viz"))]
         let _ = (first, report);
@@ -271,6 +338,7 @@ impl Session {
                 cost_us: cost_ns as f64 / 1e3,
             })));
         }
+        self.write_feed()?;
         self.flush_events()
     }
 
@@ -300,6 +368,9 @@ impl Session {
         }
         self.flush_events()?;
         if let Some((path, out)) = &mut self.events_out {
+            out.flush().map_err(|e| Error::file(path.clone(), e))?;
+        }
+        if let Some((path, out, _)) = &mut self.feed_tlog {
             out.flush().map_err(|e| Error::file(path.clone(), e))?;
         }
         #[cfg(feature = "viz")]
@@ -390,6 +461,16 @@ impl Session {
                 .collect::<Vec<_>>(),
             "tracks_expired": self.world.expired,
             "collision": collision,
+            "feed": self.feed.as_ref().map(|f| json!({
+                "kinds": f.config.kinds,
+                "hz": f.config.hz,
+                "vehicles": f.counts().map(|(id, c)| json!({
+                    "sysid": id.system_id,
+                    "compid": id.component_id,
+                    "counts": c,
+                    "rate_hz": (c.span_ms > 0).then(|| (c.frames - 1) as f64 * 1000.0 / c.span_ms as f64),
+                })).collect::<Vec<_>>(),
+            })),
             "rerun": self.rerun_summary(),
             "interrupted": self.interrupted,
             "wall_time_s": self.started.elapsed().as_secs_f64(),

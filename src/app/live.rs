@@ -15,18 +15,17 @@ use std::sync::mpsc::RecvTimeoutError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use mavlink::dialects::ardupilotmega::MavMessage;
-use mavlink::{MavHeader, MavlinkVersion};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
-use crate::ingest::frame::{RawFrame, MAX_FRAME_LEN};
+use crate::ingest::frame::RawFrame;
 use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Link, Network, Outgoing};
+use crate::ingest::outbox::Outbox;
 use crate::ingest::stats::SenderId;
 use crate::ingest::stream::{frames_in_datagram, Skipped, StreamFramer};
 use crate::ingest::supervisor::{
-    LinkId, Supervisor, SupervisorConfig, SupervisorCounts, VehicleLink,
+    Endpoint, LinkId, Supervisor, SupervisorConfig, SupervisorCounts, VehicleLink,
 };
 use crate::ingest::tlog::TlogWriter;
 use crate::session::Session;
@@ -44,6 +43,9 @@ pub struct LiveOptions {
     pub gcs: SenderId,
     /// Chunks the channel to the session thread holds before dropping. Default 65536.
     pub queue_len: usize,
+    /// The closed-loop feed's own identity (docs/closed-loop.md). Default 255/196
+    /// (MAV_COMP_ID_OBSTACLE_AVOIDANCE of savsim's system).
+    pub feed_from: SenderId,
 }
 
 impl Default for LiveOptions {
@@ -54,6 +56,7 @@ impl Default for LiveOptions {
             duration: None,
             gcs: SupervisorConfig::default().gcs,
             queue_len: 65_536,
+            feed_from: FEED_FROM,
         }
     }
 }
@@ -70,6 +73,26 @@ pub struct Latency {
     pub p99_us: u64,
     /// Largest.
     pub max_us: u64,
+}
+
+/// The feed's identity: savsim's system, MAV_COMP_ID_OBSTACLE_AVOIDANCE. Never the vehicle's
+/// own (ArduPilot drops its own system's messages as a routing loop).
+pub const FEED_FROM: SenderId = SenderId {
+    system_id: 255,
+    component_id: 196,
+};
+
+/// What the closed-loop feed sent, for the summary's `link.feed`.
+#[derive(Debug, Clone, Serialize)]
+pub struct FeedLinkReport {
+    /// Messages sent to a vehicle's link.
+    pub sent: u64,
+    /// Messages for a vehicle with no route yet (not heard as an autopilot): not sent.
+    pub unrouted: u64,
+    /// The feed component's heartbeats sent.
+    pub heartbeats: u64,
+    /// Datagram (or read) with the pose received -> its feed frame handed to the link.
+    pub latency: Option<Latency>,
 }
 
 /// A link that brings nothing for this long is logged (once per silence), s.
@@ -99,6 +122,8 @@ pub struct LinkReport {
     pub silences: u64,
     /// Receive -> processed.
     pub latency: Option<Latency>,
+    /// The closed-loop feed, when on.
+    pub feed: Option<FeedLinkReport>,
 }
 
 /// A finished live run: the session (for its summary), what the links did, and how the run
@@ -111,21 +136,6 @@ pub struct LiveRun {
     pub report: LinkReport,
     /// Ok, or why the run ended early.
     pub ended: Result<()>,
-}
-
-/// Encodes savsim's outgoing messages as a GCS.
-struct Outbox {
-    header: MavHeader,
-}
-
-impl Outbox {
-    fn encode(&mut self, message: &MavMessage) -> Vec<u8> {
-        let mut bytes = Vec::with_capacity(MAX_FRAME_LEN);
-        // Writing into a Vec cannot fail.
-        let _ = mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, self.header, message);
-        self.header.sequence = self.header.sequence.wrapping_add(1);
-        bytes
-    }
 }
 
 /// Open every link `options` names on a runtime of its own and run until the end.
@@ -163,7 +173,56 @@ pub struct LiveSession {
     recorder: Option<TlogWriter<BufWriter<std::fs::File>>>,
     framers: BTreeMap<LinkId, StreamFramer>,
     latency_us: hdrhistogram::Histogram<u64>,
+    feed: FeedSender,
     result: Result<()>,
+}
+
+/// Sends the session's feed messages to each vehicle's route, as the feed's identity.
+struct FeedSender {
+    outbox: Outbox,
+    /// Where the feed went, for the heartbeat.
+    endpoints: Vec<Endpoint>,
+    next_heartbeat_t_s: f64,
+    sent: u64,
+    unrouted: u64,
+    heartbeats: u64,
+    latency_us: hdrhistogram::Histogram<u64>,
+}
+
+impl FeedSender {
+    fn new(from: SenderId) -> Self {
+        Self {
+            outbox: Outbox::new(from),
+            endpoints: Vec::new(),
+            next_heartbeat_t_s: f64::NEG_INFINITY,
+            sent: 0,
+            unrouted: 0,
+            heartbeats: 0,
+            latency_us: new_histogram(),
+        }
+    }
+
+    fn report(&self) -> FeedLinkReport {
+        FeedLinkReport {
+            sent: self.sent,
+            unrouted: self.unrouted,
+            heartbeats: self.heartbeats,
+            latency: latency(&self.latency_us),
+        }
+    }
+}
+
+fn new_histogram() -> hdrhistogram::Histogram<u64> {
+    hdrhistogram::Histogram::new(3).expect("3 significant figures is valid")
+}
+
+fn latency(h: &hdrhistogram::Histogram<u64>) -> Option<Latency> {
+    (!h.is_empty()).then(|| Latency {
+        chunks: h.len(),
+        p50_us: h.value_at_quantile(0.5),
+        p99_us: h.value_at_quantile(0.99),
+        max_us: h.max(),
+    })
 }
 
 impl LiveSession {
@@ -178,7 +237,8 @@ impl LiveSession {
             supervisor,
             recorder,
             framers: BTreeMap::new(),
-            latency_us: hdrhistogram::Histogram::new(3).expect("3 significant figures is valid"),
+            latency_us: new_histogram(),
+            feed: FeedSender::new(FEED_FROM),
             result: Ok(()),
         }
     }
@@ -191,6 +251,42 @@ impl LiveSession {
     /// The supervisor.
     pub fn supervisor(&mut self) -> &mut Supervisor {
         &mut self.supervisor
+    }
+
+    /// Send the feed's messages made since the last call to each vehicle's route (the
+    /// endpoint it was last heard on), and the feed's heartbeat once a second to every
+    /// endpoint fed. `received_t_s` is when the chunk that made them arrived.
+    pub fn send_feed(&mut self, network: &Network, received_t_s: f64) {
+        let feed = &mut self.feed;
+        let now_s = unix_now_s();
+        if !self.session.feed_out.is_empty() {
+            for m in self.session.feed_out.drain(..) {
+                let Some((_, to)) = self.supervisor.routes().find(|(id, _)| *id == m.to) else {
+                    feed.unrouted += 1;
+                    continue;
+                };
+                if !feed.endpoints.contains(&to) {
+                    feed.endpoints.push(to);
+                }
+                network.send(Outgoing {
+                    to,
+                    bytes: feed.outbox.encode(&m.message),
+                });
+                feed.sent += 1;
+            }
+            let waited_us = ((now_s - received_t_s) * 1e6).max(0.0) as u64;
+            feed.latency_us.saturating_record(waited_us);
+        }
+        if now_s >= feed.next_heartbeat_t_s && !feed.endpoints.is_empty() {
+            feed.next_heartbeat_t_s = now_s + 1.0;
+            for &to in &feed.endpoints {
+                network.send(Outgoing {
+                    to,
+                    bytes: feed.outbox.encode(&crate::feed::wire::heartbeat()),
+                });
+                feed.heartbeats += 1;
+            }
+        }
     }
 
     /// Frame, supervise, record and run one chunk through the session.
@@ -278,14 +374,11 @@ pub fn run_links(
         links.iter().map(Link::describe).collect()
     };
     let (network, chunks) = Network::start(runtime, links, options.queue_len);
-    let mut outbox = Outbox {
-        header: MavHeader {
-            system_id: u32::from(options.gcs.system_id),
-            component_id: options.gcs.component_id,
-            sequence: 0,
-        },
-    };
+    let mut outbox = Outbox::new(options.gcs);
+    let feeding = session.feed.is_some();
     let mut thread = LiveSession::new(session, supervisor, recorder);
+    thread.feed = FeedSender::new(options.feed_from);
+    thread.session.own = vec![options.gcs, options.feed_from];
     let deadline = options.duration.map(|d| Instant::now() + d);
     // Per link: when it last brought anything, and whether its silence was logged.
     let mut heard_t_s = vec![(unix_now_s(), false); endpoints.len()];
@@ -305,6 +398,9 @@ pub fn run_links(
                     *heard = (chunk.t_s, false);
                 }
                 thread.process(&chunk);
+                if feeding {
+                    thread.send_feed(&network, chunk.t_s);
+                }
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => break,
@@ -357,12 +453,8 @@ pub fn run_links(
         silences,
         connects: load(&counters.connects),
         closes: load(&counters.closes),
-        latency: (!h.is_empty()).then(|| Latency {
-            chunks: h.len(),
-            p50_us: h.value_at_quantile(0.5),
-            p99_us: h.value_at_quantile(0.99),
-            max_us: h.max(),
-        }),
+        latency: latency(h),
+        feed: feeding.then(|| thread.feed.report()),
     };
     Ok(LiveRun {
         session,

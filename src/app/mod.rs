@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use crate::bundled::{bundled, DEMO_FLIGHT, DEMO_SCENE};
 use crate::cli::{
-    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, LiveArgs, RecordArgs, ReplayArgs,
+    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, LiveArgs, RecordArgs, ReplayArgs,
     SceneCommand, SceneKind,
 };
 use crate::collision::events::EventKind;
@@ -93,6 +93,27 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
         start_viz(&mut session, target, args.rerun_octree)?;
     }
     Ok(session)
+}
+
+/// Turn the feed on if `--feed` asks for it; returns its rate.
+fn start_feed(session: &mut Session, args: &FeedArgs) -> Result<Option<f64>> {
+    let Some(list) = &args.feed else {
+        return Ok(None);
+    };
+    let kinds = crate::feed::FeedKinds::parse(list)
+        .map_err(|e| Error::Usage(format!("--feed {list}: {e}")))?;
+    session.start_feed(crate::feed::FeedConfig {
+        kinds,
+        hz: args.feed_hz,
+        range: crate::feed::wire::Range {
+            min_m: args.feed_min_m,
+            max_m: args.feed_max_m,
+        },
+        orientations: args.feed_orientations.clone(),
+        sensor_type: args.feed_sensor_type,
+        ..Default::default()
+    })?;
+    Ok(Some(args.feed_hz))
 }
 
 #[cfg(feature = "viz")]
@@ -213,6 +234,10 @@ fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
         }
     }
     let mut session = session_for(&args.collision)?;
+    start_feed(&mut session, &args.feed)?;
+    if let Some(path) = &args.feed_out {
+        session.write_feed_to(path, live::FEED_FROM)?;
+    }
     let result = replay(
         &args.flight,
         speed,
@@ -278,6 +303,8 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
             collision: args.collision,
             no_progress: false,
             until_s: args.until_s,
+            feed: args.feed,
+            feed_out: args.feed_out,
         },
         shutdown,
     )
@@ -375,8 +402,12 @@ fn live_options(connect: &[String], rate_hz: f64, duration_s: Option<f64>) -> Re
 }
 
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
-    let session = session_for(&args.collision)?;
+    let mut options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
+    let mut session = session_for(&args.collision)?;
+    if let Some(feed_hz) = start_feed(&mut session, &args.feed)? {
+        // The feed is cast at samples: ask for them at least as often.
+        options.rate_hz = options.rate_hz.max(feed_hz);
+    }
     let mut run = live::run_blocking(&options, session, args.record.as_deref(), shutdown)?;
     let finished = run.session.finish();
     write_live_summary(&run, "live", args.collision.summary_json.as_deref())?;

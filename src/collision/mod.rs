@@ -25,6 +25,7 @@
 //! - [`reference`](mod@reference): the independent ground truth (dense sub-stepping).
 //! - [`pipeline`]: the per-tick orchestrator.
 //! - [`events`]: what is reported.
+//! - [`fan`]: exact ray fans (what a range sensor measures; the closed-loop feed).
 //! - [`approach`]: closest point of approach and NMAC between two tracks.
 
 pub mod approach;
@@ -35,6 +36,7 @@ pub mod contacts;
 pub mod distance;
 pub mod episodes;
 pub mod events;
+pub mod fan;
 pub mod meshes;
 pub mod octree;
 pub mod pipeline;

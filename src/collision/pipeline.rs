@@ -14,6 +14,7 @@ pub use crate::collision::bodies::{
     BodyKey, BodyPose, BodySource, DynamicBody, ObstacleRef, VehicleKey,
 };
 pub use crate::collision::config::{CollisionConfig, Mode};
+pub use crate::collision::fan::Rays;
 pub use crate::collision::sensing::{RayHit, SensingState, RAY_AXES_FRD};
 
 use crate::collision::bodies::{radius_m, World};
@@ -183,6 +184,37 @@ impl Pipeline {
     /// ticked.
     pub fn vehicle(&self, vehicle: u16, component_id: u8) -> Option<&VehicleCollision> {
         self.vehicles.get(&(vehicle, component_id))
+    }
+
+    /// Cast `rays` against every obstacle's exact shape and the moving bodies of `dynamic` but
+    /// `own`: what a range sensor on the vehicle measures (`collision::fan`). `out[k]` is the
+    /// nearest hit of ray `k`, metres, or `None`; `out` is as long as `rays.dirs_enu`.
+    pub fn cast_exact_rays(
+        &mut self,
+        scene: &Scene,
+        own: BodySource,
+        dynamic: &[DynamicBody],
+        rays: Rays<'_>,
+        out: &mut [Option<f64>],
+    ) {
+        let world = World {
+            scene,
+            dynamic,
+            own,
+            octree: &self.octree,
+            shapes: &self.shapes,
+        };
+        for (dir, hit) in rays.dirs_enu.iter().zip(out.iter_mut()) {
+            *hit = crate::collision::fan::nearest(
+                &world,
+                &mut self.meshes,
+                &mut self.ws,
+                rays.origin_enu_m,
+                *dir,
+                rays.max_m,
+            )
+            .map(|(_, d)| d);
+        }
     }
 
     /// Run one tick for one vehicle: `current` is its new sample, `previous` the one before

@@ -7,6 +7,7 @@
 //! - [`stream`]: datagrams and byte streams (UDP, TCP) through the same framer.
 //! - [`address`]: `--connect` addresses.
 //! - [`live`]: tokio sockets: chunks in, addressed bytes out.
+//! - [`outbox`]: what savsim sends, encoded as one identity.
 //! - [`supervisor`]: per-vehicle routes, stream requests and their supervision (pure).
 //!
 //! Everything funnels into [`Ingestor::frame`], so replay and live decode identically.
@@ -15,6 +16,7 @@ pub mod address;
 pub mod decode;
 pub mod frame;
 pub mod live;
+pub mod outbox;
 pub mod stats;
 pub mod stream;
 pub mod supervisor;

@@ -197,6 +197,7 @@ async fn vehicle(wire: Wire, b: Behaviour, heard: Arc<Mutex<Heard>>) {
                             out.push((1, MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                                 command: c.command,
                                 result: MavResult::MAV_RESULT_ACCEPTED,
+                                ..Default::default()
                             })));
                         }
                         _ => {}

@@ -7,10 +7,14 @@
 //! - `live`: a UDP link to a vehicle played by a tokio task using the mavlink crate; recording.
 //! - `sitl`: two ArduCopter SITLs on one UDP link, one rebooted (needs `SAVSIM_ARDUCOPTER`;
 //!   runs in a network namespace of its own).
+//! - `sitl_feed`: ArduCopter SITL fed by savsim's proximity feed stops before a wall of the
+//!   bundled city, and flies into it without the feed (needs `SAVSIM_ARDUCOPTER`).
 //! - `supervisor`: per-vehicle routing, requests, fallback, stale streams and reboots, on
 //!   frames and times the test chooses.
 //! - `faults`: live faults (garbage, truncation, repeats, reordering, reboots) and a 10 s burst
 //!   of 100k messages/s, every frame accounted for.
+//! - `feed`: the closed-loop feed: sector, bin and rangefinder distances against a slab ray
+//!   cast, `replay --feed-out` read by pymavlink against the wire rules, two vehicles fed live.
 //! - `extremes`: numerics at the poles, the antimeridian, -400 m to 20 km, 0 to 300 m/s, rays
 //!   along faces and edges, millimetre to 10 km meshes, coplanar contact, gimbal lock.
 //! - `scenes`: the scene file format and its errors.
@@ -38,6 +42,7 @@ mod collision;
 mod common;
 mod extremes;
 mod faults;
+mod feed;
 mod geo;
 mod ingest;
 mod issue_11_layers;
@@ -46,6 +51,7 @@ mod properties;
 mod scenes;
 mod shared_fixtures;
 mod sitl;
+mod sitl_feed;
 mod sitl_px4;
 mod supervisor;
 mod terrain;

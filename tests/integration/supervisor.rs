@@ -44,6 +44,7 @@ fn ack(result: MavResult) -> MavMessage {
     MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
         result,
+        ..Default::default()
     })
 }
 

@@ -1,0 +1,486 @@
+//! The closed-loop feed (docs/closed-loop.md): savsim as the vehicle's virtual range sensors
+//! and traffic source. Per vehicle, paced on the vehicle's own clock (`time_boot_ms`), the
+//! sensing layer casts exact rays into the scene ([`crate::collision::fan`]) and the feed turns
+//! them into what the autopilot's avoidance reads: DISTANCE_SENSOR sectors (ArduPilot's
+//! proximity), a downward DISTANCE_SENSOR (rangefinder), OBSTACLE_DISTANCE (PX4, ArduPilot),
+//! ADSB_VEHICLE for the scene's other aircraft and vehicles, and COLLISION for savsim's own
+//! threats.
+//!
+//! Pure and synchronous: samples in, messages out ([`FeedMessage`]); the live session sends
+//! them to the link each vehicle is on, replay writes them to a tlog.
+//!
+//! - [`sectors`]: which way each reading looks (levelled, clockwise from the nose).
+//! - [`wire`]: the MAVLink messages and their units.
+//! - [`threats`]: closest approach of the other aircraft, for COLLISION.
+
+pub mod sectors;
+pub mod threats;
+pub mod wire;
+
+use std::collections::BTreeMap;
+
+use glam::DVec3;
+use mavlink::dialects::ardupilotmega::MavMessage;
+use serde::Serialize;
+
+use crate::collision::pipeline::{BodySource, DynamicBody, Pipeline, Rays, VehicleKey};
+use crate::geo::LocalTangentPlane;
+use crate::ingest::stats::SenderId;
+use crate::scene::{DynamicSource, Scene};
+use crate::world::TrackSample;
+use sectors::{Levelled, BINS, SECTORS};
+use wire::Range;
+
+/// MAV_SENSOR_ORIENTATION of the upward reading.
+pub const ORIENTATION_UP: u8 = 24;
+/// MAV_SENSOR_ORIENTATION of the downward reading (the rangefinder).
+pub const ORIENTATION_DOWN: u8 = 25;
+
+/// What the feed sends.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct FeedKinds {
+    /// DISTANCE_SENSOR per horizontal sector (and up): ArduPilot's MAVLink proximity.
+    pub proximity: bool,
+    /// DISTANCE_SENSOR down: ArduPilot's MAVLink rangefinder, PX4's distance sensor.
+    pub rangefinder: bool,
+    /// OBSTACLE_DISTANCE, 72 bins: PX4's collision prevention, ArduPilot's proximity.
+    pub obstacle_distance: bool,
+    /// ADSB_VEHICLE for the other aircraft: ArduPilot's and PX4's traffic avoidance.
+    pub adsb: bool,
+    /// COLLISION for savsim's own threats.
+    pub collision: bool,
+}
+
+impl FeedKinds {
+    /// Parse `proximity,rangefinder,obstacle-distance,adsb,collision` (any subset).
+    ///
+    /// ```
+    /// use savsim::feed::FeedKinds;
+    /// let k = FeedKinds::parse("proximity,adsb").unwrap();
+    /// assert!(k.proximity && k.adsb && !k.rangefinder);
+    /// assert!(FeedKinds::parse("proximity,obstacle-distance").is_err());
+    /// assert!(FeedKinds::parse("lidar").is_err());
+    /// ```
+    pub fn parse(list: &str) -> Result<Self, String> {
+        let mut k = FeedKinds::default();
+        for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            match item {
+                "proximity" => k.proximity = true,
+                "rangefinder" => k.rangefinder = true,
+                "obstacle-distance" => k.obstacle_distance = true,
+                "adsb" => k.adsb = true,
+                "collision" => k.collision = true,
+                other => {
+                    return Err(format!(
+                        "unknown feed `{other}` (proximity, rangefinder, obstacle-distance, adsb, collision)"
+                    ))
+                }
+            }
+        }
+        if k.proximity && k.obstacle_distance {
+            // ArduPilot's MAVLink proximity keeps one picture: each message clears the other's.
+            return Err(
+                "`proximity` and `obstacle-distance` feed the same ArduPilot proximity \
+                        backend and clear each other's picture: choose one"
+                    .into(),
+            );
+        }
+        Ok(k)
+    }
+
+    /// True when anything is sent.
+    pub fn any(&self) -> bool {
+        self.proximity || self.rangefinder || self.obstacle_distance || self.adsb || self.collision
+    }
+
+    /// True when the horizontal bins are cast.
+    fn needs_bins(&self) -> bool {
+        self.proximity || self.obstacle_distance
+    }
+}
+
+/// How the feed behaves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeedConfig {
+    /// What is sent.
+    pub kinds: FeedKinds,
+    /// Frames per second of the vehicle's clock (the autopilot's timeouts run on it).
+    pub hz: f64,
+    /// The range sensors' limits.
+    pub range: Range,
+    /// The proximity orientations sent: 0..7 (sectors), 24 (up).
+    pub orientations: Vec<u8>,
+    /// MAV_DISTANCE_SENSOR type of every reading (0 laser).
+    pub sensor_type: u8,
+    /// ADSB_VEHICLE reports per aircraft per second (vehicle's clock).
+    pub adsb_hz: f64,
+    /// COLLISION: report aircraft whose closest approach comes within this horizontally,
+    /// metres...
+    pub collision_horizontal_m: f64,
+    /// ... and this vertically, metres...
+    pub collision_vertical_m: f64,
+    /// ... within this many seconds.
+    pub collision_horizon_s: f64,
+}
+
+impl Default for FeedConfig {
+    fn default() -> Self {
+        Self {
+            kinds: FeedKinds::default(),
+            hz: 20.0,
+            range: Range {
+                min_m: 0.2,
+                max_m: 40.0,
+            },
+            orientations: (0..SECTORS as u8).chain([ORIENTATION_UP]).collect(),
+            sensor_type: 0,
+            adsb_hz: 2.0,
+            collision_horizontal_m: 150.0,
+            collision_vertical_m: 30.0,
+            collision_horizon_s: 30.0,
+        }
+    }
+}
+
+impl FeedConfig {
+    /// Check the settings; the error names what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.hz.is_finite() && self.hz > 0.0 && self.hz <= 1000.0) {
+            return Err(format!("--feed-hz must be in (0, 1000], not {}", self.hz));
+        }
+        if !(self.adsb_hz.is_finite() && self.adsb_hz > 0.0) {
+            return Err(format!(
+                "the ADS-B rate must be positive, not {}",
+                self.adsb_hz
+            ));
+        }
+        let Range { min_m, max_m } = self.range;
+        if !(min_m.is_finite() && max_m.is_finite() && 0.0 <= min_m && min_m < max_m) {
+            return Err(format!(
+                "the feed's range must be 0 <= min < max, not {min_m} .. {max_m} m"
+            ));
+        }
+        if max_m > 650.0 {
+            return Err(format!(
+                "the feed's max range {max_m} m does not fit DISTANCE_SENSOR's centimetres"
+            ));
+        }
+        if let Some(o) = self
+            .orientations
+            .iter()
+            .find(|&&o| !(o < SECTORS as u8 || o == ORIENTATION_UP))
+        {
+            return Err(format!(
+                "proximity orientation {o}: 0..7 (45-degree sectors) or 24 (up); 25 (down) is `rangefinder`"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A message for a vehicle: who it is for, the vehicle's clock it was stamped with, and what.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeedMessage {
+    /// The vehicle (its MAVLink system and component).
+    pub to: SenderId,
+    /// The receive clock of the sample it was cast from, seconds (for a tlog).
+    pub t_s: f64,
+    /// The message.
+    pub message: MavMessage,
+}
+
+/// What the feed did for one vehicle, for the summary.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct FeedCounts {
+    /// Frames cast.
+    pub frames: u64,
+    /// Messages made.
+    pub messages: u64,
+    /// Intervals between frames longer than twice the period (the autopilot's picture aged).
+    pub gaps: u64,
+    /// Longest interval between frames, vehicle's clock, ms.
+    pub max_interval_ms: u32,
+    /// Vehicle's clock from the first frame to the last, ms (frames / span is the rate).
+    pub span_ms: u64,
+    /// Restarts of the vehicle's clock (a reboot): pacing started again.
+    pub restarts: u64,
+}
+
+#[derive(Debug, Clone, Default)]
+struct VehicleFeed {
+    next_due_ms: Option<u32>,
+    last_stamp_ms: Option<u32>,
+    next_adsb_ms: Option<u32>,
+    counts: FeedCounts,
+}
+
+/// The feed's per-vehicle pacing and its scratch buffers.
+#[derive(Debug, Clone)]
+pub struct Feed {
+    /// Settings.
+    pub config: FeedConfig,
+    vehicles: BTreeMap<SenderId, VehicleFeed>,
+    dirs: [DVec3; BINS],
+    bins: [Option<f64>; BINS],
+}
+
+/// One feed frame's inputs: the scene, the vehicle and its sample, the moving bodies around it.
+pub struct FrameInput<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its tangent plane (ENU <-> WGS84).
+    pub plane: &'a LocalTangentPlane,
+    /// The vehicle's MAVLink identity.
+    pub sender: SenderId,
+    /// The vehicle as a collision body.
+    pub key: VehicleKey,
+    /// Its newest sample.
+    pub current: &'a TrackSample,
+    /// The moving bodies at this sample (the vehicle's own is skipped).
+    pub dynamic: &'a [DynamicBody],
+}
+
+impl Feed {
+    /// A feed with no vehicles yet.
+    pub fn new(config: FeedConfig) -> Self {
+        Self {
+            config,
+            vehicles: BTreeMap::new(),
+            dirs: [DVec3::ZERO; BINS],
+            bins: [None; BINS],
+        }
+    }
+
+    /// Each vehicle's counts.
+    pub fn counts(&self) -> impl Iterator<Item = (SenderId, FeedCounts)> + '_ {
+        self.vehicles.iter().map(|(id, v)| (*id, v.counts))
+    }
+
+    /// True when a frame is due for `sender` at its sample stamped `time_boot_ms`: one per
+    /// period of the vehicle's clock (a quarter period early at most, for jitter), never two
+    /// to catch up.
+    fn due(&mut self, sender: SenderId, time_boot_ms: u32) -> bool {
+        let period_ms = 1000.0 / self.config.hz;
+        let v = self.vehicles.entry(sender).or_default();
+        if v.last_stamp_ms
+            .is_some_and(|last| time_boot_ms + 1000 < last)
+        {
+            // The clock went back: a reboot. Start pacing again.
+            v.next_due_ms = None;
+            v.last_stamp_ms = None;
+            v.next_adsb_ms = None;
+            v.counts.restarts += 1;
+        }
+        let early_ms = (period_ms * 0.25) as u32;
+        match v.next_due_ms {
+            Some(next) if time_boot_ms.saturating_add(early_ms) < next => false,
+            Some(next) => {
+                let after = next.saturating_add(period_ms.round() as u32);
+                v.next_due_ms = Some(if after <= time_boot_ms {
+                    // Behind (a telemetry gap): one frame now, the next a period later.
+                    time_boot_ms.saturating_add(period_ms.round() as u32)
+                } else {
+                    after
+                });
+                true
+            }
+            None => {
+                v.next_due_ms = Some(time_boot_ms.saturating_add(period_ms.round() as u32));
+                true
+            }
+        }
+    }
+
+    /// After a collision tick: if a frame is due for this vehicle, cast it and push its
+    /// messages to `out`.
+    pub fn on_sample(
+        &mut self,
+        pipeline: &mut Pipeline,
+        input: &FrameInput<'_>,
+        out: &mut Vec<FeedMessage>,
+    ) {
+        if !self.config.kinds.any() || !self.due(input.sender, input.current.time_boot_ms) {
+            return;
+        }
+        let first = out.len();
+        let cfg = &self.config;
+        let kinds = cfg.kinds;
+        let current = input.current;
+        let v = self.vehicles.entry(input.sender).or_default();
+        // One frame, one stamp, always advancing (ArduPilot groups readings by it).
+        let stamp = match v.last_stamp_ms {
+            Some(last) if current.time_boot_ms <= last => last.wrapping_add(1),
+            _ => current.time_boot_ms,
+        };
+        if let Some(last) = v.last_stamp_ms {
+            let interval = stamp.wrapping_sub(last);
+            v.counts.max_interval_ms = v.counts.max_interval_ms.max(interval);
+            v.counts.span_ms += u64::from(interval);
+            if f64::from(interval) > 2000.0 / cfg.hz {
+                v.counts.gaps += 1;
+            }
+        }
+        v.last_stamp_ms = Some(stamp);
+        v.counts.frames += 1;
+        let own = input.key.source();
+        let origin = current.position_enu_m;
+        let push = |out: &mut Vec<FeedMessage>, message| {
+            out.push(FeedMessage {
+                to: input.sender,
+                t_s: current.t_s,
+                message,
+            })
+        };
+        let attitude = &current.attitude;
+        let levelled = Levelled::new(attitude.forward_enu(), attitude.enu_from_frd * DVec3::Z);
+        if let (true, Some(levelled)) = (kinds.needs_bins(), levelled) {
+            levelled.bin_directions(&mut self.dirs);
+            let rays = Rays {
+                origin_enu_m: origin,
+                dirs_enu: &self.dirs,
+                max_m: cfg.range.max_m,
+            };
+            pipeline.cast_exact_rays(input.scene, own, input.dynamic, rays, &mut self.bins);
+        }
+        let mut one_ray = |dir: DVec3| {
+            let mut hit = [None];
+            let rays = Rays {
+                origin_enu_m: origin,
+                dirs_enu: &[dir],
+                max_m: cfg.range.max_m,
+            };
+            pipeline.cast_exact_rays(input.scene, own, input.dynamic, rays, &mut hit);
+            hit[0]
+        };
+        if kinds.proximity && levelled.is_some() {
+            for (id, &o) in cfg.orientations.iter().enumerate() {
+                let distance = if o == ORIENTATION_UP {
+                    one_ray(DVec3::Z)
+                } else {
+                    sectors::sector_from_bins(&self.bins, usize::from(o))
+                };
+                push(
+                    out,
+                    wire::distance_sensor(stamp, cfg.range, distance, o, cfg.sensor_type, id as u8),
+                );
+            }
+        }
+        if kinds.obstacle_distance && levelled.is_some() {
+            push(
+                out,
+                wire::obstacle_distance(stamp, cfg.range, &self.bins, cfg.sensor_type),
+            );
+        }
+        if kinds.rangefinder {
+            let down = (attitude.enu_from_frd * DVec3::Z).normalize_or(DVec3::NEG_Z);
+            let mut distance = one_ray(down);
+            if !input
+                .scene
+                .obstacles
+                .iter()
+                .any(|o| o.geometry.is_terrain())
+            {
+                // No terrain: the ground is the plane through the scene's origin.
+                distance = nearest(distance, ground_plane_m(origin, down, cfg.range.max_m));
+            }
+            push(
+                out,
+                wire::distance_sensor(
+                    stamp,
+                    cfg.range,
+                    distance,
+                    ORIENTATION_DOWN,
+                    cfg.sensor_type,
+                    cfg.orientations.len() as u8,
+                ),
+            );
+        }
+        let adsb_due = kinds.adsb && v.next_adsb_ms.is_none_or(|next| stamp >= next);
+        if adsb_due {
+            v.next_adsb_ms = Some(stamp.saturating_add((1000.0 / cfg.adsb_hz).round() as u32));
+            for (aircraft, _) in aircraft(input) {
+                push(out, wire::adsb_vehicle(&aircraft, 0.0));
+            }
+        }
+        if kinds.collision {
+            for (aircraft, body) in aircraft(input) {
+                let velocity = body_velocity(body);
+                if let Some(threat) = threats::threat(
+                    current.position_enu_m,
+                    current.velocity_enu_mps,
+                    body.current.position_enu_m,
+                    velocity,
+                    cfg,
+                ) {
+                    push(out, threats::collision(aircraft.icao_address, &threat));
+                }
+            }
+        }
+        v.counts.messages += (out.len() - first) as u64;
+    }
+}
+
+fn nearest(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// Distance along `dir` (unit) from `origin_enu_m` to the plane U = 0, within `max_m`.
+fn ground_plane_m(origin_enu_m: DVec3, dir: DVec3, max_m: f64) -> Option<f64> {
+    if origin_enu_m.z < 0.0 {
+        return Some(0.0);
+    }
+    (dir.z < 0.0)
+        .then(|| origin_enu_m.z / -dir.z)
+        .filter(|&d| d <= max_m)
+}
+
+/// A moving body's velocity, ENU m/s: its speed along its motion in this interval (along its
+/// nose when it did not move).
+fn body_velocity(d: &DynamicBody) -> DVec3 {
+    let moved = d.current.position_enu_m - d.previous.position_enu_m;
+    let along = moved
+        .try_normalize()
+        .unwrap_or_else(|| d.current.enu_from_body * DVec3::X);
+    along * d.speed_mps
+}
+
+/// The aircraft a vehicle is told about: the scene's scripted tracks and declared vehicles, and
+/// every other MAVLink vehicle savsim mirrors; not ADS-B traffic (the vehicle's own receiver
+/// or its GCS already has it) and never the vehicle itself.
+fn aircraft<'a>(
+    input: &'a FrameInput<'a>,
+) -> impl Iterator<Item = (wire::Aircraft<'a>, &'a DynamicBody)> + 'a {
+    input.dynamic.iter().filter_map(move |d| {
+        let icao_address = match d.key.source {
+            BodySource::Scripted(i) => match input.scene.dynamic.get(i as usize)?.source {
+                DynamicSource::Icao(_) => return None,
+                DynamicSource::Waypoints(_) | DynamicSource::SystemId(_) => {
+                    0xF0_0000 | (i & 0xFFFF)
+                }
+            },
+            BodySource::Vehicle {
+                vehicle,
+                component_id,
+            } => {
+                if (vehicle, component_id) == (input.key.vehicle, input.key.component_id) {
+                    return None;
+                }
+                0xF1_0000 | (u32::from(vehicle & 0xFF) << 8) | u32::from(component_id)
+            }
+            BodySource::Traffic(_) => return None,
+        };
+        Some((
+            wire::Aircraft {
+                icao_address,
+                callsign: &d.id,
+                position: input.plane.geodetic_from_enu_m(d.current.position_enu_m),
+                velocity_enu_mps: body_velocity(d),
+                kind: d.kind,
+            },
+            d,
+        ))
+    })
+}
