@@ -315,6 +315,11 @@ impl Session {
                 model: scene.vehicle_model(sender.system_id),
                 rays_m: sensing.map_or([None; 6], |s| s.rays.map(|r| r.map(|h| h.distance_m))),
                 ray_length_m: pipeline.config.ray_length_m,
+                feed: self
+                    .feed
+                    .as_ref()
+                    .map_or_else(Vec::new, |f| f.readings().to_vec()),
+                feed_max_m: self.feed.as_ref().map_or(0.0, |f| f.config.range.max_m),
                 node: sensing
                     .and_then(|s| s.node())
                     .map(|n| pipeline.octree.node_aabb(n)),

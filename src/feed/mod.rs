@@ -214,6 +214,15 @@ struct VehicleFeed {
     counts: FeedCounts,
 }
 
+/// One range reading of the last frame, for the viewer: which way it looked and what it said.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reading {
+    /// Its direction (a sector's or bin's centre line, up, or body down), ENU unit vector.
+    pub dir_enu: DVec3,
+    /// What was sent, metres (`None`: nothing seen within range).
+    pub distance_m: Option<f64>,
+}
+
 /// The feed's per-vehicle pacing and its scratch buffers.
 #[derive(Debug, Clone)]
 pub struct Feed {
@@ -222,6 +231,7 @@ pub struct Feed {
     vehicles: BTreeMap<SenderId, VehicleFeed>,
     dirs: [DVec3; BINS],
     bins: [Option<f64>; BINS],
+    readings: Vec<Reading>,
 }
 
 /// One feed frame's inputs: the scene, the vehicle and its sample, the moving bodies around it.
@@ -248,12 +258,19 @@ impl Feed {
             vehicles: BTreeMap::new(),
             dirs: [DVec3::ZERO; BINS],
             bins: [None; BINS],
+            readings: Vec::new(),
         }
     }
 
     /// Each vehicle's counts.
     pub fn counts(&self) -> impl Iterator<Item = (SenderId, FeedCounts)> + '_ {
         self.vehicles.iter().map(|(id, v)| (*id, v.counts))
+    }
+
+    /// The range readings of the frame the last [`Feed::on_sample`] cast (empty when it cast
+    /// none): what the viewer draws.
+    pub fn readings(&self) -> &[Reading] {
+        &self.readings
     }
 
     /// True when a frame is due for `sender` at its sample stamped `time_boot_ms`: one per
@@ -299,6 +316,7 @@ impl Feed {
         input: &FrameInput<'_>,
         out: &mut Vec<FeedMessage>,
     ) {
+        self.readings.clear();
         if !self.config.kinds.any() || !self.due(input.sender, input.current.time_boot_ms) {
             return;
         }
@@ -352,20 +370,45 @@ impl Feed {
             pipeline.cast_exact_rays(input.scene, own, input.dynamic, rays, &mut hit);
             hit[0]
         };
-        if kinds.proximity && levelled.is_some() {
+        let readings = &mut self.readings;
+        if let (true, Some(levelled)) = (kinds.proximity, levelled) {
             for (id, &o) in cfg.orientations.iter().enumerate() {
-                let distance = if o == ORIENTATION_UP {
-                    one_ray(DVec3::Z)
+                let (dir_enu, distance_m) = if o == ORIENTATION_UP {
+                    (DVec3::Z, one_ray(DVec3::Z))
                 } else {
-                    sectors::sector_from_bins(&self.bins, usize::from(o))
+                    let centre = levelled.direction(f64::from(o) * 45.0);
+                    (
+                        centre,
+                        sectors::sector_from_bins(&self.bins, usize::from(o)),
+                    )
                 };
+                readings.push(Reading {
+                    dir_enu,
+                    distance_m,
+                });
                 push(
                     out,
-                    wire::distance_sensor(stamp, cfg.range, distance, o, cfg.sensor_type, id as u8),
+                    wire::distance_sensor(
+                        stamp,
+                        cfg.range,
+                        distance_m,
+                        o,
+                        cfg.sensor_type,
+                        id as u8,
+                    ),
                 );
             }
         }
-        if kinds.obstacle_distance && levelled.is_some() {
+        if let (true, Some(_)) = (kinds.obstacle_distance, levelled) {
+            readings.extend(
+                self.dirs
+                    .iter()
+                    .zip(&self.bins)
+                    .map(|(&dir_enu, &distance_m)| Reading {
+                        dir_enu,
+                        distance_m,
+                    }),
+            );
             push(
                 out,
                 wire::obstacle_distance(stamp, cfg.range, &self.bins, cfg.sensor_type),
@@ -373,7 +416,7 @@ impl Feed {
         }
         if kinds.rangefinder {
             let down = (attitude.enu_from_frd * DVec3::Z).normalize_or(DVec3::NEG_Z);
-            let mut distance = one_ray(down);
+            let mut distance_m = one_ray(down);
             if !input
                 .scene
                 .obstacles
@@ -381,14 +424,18 @@ impl Feed {
                 .any(|o| o.geometry.is_terrain())
             {
                 // No terrain: the ground is the plane through the scene's origin.
-                distance = nearest(distance, ground_plane_m(origin, down, cfg.range.max_m));
+                distance_m = nearest(distance_m, ground_plane_m(origin, down, cfg.range.max_m));
             }
+            readings.push(Reading {
+                dir_enu: down,
+                distance_m,
+            });
             push(
                 out,
                 wire::distance_sensor(
                     stamp,
                     cfg.range,
-                    distance,
+                    distance_m,
                     ORIENTATION_DOWN,
                     cfg.sensor_type,
                     cfg.orientations.len() as u8,

@@ -199,6 +199,7 @@ fn log_tick(
     log_body(rec, rows, v, scene, f, position)?;
     log_track(rec, rows, v, f, position)?;
     log_rays(rec, rows, v, f, state.offset, position)?;
+    log_feed(rec, f, position)?;
     log_node(rec, v, f, state.leaves, state.offset)?;
     // Colliders (what changed), and the beta of each one a ray sees.
     v.colliders.log(rec, scene, state.offset, f)?;
@@ -394,6 +395,32 @@ fn log_rays(
         )?;
     }
     Ok(())
+}
+
+/// The closed-loop feed's readings at a feed frame: what the autopilot was told, green where
+/// something was seen (drawn to it), grey where nothing was (drawn to the range's end).
+fn log_feed(rec: &RecordingStream, f: &TickFrame, position: Vec3) -> RecordingStreamResult<()> {
+    if f.feed.is_empty() {
+        return Ok(());
+    }
+    let vectors = f.feed.iter().map(|r| {
+        (r.dir_enu * r.distance_m.unwrap_or(f.feed_max_m))
+            .as_vec3()
+            .to_array()
+    });
+    let colors = f.feed.iter().map(|r| {
+        if r.distance_m.is_some() {
+            Color::from_rgb(40, 220, 90)
+        } else {
+            Color::from_unmultiplied_rgba(160, 160, 160, 80)
+        }
+    });
+    rec.log(
+        paths::vehicle_part(f.system_id, "feed"),
+        &Arrows3D::from_vectors(vectors)
+            .with_origins(std::iter::repeat_n(position.to_array(), f.feed.len()))
+            .with_colors(colors),
+    )
 }
 
 /// The current node and the leaves that touch it, logged when the node changes.

@@ -108,6 +108,11 @@ pub struct TickFrame {
     pub rays_m: [Option<f64>; 6],
     /// Ray length, metres.
     pub ray_length_m: f64,
+    /// The closed-loop feed's readings cast at this tick (empty when none was): direction and
+    /// what the autopilot was sent (docs/closed-loop.md).
+    pub feed: Vec<crate::feed::Reading>,
+    /// The feed's range, metres (a reading of nothing is drawn this long).
+    pub feed_max_m: f64,
     /// The vehicle's octree leaf.
     pub node: Option<Aabb64>,
     /// Obstacles with a collider: which, and beta.

@@ -36,7 +36,7 @@ pub fn track_segment(system_id: u8, k: u32) -> String {
     format!("world/vehicles/{system_id}/track/{k}")
 }
 
-/// Something below a vehicle: `rays`, `rays/hits`, `node`, `node/neighbours`.
+/// Something below a vehicle: `rays`, `rays/hits`, `node`, `node/neighbours`, `feed`.
 pub fn vehicle_part(system_id: u8, part: &str) -> String {
     format!("world/vehicles/{system_id}/{part}")
 }
