@@ -494,3 +494,68 @@ fn two_vehicles_are_fed_live_each_at_its_own_address_and_an_echo_is_ignored() {
         );
     }
 }
+
+/// The feed's frames for samples of vehicle 1 at `times_ms` (its clock), a pose 10 m south
+/// of b0: the stamps of the frames cast.
+fn frame_stamps(hz: f64, times_ms: &[u32]) -> (Vec<u32>, serde_json::Value) {
+    let scene = Arc::new(scene_at(ORIGIN, &boxes_scene()));
+    let plane = LocalTangentPlane::new(ORIGIN);
+    let mut session = Session::new(Some(scene), CollisionConfig::default(), None).unwrap();
+    session
+        .start_feed(FeedConfig {
+            hz,
+            ..config("proximity")
+        })
+        .unwrap();
+    let mut seq = 0;
+    let pose = (DVec3::new(0.0, 10.0, 30.0), 0.0, 0.0, 0.0);
+    let mut stamps = Vec::new();
+    for (i, &t_ms) in times_ms.iter().enumerate() {
+        let t_s = 1000.0 + i as f64 * 0.02;
+        feed(
+            &mut session,
+            t_s,
+            &pose_frames(&plane, 1, &mut seq, t_ms, pose),
+        );
+        if let Some(MavMessage::DISTANCE_SENSOR(d)) = session.feed_out.first().map(|m| &m.message) {
+            stamps.push(d.time_boot_ms);
+        }
+        session.feed_out.clear();
+    }
+    let summary = session.summary("replay", "test");
+    (stamps, summary["feed"]["vehicles"][0].clone())
+}
+
+#[test]
+fn frames_are_paced_on_the_vehicle_clock_never_burst_and_restart_after_a_reboot() {
+    // 50 Hz telemetry with +-4 ms of jitter, 10 s: a 20 Hz feed, within 5%, no interval under
+    // 35 ms or over 65 ms.
+    let times: Vec<u32> = (0..500u32).map(|i| 60_000 + i * 20 + (i * 7 % 9)).collect();
+    let (stamps, v) = frame_stamps(20.0, &times);
+    let rate = (stamps.len() - 1) as f64 * 1000.0 / f64::from(stamps[stamps.len() - 1] - stamps[0]);
+    assert!((rate - 20.0).abs() <= 1.0, "{rate} Hz");
+    assert!(
+        stamps
+            .windows(2)
+            .all(|w| (35..=65).contains(&(w[1] - w[0]))),
+        "{stamps:?}"
+    );
+    assert_eq!(v["counts"]["gaps"], 0, "{v}");
+    // Telemetry slower than the feed: one frame per sample, none invented.
+    let slow: Vec<u32> = (0..50u32).map(|i| 60_000 + i * 200).collect();
+    let (stamps, _) = frame_stamps(20.0, &slow);
+    assert_eq!(stamps, slow);
+    // A 2 s telemetry gap: one frame after it (counted as a gap), not 40 to catch up.
+    let mut gap: Vec<u32> = (0..20u32).map(|i| 60_000 + i * 50).collect();
+    gap.extend((0..20u32).map(|i| 63_000 + i * 50));
+    let (stamps, v) = frame_stamps(20.0, &gap);
+    assert_eq!(stamps.len(), 40, "{stamps:?}");
+    assert_eq!(v["counts"]["gaps"], 1, "{v}");
+    // A reboot: the clock goes back to 1 s; pacing starts again and stamps follow the new clock.
+    let mut reboot: Vec<u32> = (0..20u32).map(|i| 60_000 + i * 50).collect();
+    reboot.extend((0..20u32).map(|i| 1_000 + i * 50));
+    let (stamps, v) = frame_stamps(20.0, &reboot);
+    assert_eq!(stamps.len(), 40, "{stamps:?}");
+    assert_eq!(stamps[20], 1_000);
+    assert_eq!(v["counts"]["restarts"], 1, "{v}");
+}

@@ -25,6 +25,7 @@ use mavlink::dialects::ardupilotmega::{
 use savsim::app::live::{run_links, LiveOptions};
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::feed::{FeedConfig, FeedKinds};
+use savsim::scene::Scene;
 use savsim::session::Session;
 
 use crate::common::{frame_v2, root, runtime, udp_link};
@@ -43,6 +44,14 @@ struct Heard {
     /// East, north of the origin (metres, WGS84 radii of curvature), relative altitude (m).
     east_north_up: Option<(f64, f64, f64)>,
     texts: Vec<String>,
+    /// Flight modes the copter reported, in order (custom_mode; 4 GUIDED, 19 AVOID_ADSB).
+    modes: Vec<u32>,
+    /// COLLISION messages from the copter: (threat id, action, threat level).
+    collisions: Vec<(u32, u8, u8)>,
+    /// ADSB_VEHICLE the copter streams back (what its ADS-B list holds), and the last one:
+    /// (ICAO, altitude mm, horizontal velocity cm/s, heading cdeg).
+    adsb_echoed: u32,
+    adsb_last: Option<(u32, i32, u16, u16)>,
 }
 
 /// The GCS on SITL's SERIAL1 (TCP 5762), as sysid 250: a reader thread and a writer.
@@ -77,6 +86,19 @@ impl Gcs {
                                 heard.armed = hb
                                     .base_mode
                                     .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+                                if heard.modes.last() != Some(&hb.custom_mode) {
+                                    heard.modes.push(hb.custom_mode);
+                                }
+                            }
+                            MavMessage::COLLISION(c) => {
+                                heard
+                                    .collisions
+                                    .push((c.id, c.action as u8, c.threat_level as u8));
+                            }
+                            MavMessage::ADSB_VEHICLE(a) => {
+                                heard.adsb_echoed += 1;
+                                heard.adsb_last =
+                                    Some((a.ICAO_address, a.altitude, a.hor_velocity, a.heading));
                             }
                             MavMessage::GLOBAL_POSITION_INT(p) => {
                                 heard.time_boot_ms = p.time_boot_ms;
@@ -186,11 +208,159 @@ fn east_north(lat_e7: i32, lon_e7: i32, relative_alt_mm: i32) -> (f64, f64, f64)
     )
 }
 
-/// Fly the scenario with or without the feed; returns where the copter ended (E, N, U) and
-/// savsim's collisions.
+/// A SITL flight under way: the copter, savsim live on its SERIAL0 (a thread), the test's GCS
+/// on its SERIAL1.
+struct Flight {
+    gcs: Gcs,
+    shutdown: Arc<AtomicBool>,
+    savsim: std::thread::JoinHandle<savsim::app::live::LiveRun>,
+    speedup: f64,
+    _sitl: Sitl,
+    _dir: tempfile::TempDir,
+}
+
+impl Flight {
+    /// Start ArduCopter (home at the city's origin, facing west) with `params` on top of
+    /// `SAVSIM_ARDUCOPTER_DEFAULTS`, and savsim over `scene` with `feed` (if any).
+    fn start(
+        bin: &PathBuf,
+        params: &str,
+        scene: Scene,
+        feed: Option<&str>,
+        speedup: f64,
+    ) -> Flight {
+        let dir = tempfile::tempdir().unwrap();
+        let extra = dir.path().join("extra.parm");
+        std::fs::write(&extra, params).unwrap();
+        let mut defaults = std::env::var("SAVSIM_ARDUCOPTER_DEFAULTS").unwrap_or_default();
+        if !defaults.is_empty() {
+            defaults.push(',');
+        }
+        defaults.push_str(extra.to_str().unwrap());
+        let rt = runtime();
+        let (link, savsim) = udp_link(&rt);
+        let sitl = Sitl(
+            Command::new(bin)
+                .current_dir(dir.path())
+                .args(["--model", "+", "--speedup", &speedup.to_string(), "--wipe"])
+                .args(["-I", "0", "--home", "-35.363261,149.165230,584,270"])
+                .args([
+                    "--serial0",
+                    &format!("udpclient:127.0.0.1:{}", savsim.port()),
+                ])
+                .args(["--defaults", &defaults])
+                .stdout(
+                    std::fs::File::create(dir.path().join("sitl.log"))
+                        .map_or(Stdio::null(), Stdio::from),
+                )
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("start ArduCopter SITL"),
+        );
+        let mut session =
+            Session::new(Some(Arc::new(scene)), CollisionConfig::default(), None).unwrap();
+        if let Some(list) = feed {
+            session
+                .start_feed(FeedConfig {
+                    kinds: FeedKinds::parse(list).unwrap(),
+                    ..FeedConfig::default()
+                })
+                .unwrap();
+        }
+        let shutdown = Arc::new(AtomicBool::new(false));
+        let stop = shutdown.clone();
+        let limit = Duration::from_secs_f64(300.0 / speedup + 30.0);
+        let savsim = std::thread::spawn(move || {
+            let options = LiveOptions {
+                duration: Some(limit),
+                ..LiveOptions::default()
+            };
+            let handle = rt.handle().clone();
+            let run = run_links(&handle, vec![link], &options, session, None, stop).unwrap();
+            drop(rt);
+            run
+        });
+        Flight {
+            gcs: Gcs::connect(),
+            shutdown,
+            savsim,
+            speedup,
+            _sitl: sitl,
+            _dir: dir,
+        }
+    }
+
+    /// Wall-clock time for `s` seconds of the vehicle's clock, with 5 s to spare.
+    fn wall(&self, s: f64) -> Duration {
+        Duration::from_secs_f64(s / self.speedup + 5.0)
+    }
+
+    /// GUIDED, armed (ArduPilot refuses until its GPS is good and, with a proximity sensor
+    /// configured, until the feed flows), up to `up_m`, then to (`north_m`, `east_m`).
+    fn take_off_to(&mut self, up_m: f32, north_m: f32, east_m: f32) {
+        let (armed_within, leg) = (self.wall(120.0), self.wall(40.0));
+        let every = Duration::from_secs_f64(2.0 / self.speedup);
+        let mut asked = Instant::now() - Duration::from_secs(10);
+        let armed = self.gcs.until(armed_within, |g| {
+            if g.heard().armed {
+                return true;
+            }
+            if asked.elapsed() > every {
+                asked = Instant::now();
+                // Positions at 10 Hz on SERIAL1, GUIDED, arm.
+                g.command(
+                    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                    [33.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                );
+                g.command(
+                    MavCmd::MAV_CMD_DO_SET_MODE,
+                    [1.0, 4.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                );
+                g.command(
+                    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+                    [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                );
+            }
+            false
+        });
+        assert!(armed, "never armed: {:?}", self.gcs.heard().texts);
+        self.gcs.command(
+            MavCmd::MAV_CMD_NAV_TAKEOFF,
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, up_m],
+        );
+        let up = self.gcs.until(leg, |g| {
+            g.heard()
+                .east_north_up
+                .is_some_and(|p| p.2 > f64::from(up_m) - 1.0)
+        });
+        assert!(up, "never reached {up_m} m: {:?}", self.gcs.heard());
+        // A position target, NED about the EKF origin (home: the scene's origin).
+        let position_only = 0b0000_1101_1111_1000;
+        let there = self.gcs.until(leg, |g| {
+            g.target(position_only, [north_m, east_m, -up_m], [0.0; 3]);
+            g.heard().east_north_up.is_some_and(|p| {
+                (p.1 - f64::from(north_m)).abs() < 1.0 && (p.0 - f64::from(east_m)).abs() < 1.0
+            })
+        });
+        assert!(
+            there,
+            "never reached N {north_m} E {east_m}: {:?}",
+            self.gcs.heard().east_north_up
+        );
+    }
+
+    /// Stop savsim and SITL; savsim's run.
+    fn finish(self) -> savsim::app::live::LiveRun {
+        self.shutdown.store(true, Ordering::Relaxed);
+        let mut run = self.savsim.join().unwrap();
+        run.session.finish().unwrap();
+        run
+    }
+}
+
+/// Fly the wall scenario with or without the feed; returns where the copter ended (E, N, U),
+/// savsim's collisions and near misses.
 fn fly(bin: &PathBuf, with_feed: bool, speedup: f64) -> ((f64, f64, f64), u64, u64) {
-    let dir = tempfile::tempdir().unwrap();
-    let params = dir.path().join("feed.parm");
     // Without the feed, no proximity sensor is configured (ArduPilot would refuse to arm with
     // "PRX1: No Data"); the avoidance settings are the same.
     let proximity = if with_feed {
@@ -198,132 +368,22 @@ fn fly(bin: &PathBuf, with_feed: bool, speedup: f64) -> ((f64, f64, f64), u64, u
     } else {
         ""
     };
-    std::fs::write(
-        &params,
-        format!("{proximity}AVOID_ENABLE 3\nAVOID_BEHAVE 1\nAVOID_MARGIN 3\n"),
-    )
-    .unwrap();
-    let mut defaults = std::env::var("SAVSIM_ARDUCOPTER_DEFAULTS").unwrap_or_default();
-    if !defaults.is_empty() {
-        defaults.push(',');
-    }
-    defaults.push_str(params.to_str().unwrap());
-    let rt = runtime();
-    let (link, savsim) = udp_link(&rt);
-    let _sitl = Sitl(
-        Command::new(bin)
-            .current_dir(dir.path())
-            .args([
-                "--model",
-                "+",
-                "--speedup",
-                &speedup.to_string(),
-                "--wipe",
-                "-I",
-                "0",
-            ])
-            .args(["--home", "-35.363261,149.165230,584,270"])
-            .args([
-                "--serial0",
-                &format!("udpclient:127.0.0.1:{}", savsim.port()),
-            ])
-            .args(["--defaults", &defaults])
-            .stdout(
-                std::fs::File::create(dir.path().join("sitl.log"))
-                    .map_or(Stdio::null(), Stdio::from),
-            )
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start ArduCopter SITL"),
-    );
-    let scene = Arc::new(savsim::scene::load(&root().join("scenes/city.toml")).unwrap());
-    let mut session = Session::new(Some(scene), CollisionConfig::default(), None).unwrap();
-    if with_feed {
-        session
-            .start_feed(FeedConfig {
-                kinds: FeedKinds::parse("proximity").unwrap(),
-                ..FeedConfig::default()
-            })
-            .unwrap();
-    }
-    let shutdown = Arc::new(AtomicBool::new(false));
-    let stop = shutdown.clone();
-    let limit = Duration::from_secs_f64(240.0 / speedup + 30.0);
-    let savsim_thread = std::thread::spawn(move || {
-        let options = LiveOptions {
-            duration: Some(limit),
-            ..LiveOptions::default()
-        };
-        let handle = rt.handle().clone();
-        let run = run_links(&handle, vec![link], &options, session, None, stop).unwrap();
-        drop(rt);
-        run
-    });
-    let mut gcs = Gcs::connect();
-    let wall = |s: f64| Duration::from_secs_f64(s / speedup + 5.0);
-    // Streams on SERIAL1: positions at 10 Hz.
-    gcs.command(
-        MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-        [33.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    );
-    // GUIDED and armed: ArduPilot refuses to arm until the GPS is good (and, with the
-    // proximity sensor configured, until the feed flows).
-    let mut asked = Instant::now() - Duration::from_secs(10);
-    let armed = gcs.until(wall(120.0), |g| {
-        if g.heard().armed {
-            return true;
-        }
-        if asked.elapsed() > Duration::from_secs_f64(2.0 / speedup) {
-            asked = Instant::now();
-            g.command(
-                MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-                [33.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            );
-            g.command(
-                MavCmd::MAV_CMD_DO_SET_MODE,
-                [1.0, 4.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            );
-            g.command(
-                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-                [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            );
-        }
-        false
-    });
-    assert!(armed, "never armed: {:?}", gcs.heard().texts);
-    gcs.command(
-        MavCmd::MAV_CMD_NAV_TAKEOFF,
-        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 30.0],
-    );
-    let up = gcs.until(wall(40.0), |g| {
-        g.heard().east_north_up.is_some_and(|p| p.2 > 29.0)
-    });
-    assert!(up, "never reached 30 m: {:?}", gcs.heard());
-    // To N -30 m (position target, NED about the EKF origin, which is home: the origin).
-    let position_only = 0b0000_1101_1111_1000;
-    let there = gcs.until(wall(40.0), |g| {
-        g.target(position_only, [-30.0, 0.0, -30.0], [0.0; 3]);
-        g.heard()
-            .east_north_up
-            .is_some_and(|p| (p.1 + 30.0).abs() < 1.0 && p.0.abs() < 1.0)
-    });
-    assert!(
-        there,
-        "never reached N -30 m: {:?}",
-        gcs.heard().east_north_up
-    );
+    let params = format!("{proximity}AVOID_ENABLE 3\nAVOID_BEHAVE 1\nAVOID_MARGIN 3\n");
+    let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    let feed = with_feed.then_some("proximity");
+    let mut flight = Flight::start(bin, &params, city, feed, speedup);
+    flight.take_off_to(30.0, -30.0, 0.0);
     // West at 5 m/s for 25 s of the vehicle's clock (re-sent at 10 Hz: GUIDED's velocity
     // targets time out after 3 s).
     let velocity_only = 0b0000_1101_1100_0111;
-    let from_ms = gcs.heard().time_boot_ms;
-    gcs.until(wall(25.0), |g| {
+    let from_ms = flight.gcs.heard().time_boot_ms;
+    let leg = flight.wall(25.0);
+    flight.gcs.until(leg, |g| {
         g.target(velocity_only, [0.0; 3], [0.0, -5.0, 0.0]);
         g.heard().time_boot_ms.wrapping_sub(from_ms) > 25_000
     });
-    let end = gcs.heard().east_north_up.unwrap();
-    shutdown.store(true, Ordering::Relaxed);
-    let mut run = savsim_thread.join().unwrap();
-    run.session.finish().unwrap();
+    let end = flight.gcs.heard().east_north_up.unwrap();
+    let run = flight.finish();
     let totals = run.session.pipeline.as_ref().unwrap().totals.clone();
     let summary = run.session.summary("live", "sitl");
     eprintln!(
@@ -367,5 +427,65 @@ fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
     assert!(
         collisions >= 1,
         "without the feed: ended at {end:?} and no collision"
+    );
+}
+
+/// ADS-B: an A320 crosses the hovering copter's position at its height, at 40 m/s; with
+/// `--feed adsb`, ArduPilot (ADSB_TYPE=1, AVD_ENABLE=1, AVD_F_ACTION=2) sees it, reports the
+/// threat (COLLISION) and takes its action (mode AVOID_ADSB). Speedup 1 only: a scripted track
+/// runs on the receive clock, which a vehicle clock at a speedup is held to.
+#[test]
+fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
+    let Some(bin) = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from) else {
+        eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");
+        return;
+    };
+    if !inside_own_network_namespace(
+        "sitl_feed::arducopter_avoids_a_scripted_airliner_sent_as_adsb",
+    ) {
+        return;
+    }
+    // Open air at the city's origin; the airliner waits 2.4 km east at 30 m until +100 s of
+    // the flight, then flies west through the origin (at +160 s).
+    let scene = crate::common::scene_at(
+        savsim::geo::Geodetic::new(ORIGIN_LAT_DEG, ORIGIN_LON_DEG, 584.0),
+        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
+         { t_s = 0.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
+         { t_s = 100.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
+         { t_s = 220.0, position_enu_m = [-2400.0, 0.0, 30.0] }]\n",
+    );
+    // SR1_ADSB: the copter streams its ADS-B list back on SERIAL1 (the test's GCS).
+    let params = "ADSB_TYPE 1\nAVD_ENABLE 1\nAVD_F_ACTION 2\nSR1_ADSB 5\n";
+    let mut flight = Flight::start(&bin, params, scene, Some("adsb,collision"), 1.0);
+    flight.take_off_to(30.0, 0.0, 0.0);
+    // Hover until ArduPilot acts or the airliner has passed (+200 s of the flight).
+    let hover = flight.wall(140.0);
+    let acted = flight.gcs.until(hover, |g| {
+        let h = g.heard();
+        h.modes.contains(&19) && !h.collisions.is_empty()
+    });
+    let heard = flight.gcs.heard();
+    let run = flight.finish();
+    let summary = run.session.summary("live", "sitl");
+    eprintln!(
+        "modes {:?}, ADSB_VEHICLE streamed back {} (last {:?}), COLLISION from the copter {:?}, feed {}, link feed {}, approaches {}",
+        heard.modes,
+        heard.adsb_echoed,
+        heard.adsb_last,
+        &heard.collisions[..heard.collisions.len().min(5)],
+        summary["feed"],
+        serde_json::to_string(&run.report.feed).unwrap(),
+        summary["approaches"]
+    );
+    assert!(
+        acted,
+        "ArduPilot did not act on the airliner: modes {:?}, {:?}",
+        heard.modes, heard.texts
+    );
+    // The threat it reported is savsim's airliner (scene track 0: ICAO 0xF00000).
+    assert!(
+        heard.collisions.iter().any(|c| c.0 == 0xF0_0000),
+        "{:?}",
+        heard.collisions
     );
 }
