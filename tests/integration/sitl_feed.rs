@@ -48,10 +48,6 @@ struct Heard {
     modes: Vec<u32>,
     /// COLLISION messages from the copter: (threat id, action, threat level).
     collisions: Vec<(u32, u8, u8)>,
-    /// ADSB_VEHICLE the copter streams back (what its ADS-B list holds), and the last one:
-    /// (ICAO, altitude mm, horizontal velocity cm/s, heading cdeg).
-    adsb_echoed: u32,
-    adsb_last: Option<(u32, i32, u16, u16)>,
 }
 
 /// The GCS on SITL's SERIAL1 (TCP 5762), as sysid 250: a reader thread and a writer.
@@ -94,11 +90,6 @@ impl Gcs {
                                 heard
                                     .collisions
                                     .push((c.id, c.action as u8, c.threat_level as u8));
-                            }
-                            MavMessage::ADSB_VEHICLE(a) => {
-                                heard.adsb_echoed += 1;
-                                heard.adsb_last =
-                                    Some((a.ICAO_address, a.altitude, a.hor_velocity, a.heading));
                             }
                             MavMessage::GLOBAL_POSITION_INT(p) => {
                                 heard.time_boot_ms = p.time_boot_ms;
@@ -432,7 +423,8 @@ fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
 
 /// ADS-B: an A320 crosses the hovering copter's position at its height, at 40 m/s; with
 /// `--feed adsb`, ArduPilot (ADSB_TYPE=1, AVD_ENABLE=1, AVD_F_ACTION=2) sees it, reports the
-/// threat (COLLISION) and takes its action (mode AVOID_ADSB). Speedup 1 only: a scripted track
+/// threat (COLLISION about the airliner's ICAO address) and takes its action (mode
+/// AVOID_ADSB). Speedup 1 only: a scripted track
 /// runs on the receive clock, which a vehicle clock at a speedup is held to.
 #[test]
 fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
@@ -454,8 +446,7 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
          { t_s = 100.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
          { t_s = 220.0, position_enu_m = [-2400.0, 0.0, 30.0] }]\n",
     );
-    // SR1_ADSB: the copter streams its ADS-B list back on SERIAL1 (the test's GCS).
-    let params = "ADSB_TYPE 1\nAVD_ENABLE 1\nAVD_F_ACTION 2\nSR1_ADSB 5\n";
+    let params = "ADSB_TYPE 1\nAVD_ENABLE 1\nAVD_F_ACTION 2\n";
     let mut flight = Flight::start(&bin, params, scene, Some("adsb,collision"), 1.0);
     flight.take_off_to(30.0, 0.0, 0.0);
     // Hover until ArduPilot acts or the airliner has passed (+200 s of the flight).
@@ -464,14 +455,19 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
         let h = g.heard();
         h.modes.contains(&19) && !h.collisions.is_empty()
     });
+    // Then until the airliner has passed (+190 s of the flight, about 30 s after its closest
+    // approach): what the action did shows in savsim's closest approach, printed (in the runs
+    // of docs/closed-loop.md it did not keep them apart: an open finding, not asserted).
+    if acted {
+        let passed = flight.wall(60.0);
+        flight.gcs.until(passed, |_| false);
+    }
     let heard = flight.gcs.heard();
     let run = flight.finish();
     let summary = run.session.summary("live", "sitl");
     eprintln!(
-        "modes {:?}, ADSB_VEHICLE streamed back {} (last {:?}), COLLISION from the copter {:?}, feed {}, link feed {}, approaches {}",
+        "modes {:?}, COLLISION from the copter {:?}, feed {}, link feed {}, approaches {}",
         heard.modes,
-        heard.adsb_echoed,
-        heard.adsb_last,
         &heard.collisions[..heard.collisions.len().min(5)],
         summary["feed"],
         serde_json::to_string(&run.report.feed).unwrap(),
