@@ -180,6 +180,11 @@ impl Pipeline {
         }
     }
 
+    /// True when the scene has terrain (a height field or terrain mesh).
+    pub fn has_terrain(&self) -> bool {
+        self.has_terrain
+    }
+
     /// The collision state of `vehicle` (component 1 when only a number is known), if it ever
     /// ticked.
     pub fn vehicle(&self, vehicle: u16, component_id: u8) -> Option<&VehicleCollision> {

@@ -360,6 +360,7 @@ impl Feed {
             };
             pipeline.cast_exact_rays(input.scene, own, input.dynamic, rays, &mut self.bins);
         }
+        let pipeline_has_terrain = pipeline.has_terrain();
         let mut one_ray = |dir: DVec3| {
             let mut hit = [None];
             let rays = Rays {
@@ -417,12 +418,7 @@ impl Feed {
         if kinds.rangefinder {
             let down = (attitude.enu_from_frd * DVec3::Z).normalize_or(DVec3::NEG_Z);
             let mut distance_m = one_ray(down);
-            if !input
-                .scene
-                .obstacles
-                .iter()
-                .any(|o| o.geometry.is_terrain())
-            {
+            if !pipeline_has_terrain {
                 // No terrain: the ground is the plane through the scene's origin.
                 distance_m = nearest(distance_m, ground_plane_m(origin, down, cfg.range.max_m));
             }
