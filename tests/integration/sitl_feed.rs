@@ -19,8 +19,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{
-    MavCmd, MavFrame, MavMessage, MavModeFlag, PositionTargetTypemask, COMMAND_LONG_DATA,
-    SET_POSITION_TARGET_LOCAL_NED_DATA,
+    MavCmd, MavFrame, MavMessage, MavModeFlag, MavSysStatusSensor, PositionTargetTypemask,
+    COMMAND_LONG_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use savsim::app::live::{run_links, LiveOptions};
 use savsim::collision::pipeline::CollisionConfig;
@@ -48,6 +48,8 @@ struct Heard {
     modes: Vec<u32>,
     /// COLLISION messages from the copter: (threat id, action, threat level).
     collisions: Vec<(u32, u8, u8)>,
+    /// SYS_STATUS's proximity sensor: when its health changed, and to what.
+    proximity_health: Vec<(Instant, bool)>,
 }
 
 /// The GCS on SITL's SERIAL1 (TCP 5762), as sysid 250: a reader thread and a writer.
@@ -84,6 +86,14 @@ impl Gcs {
                                     .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
                                 if heard.modes.last() != Some(&hb.custom_mode) {
                                     heard.modes.push(hb.custom_mode);
+                                }
+                            }
+                            MavMessage::SYS_STATUS(st) => {
+                                let bit = MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_PROXIMITY;
+                                let healthy = st.onboard_control_sensors_present.contains(bit)
+                                    && st.onboard_control_sensors_health.contains(bit);
+                                if heard.proximity_health.last().map(|h| h.1) != Some(healthy) {
+                                    heard.proximity_health.push((Instant::now(), healthy));
                                 }
                             }
                             MavMessage::COLLISION(c) => {
@@ -204,7 +214,7 @@ fn east_north(lat_e7: i32, lon_e7: i32, relative_alt_mm: i32) -> (f64, f64, f64)
 struct Flight {
     gcs: Gcs,
     shutdown: Arc<AtomicBool>,
-    savsim: std::thread::JoinHandle<savsim::app::live::LiveRun>,
+    savsim: Option<std::thread::JoinHandle<savsim::app::live::LiveRun>>,
     speedup: f64,
     _sitl: Sitl,
     _dir: tempfile::TempDir,
@@ -274,7 +284,7 @@ impl Flight {
         Flight {
             gcs: Gcs::connect(),
             shutdown,
-            savsim,
+            savsim: Some(savsim),
             speedup,
             _sitl: sitl,
             _dir: dir,
@@ -340,12 +350,17 @@ impl Flight {
         );
     }
 
-    /// Stop savsim and SITL; savsim's run.
-    fn finish(self) -> savsim::app::live::LiveRun {
+    /// Stop savsim (SITL goes on); savsim's run.
+    fn stop_savsim(&mut self) -> savsim::app::live::LiveRun {
         self.shutdown.store(true, Ordering::Relaxed);
-        let mut run = self.savsim.join().unwrap();
+        let mut run = self.savsim.take().expect("savsim runs").join().unwrap();
         run.session.finish().unwrap();
         run
+    }
+
+    /// Stop savsim and SITL; savsim's run.
+    fn finish(mut self) -> savsim::app::live::LiveRun {
+        self.stop_savsim()
     }
 }
 
@@ -484,4 +499,66 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
         "{:?}",
         heard.collisions
     );
+}
+
+/// ArduPilot's MAVProximity autotest, mirrored: with PRX1_TYPE=2, the copter on the ground at
+/// the city's origin, its proximity sensor turns healthy (SYS_STATUS) within 5 s of savsim's
+/// first feed frame and unhealthy within 1 s after savsim stops (ArduPilot's 500 ms timeout).
+#[test]
+fn arducopter_proximity_is_healthy_while_fed_and_not_after() {
+    let Some(bin) = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from) else {
+        eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");
+        return;
+    };
+    if !inside_own_network_namespace(
+        "sitl_feed::arducopter_proximity_is_healthy_while_fed_and_not_after",
+    ) {
+        return;
+    }
+    let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    let mut flight = Flight::start(&bin, "PRX1_TYPE 2\n", city, Some("proximity"), 1.0);
+    // SYS_STATUS at 10 Hz on SERIAL1; wait for the first position (savsim feeds from then on).
+    let fed = flight.gcs.until(Duration::from_secs(60), |g| {
+        g.command(
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+            [1.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        );
+        g.command(
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+            [33.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        );
+        g.heard().east_north_up.is_some()
+    });
+    assert!(fed, "no position from the copter");
+    let healthy = flight.gcs.until(Duration::from_secs(10), |g| {
+        g.heard().proximity_health.last().is_some_and(|h| h.1)
+    });
+    let heard = flight.gcs.heard();
+    assert!(healthy, "proximity never healthy: {:?}", heard.texts);
+    let became = heard.proximity_health.last().unwrap().0;
+    // Fed for 10 s more; then savsim stops.
+    flight.gcs.until(Duration::from_secs(10), |_| false);
+    let run = flight.stop_savsim();
+    let stopped = Instant::now();
+    let unhealthy = flight.gcs.until(Duration::from_secs(5), |g| {
+        g.heard().proximity_health.last().is_some_and(|h| !h.1)
+    });
+    let heard = flight.gcs.heard();
+    let went = heard.proximity_health.last().unwrap().0;
+    // The feed starts at the first position savsim accepts (after the GPS fix): its first frame
+    // was `span_ms` of the vehicle's clock (speedup 1: the wall clock) before it stopped.
+    let feed = run.session.summary("live", "sitl")["feed"].clone();
+    let span_ms = feed["vehicles"][0]["counts"]["span_ms"].as_u64().unwrap();
+    let first_frame = stopped - Duration::from_millis(span_ms);
+    let to_healthy = became.saturating_duration_since(first_frame);
+    eprintln!(
+        "proximity healthy {:.2} s after the first feed frame; unhealthy {:.2} s after savsim stopped; health changes {:?}; feed {feed}",
+        to_healthy.as_secs_f64(),
+        went.saturating_duration_since(stopped).as_secs_f64(),
+        heard.proximity_health.iter().map(|h| h.1).collect::<Vec<_>>(),
+    );
+    assert!(to_healthy < Duration::from_secs(5));
+    assert!(unhealthy, "still healthy 5 s after the feed stopped");
+    assert!(went.saturating_duration_since(stopped) < Duration::from_secs(1));
+    drop(flight);
 }
