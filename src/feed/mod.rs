@@ -280,7 +280,7 @@ impl Feed {
         let period_ms = 1000.0 / self.config.hz;
         let v = self.vehicles.entry(sender).or_default();
         if v.last_stamp_ms
-            .is_some_and(|last| time_boot_ms + 1000 < last)
+            .is_some_and(|last| time_boot_ms.saturating_add(1000) < last)
         {
             // The clock went back: a reboot. Start pacing again.
             v.next_due_ms = None;

@@ -558,4 +558,8 @@ fn frames_are_paced_on_the_vehicle_clock_never_burst_and_restart_after_a_reboot(
     assert_eq!(stamps.len(), 40, "{stamps:?}");
     assert_eq!(stamps[20], 1_000);
     assert_eq!(v["counts"]["restarts"], 1, "{v}");
+    // The vehicle's clock at the end of its 49.7 days: no overflow, a frame per period.
+    let end: Vec<u32> = (0..10u32).map(|i| u32::MAX - 450 + i * 50).collect();
+    let (stamps, _) = frame_stamps(20.0, &end);
+    assert_eq!(stamps, end);
 }
