@@ -166,23 +166,22 @@ pub fn scene_at(origin: Geodetic, body: &str) -> Scene {
     parse(&text, Path::new("test.toml"), "test").unwrap()
 }
 
-/// A MAVLink GLOBAL_POSITION_INT (+ ATTITUDE, nose east) frame pair for `sysid` at ENU `p`.
-pub fn position_frames(
+/// ATTITUDE (roll, pitch, yaw: NED Euler, radians) and GLOBAL_POSITION_INT (heading from the
+/// yaw) at ENU `p`, flying along ENU `v`, stamped `time_boot_ms`.
+pub fn pose_messages(
     plane: &LocalTangentPlane,
-    sysid: u8,
-    seq: &mut u8,
     time_boot_ms: u32,
     p: DVec3,
     v: DVec3,
-) -> Vec<u8> {
+    [roll, pitch, yaw]: [f64; 3],
+) -> [MavMessage; 2] {
     let g = plane.geodetic_from_enu_m(p);
-    let mut bytes = Vec::new();
-    for message in [
+    [
         MavMessage::ATTITUDE(ATTITUDE_DATA {
             time_boot_ms,
-            roll: 0.0,
-            pitch: 0.0,
-            yaw: std::f32::consts::FRAC_PI_2,
+            roll: roll as f32,
+            pitch: pitch as f32,
+            yaw: yaw as f32,
             rollspeed: 0.0,
             pitchspeed: 0.0,
             yawspeed: 0.0,
@@ -196,9 +195,23 @@ pub fn position_frames(
             vx: (v.y * 100.0).round() as i16,
             vy: (v.x * 100.0).round() as i16,
             vz: (-v.z * 100.0).round() as i16,
-            hdg: 9000,
+            hdg: (yaw.to_degrees().rem_euclid(360.0) * 100.0).round() as u16 % 36_000,
         }),
-    ] {
+    ]
+}
+
+/// A MAVLink GLOBAL_POSITION_INT (+ ATTITUDE, nose east) frame pair for `sysid` at ENU `p`.
+pub fn position_frames(
+    plane: &LocalTangentPlane,
+    sysid: u8,
+    seq: &mut u8,
+    time_boot_ms: u32,
+    p: DVec3,
+    v: DVec3,
+) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    let nose_east = [0.0, 0.0, std::f64::consts::FRAC_PI_2];
+    for message in pose_messages(plane, time_boot_ms, p, v, nose_east) {
         bytes.extend(frame_v2(sysid, 1, *seq, &message));
         *seq = seq.wrapping_add(1);
     }

@@ -9,9 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use glam::DVec3;
-use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavMessage, MavType, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA,
-};
+use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::feed::{FeedConfig, FeedKinds, FeedMessage};
 use savsim::geo::{Geodetic, LocalTangentPlane};
@@ -93,32 +91,10 @@ fn body_down_enu(roll: f64, pitch: f64, yaw: f64) -> DVec3 {
 /// A pose: ENU position, roll, pitch, yaw (radians).
 type Pose = (DVec3, f64, f64, f64);
 
-/// ATTITUDE and GLOBAL_POSITION_INT for `pose`.
+/// ATTITUDE and GLOBAL_POSITION_INT for `pose`, holding still.
 fn pose_messages(plane: &LocalTangentPlane, time_boot_ms: u32, pose: Pose) -> [MavMessage; 2] {
     let (p, roll, pitch, yaw) = pose;
-    let g = plane.geodetic_from_enu_m(p);
-    [
-        MavMessage::ATTITUDE(ATTITUDE_DATA {
-            time_boot_ms,
-            roll: roll as f32,
-            pitch: pitch as f32,
-            yaw: yaw as f32,
-            rollspeed: 0.0,
-            pitchspeed: 0.0,
-            yawspeed: 0.0,
-        }),
-        MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-            time_boot_ms,
-            lat: (g.lat_deg * 1e7).round() as i32,
-            lon: (g.lon_deg * 1e7).round() as i32,
-            alt: (g.alt_m * 1e3).round() as i32,
-            relative_alt: (p.z * 1e3) as i32,
-            vx: 0,
-            vy: 0,
-            vz: 0,
-            hdg: ((yaw.to_degrees().rem_euclid(360.0)) * 100.0) as u16,
-        }),
-    ]
+    crate::common::pose_messages(plane, time_boot_ms, p, DVec3::ZERO, [roll, pitch, yaw])
 }
 
 /// [`pose_messages`] as MAVLink 2 frames from `sysid`/1, one after the other.

@@ -24,7 +24,7 @@ use savsim::session::Session;
 
 const INSIDE: &str = "SAVSIM_SITL_INSIDE_NETNS";
 
-fn arducopter() -> Option<PathBuf> {
+pub(crate) fn arducopter() -> Option<PathBuf> {
     let path = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from);
     if path.is_none() {
         eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");

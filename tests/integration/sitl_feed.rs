@@ -29,7 +29,7 @@ use savsim::scene::Scene;
 use savsim::session::Session;
 
 use crate::common::{frame_v2, root, runtime, udp_link};
-use crate::sitl::{inside_own_network_namespace, Sitl};
+use crate::sitl::{arducopter, inside_own_network_namespace, Sitl};
 
 /// b1852's east face, scene E metres.
 const FACE_EAST_M: f64 = -57.0;
@@ -407,10 +407,7 @@ fn fly(bin: &PathBuf, with_feed: bool, speedup: f64) -> ((f64, f64, f64), u64, u
 
 #[test]
 fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
-    let Some(bin) = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from) else {
-        eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");
-        return;
-    };
+    let Some(bin) = arducopter() else { return };
     if !inside_own_network_namespace(
         "sitl_feed::arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without",
     ) {
@@ -443,10 +440,7 @@ fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
 /// runs on the receive clock, which a vehicle clock at a speedup is held to.
 #[test]
 fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
-    let Some(bin) = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from) else {
-        eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");
-        return;
-    };
+    let Some(bin) = arducopter() else { return };
     if !inside_own_network_namespace(
         "sitl_feed::arducopter_avoids_a_scripted_airliner_sent_as_adsb",
     ) {
@@ -506,10 +500,7 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
 /// first feed frame and unhealthy within 1 s after savsim stops (ArduPilot's 500 ms timeout).
 #[test]
 fn arducopter_proximity_is_healthy_while_fed_and_not_after() {
-    let Some(bin) = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from) else {
-        eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");
-        return;
-    };
+    let Some(bin) = arducopter() else { return };
     if !inside_own_network_namespace(
         "sitl_feed::arducopter_proximity_is_healthy_while_fed_and_not_after",
     ) {
