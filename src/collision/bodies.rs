@@ -215,6 +215,8 @@ pub(crate) struct World<'a> {
     /// The ticking vehicle as a moving body.
     pub own: BodySource,
     pub octree: &'a crate::collision::octree::Octree,
+    /// The static broad phase (region queries and rays).
+    pub statics: &'a crate::collision::broad_phase::StaticBroadPhase,
     pub shapes: &'a crate::collision::shapes::ExactShapes,
 }
 

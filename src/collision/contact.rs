@@ -7,7 +7,7 @@
 use glam::{DQuat, DVec3, Vec3};
 use parry3d::bounding_volume::BoundingVolume;
 use parry3d::math::Pose;
-use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastHit, ShapeCastOptions};
+use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastOptions};
 use parry3d::shape::Shape;
 
 use crate::collision::distance::shape_distance;
@@ -45,7 +45,7 @@ impl<'a> Placed<'a> {
     }
 
     /// Where the body's pivot is, scene ENU metres.
-    fn pivot_enu_m(&self) -> DVec3 {
+    pub(crate) fn pivot_enu_m(&self) -> DVec3 {
         self.position_enu_m + self.enu_from_shape * self.pivot_local_m.as_dvec3()
     }
 
@@ -55,17 +55,6 @@ impl<'a> Placed<'a> {
             self.enu_from_shape.as_quat().normalize(),
         )
     }
-}
-
-/// Where and when two bodies first touch during a sweep.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SweepHit {
-    /// Fraction of the interval at first contact, in [0, 1].
-    pub fraction: f64,
-    /// Contact point, scene ENU metres.
-    pub point_enu_m: DVec3,
-    /// Contact normal (pointing out of the second body), ENU.
-    pub normal_enu: DVec3,
 }
 
 /// True when the two placed shapes overlap or touch (within [`CONTACT_TOLERANCE_M`]).
@@ -148,7 +137,7 @@ const MAX_RECASTS: usize = 64;
 
 /// The contact tolerance for two shapes: [`CONTACT_TOLERANCE_M`], grown with the shapes' size
 /// where f32 loses it (a 10 km mesh has vertices 5 km from the anchor).
-fn tolerance_m(a: &dyn Shape, b: &dyn Shape) -> f32 {
+pub(crate) fn tolerance_m(a: &dyn Shape, b: &dyn Shape) -> f32 {
     // Only triangle meshes reach sizes where f32 matters (boxes and blocks are tested part by
     // part, in the frame of the part).
     let size = |s: &dyn Shape| {
@@ -158,27 +147,57 @@ fn tolerance_m(a: &dyn Shape, b: &dyn Shape) -> f32 {
     CONTACT_TOLERANCE_M as f32 + 1e-6 * size(a).max(size(b))
 }
 
-/// First contact of body `a` moving from `a0` to `a1` with body `b` moving from `b0` to `b1`
-/// over one interval (screw motion: linear translation, constant rotation rate; a pure
-/// translation when neither body turns). Bodies that already touch at the start give a hit at
-/// fraction 0. Every hit is confirmed by an exact distance query at its poses; an unconfirmed
-/// one restarts the cast past it, by no more than the bodies could close in the meantime.
-pub fn sweep(
+/// How far the gap between body `a` (from `a0` to `a1`) and body `b` (from `b0` to `b1`) can
+/// close over the interval, metres: their relative travel plus how far the farthest point of
+/// each can swing about its pivot (screw motion). The gap at fraction `u` is at least the gap
+/// at the start minus `u` times this, and at least the gap at the end minus `1 - u` times it.
+pub fn closing_bound_m(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>) -> f64 {
+    let reach = |p: &Placed<'_>| {
+        let local = p.shape.compute_local_aabb();
+        f64::from(local.maxs.abs().max(local.mins.abs()).length() + p.pivot_local_m.length())
+    };
+    let travel = (b1.pivot_enu_m() - b0.pivot_enu_m()) - (a1.pivot_enu_m() - a0.pivot_enu_m());
+    travel.length()
+        + rotation_between(a0, a1).to_scaled_axis().length() * reach(a0)
+        + rotation_between(b0, b1).to_scaled_axis().length() * reach(b0)
+}
+
+/// Where two bodies touch at fraction `fraction` of the interval: the contact point (scene ENU
+/// metres) and normal (out of `b`), at the screw-motion poses of that instant. For an event's
+/// report; the sweep itself only finds the time.
+pub fn locate(
     a0: &Placed<'_>,
     a1: &Placed<'_>,
     b0: &Placed<'_>,
     b1: &Placed<'_>,
-) -> Option<SweepHit> {
+    fraction: f64,
+) -> (DVec3, DVec3) {
+    let anchor = a0.position_enu_m;
+    let (ma, mb) = (motion(anchor, a0, a1), motion(anchor, b0, b1));
+    let t = fraction.clamp(0.0, 1.0) as f32;
+    let (pose_a, pose_b) = (ma.position_at_time(t), mb.position_at_time(t));
+    let tolerance = tolerance_m(a0.shape, b0.shape);
+    match query::contact(&pose_a, a0.shape, &pose_b, b0.shape, 2.0 * tolerance) {
+        Ok(Some(c)) => (
+            anchor + c.point2.as_dvec3(),
+            (-c.normal1.as_dvec3()).normalize_or_zero(),
+        ),
+        _ => (anchor + pose_a.translation.as_dvec3(), DVec3::Z),
+    }
+}
+
+/// When body `a` moving from `a0` to `a1` first touches body `b` moving from `b0` to `b1` over
+/// one interval: the fraction of the interval, in [0, 1] (screw motion: linear translation,
+/// constant rotation rate; a pure translation when neither body turns). Bodies that already
+/// touch at the start give 0. Every hit is confirmed by an exact distance query at its poses;
+/// an unconfirmed one restarts the cast past it, by no more than the bodies could close in the
+/// meantime. Where they touch is [`locate`]'s.
+pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>) -> Option<f64> {
     let anchor = a0.position_enu_m;
     // Already touching at the start: an exact test (a cast from inside can lose the contact on
     // very large triangles).
     if intersects(a0, b0) {
-        let (point_enu_m, normal_enu) = contact_point(a0, b0).unwrap_or((anchor, DVec3::Z));
-        return Some(SweepHit {
-            fraction: 0.0,
-            point_enu_m,
-            normal_enu,
-        });
+        return Some(0.0);
     }
     let turning = |from: &Placed<'_>, to: &Placed<'_>| {
         rotation_between(from, to).to_scaled_axis().length() > LINEAR_SWEEP_MAX_ROTATION_RAD
@@ -187,15 +206,8 @@ pub fn sweep(
     let mb = motion(anchor, b0, b1);
     let linear = !turning(a0, a1) && !turning(b0, b1);
     let tolerance = tolerance_m(a0.shape, b0.shape);
-    // How fast the gap can close, metres per interval: relative travel plus the turn of the
-    // farthest point of each shape.
-    let reach = |s: &dyn Shape| {
-        let local = s.compute_local_aabb();
-        local.maxs.abs().max(local.mins.abs()).length()
-    };
-    let closing = (mb.linvel - ma.linvel).length()
-        + ma.angvel.length() * (reach(a0.shape) + a0.pivot_local_m.length())
-        + mb.angvel.length() * (reach(b0.shape) + b0.pivot_local_m.length());
+    // How fast the gap can close, metres per interval.
+    let closing = closing_bound_m(a0, a1, b0, b1) as f32;
     let gap_at = |t: f32| {
         shape_distance(
             &ma.position_at_time(t),
@@ -203,32 +215,6 @@ pub fn sweep(
             &mb.position_at_time(t),
             b0.shape,
         )
-    };
-    let hit_at = |toi: f32, witness: Option<&ShapeCastHit>| {
-        let (pose_a, pose_b) = (ma.position_at_time(toi), mb.position_at_time(toi));
-        // The contact at the confirmed poses (a cast that stopped in penetration reports no
-        // witness of its own).
-        let (point_enu_m, normal_enu) = match (
-            query::contact(&pose_a, a0.shape, &pose_b, b0.shape, tolerance),
-            witness,
-        ) {
-            (Ok(Some(c)), _) => (
-                anchor + c.point2.as_dvec3(),
-                (-c.normal1.as_dvec3()).normalize_or_zero(),
-            ),
-            (_, Some(hit)) => (
-                anchor + (pose_b * hit.witness2).as_dvec3(),
-                (pose_b.rotation * hit.normal2)
-                    .as_dvec3()
-                    .normalize_or_zero(),
-            ),
-            _ => (anchor + pose_a.translation.as_dvec3(), DVec3::Z),
-        };
-        SweepHit {
-            fraction: f64::from(toi),
-            point_enu_m,
-            normal_enu,
-        }
     };
     // `start` is always a time known to be clear.
     let mut start = 0.0f32;
@@ -244,14 +230,15 @@ pub fn sweep(
             query::cast_shapes(&pa, ma.linvel, a0.shape, &pb, mb.linvel, b0.shape, options)
                 .ok()
                 .flatten()
-                .map(|hit| hit.transform_toi(start))
+                .map(|hit| hit.time_of_impact + start)
         } else {
             query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, start, 1.0, true)
                 .ok()
                 .flatten()
+                .map(|hit| hit.time_of_impact)
         };
-        let Some(hit) = cast else { break };
-        let toi = hit.time_of_impact.clamp(0.0, 1.0);
+        let Some(toi) = cast else { break };
+        let toi = toi.clamp(0.0, 1.0);
         let gap = gap_at(toi);
         if gap <= tolerance {
             // A linear cast's time is exact; conservative advancement can stop past the touch.
@@ -260,7 +247,7 @@ pub fn sweep(
             } else {
                 bisect_first(start, toi, 24, |t| gap_at(t) <= tolerance)
             };
-            return Some(hit_at(toi, Some(&hit)));
+            return Some(f64::from(toi));
         }
         // Not touching there: no contact can come sooner than the gap closes.
         let advance = if closing > 0.0 { gap / closing } else { 1.0 };
@@ -289,7 +276,7 @@ pub fn sweep(
     } else {
         1.0
     };
-    Some(hit_at(toi, None))
+    Some(f64::from(toi))
 }
 
 /// The first instant at which `holds` becomes true, between `clear` (false there) and `hit`
@@ -310,18 +297,6 @@ pub(crate) fn bisect_first<T: num_traits::Float>(
         }
     }
     hit
-}
-
-/// A time of impact found from `start` on, as a fraction of the whole interval.
-trait FromStart {
-    fn transform_toi(self, start: f32) -> Self;
-}
-
-impl FromStart for parry3d::query::ShapeCastHit {
-    fn transform_toi(mut self, start: f32) -> Self {
-        self.time_of_impact += start;
-        self
-    }
 }
 
 /// Distance along a ray from `origin_enu_m` in direction `dir_enu` (normalised here; a zero or

@@ -1,12 +1,18 @@
 //! The contact layer: what the vehicle touched in one interval, and how close it came to what it
-//! did not touch. One strategy per mode:
+//! did not touch. One strategy per mode, chosen once per tick:
 //!
-//! - `exact`: every obstacle the swept vehicle can reach (the octree for static obstacles, a
-//!   scan of the tick's moving bodies), as its exact shape, swept between the two samples
-//!   (parry's shape cast; screw motion when a body turns). The truth savsim reports.
-//! - `box`, `mesh`: every obstacle near the vehicle as a box or a triangle mesh, at the sample.
-//! - `paper`: the sensing layer's colliders (box or mesh, as the paper's state holds), at the
-//!   sample.
+//! - `exact` ([`Contacts::swept`]): every obstacle the swept vehicle can reach (the static
+//!   `Bvh` for static obstacles, a scan of the tick's moving bodies), as its exact shape,
+//!   swept between the two samples (parry's shape cast; screw motion when a body turns). The
+//!   truth savsim reports. Before a sweep, two exact shortcuts: a contact that held at the last
+//!   sample with the vehicle's reference point in one convex part of the obstacle at both ends
+//!   held all through (convexity); and two bodies whose gaps at the two ends add up to more
+//!   than the gap can close in the interval cannot have touched in it (the gap is
+//!   1-Lipschitz in time at the rate [`contact::closing_bound_m`] bounds). Neither guesses:
+//!   each is a proof, and anything it cannot prove is swept.
+//! - `box`, `mesh`, `paper` ([`Contacts::discrete`] with a [`Colliders`]): every obstacle near
+//!   the vehicle as a box, a triangle mesh, or whatever collider the sensing layer holds, at the
+//!   sample. `exact` without a previous sample is also discrete, with the exact shapes.
 //!
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
 
@@ -18,12 +24,11 @@ use crate::collision::bodies::{
     World,
 };
 use crate::collision::config::Mode;
-use crate::collision::contact::{self, SweepHit};
+use crate::collision::contact;
 use crate::collision::meshes::MeshCache;
-use crate::collision::octree::OctreeWorkspace;
 use crate::collision::sensing::SensingState;
 use crate::collision::ColliderKind;
-use crate::scene::geometry::Geometry;
+use crate::scene::geometry::{Geometry, GeometrySource};
 use crate::scene::Aabb64;
 
 /// A contact found in this interval.
@@ -66,20 +71,94 @@ impl Motion {
     }
 }
 
+/// What the previous sample of the same vehicle track left: the obstacles it touched and the
+/// exact gaps it measured (sorted by obstacle). Empty after a reset or a gap.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Before<'a> {
+    pub touching: &'a [ObstacleRef],
+    pub gaps: &'a [(ObstacleRef, f64)],
+}
+
+/// Which collider a discrete mode tests, for the vehicle and for each obstacle.
+pub(crate) enum Colliders<'a> {
+    /// Every body its enclosing box (`box`).
+    Boxes,
+    /// Every body its triangle mesh (`mesh`).
+    Meshes,
+    /// The vehicle a mesh, each obstacle what the sensing layer holds (`paper`).
+    Paper(&'a SensingState),
+    /// The exact shapes (`exact` at a sample it cannot sweep to).
+    Exact,
+}
+
+impl Colliders<'_> {
+    fn vehicle(&self, world: &World<'_>, meshes: &mut MeshCache, m: &Motion) -> Body {
+        let g = &world.scene.geometries[m.geometry_index];
+        match self {
+            Colliders::Boxes => Body::boxed(g, m.now),
+            Colliders::Exact => world.shapes.body(m.geometry_index, g, meshes, m.now, false),
+            Colliders::Meshes | Colliders::Paper(_) => {
+                Body::new(Holder::Mesh(meshes.get(m.geometry_index, g)), m.now)
+            }
+        }
+    }
+
+    /// The obstacle's collider, or `None` when it has none (the paper's state).
+    fn obstacle(
+        &self,
+        world: &World<'_>,
+        meshes: &mut MeshCache,
+        o: ObstacleRef,
+        v: &ObstacleView<'_>,
+    ) -> Option<Body> {
+        let kind = match self {
+            Colliders::Boxes => ColliderKind::Box,
+            Colliders::Meshes => ColliderKind::Mesh,
+            Colliders::Paper(sensing) => sensing.collider_of(o)?,
+            Colliders::Exact => {
+                return Some(world.shapes.body(
+                    v.geometry_index,
+                    v.geometry,
+                    meshes,
+                    v.current,
+                    true,
+                ))
+            }
+        };
+        match kind {
+            ColliderKind::None => None,
+            ColliderKind::Box => Some(Body::boxed(v.geometry, v.current)),
+            ColliderKind::Mesh => Some(Body::new(
+                Holder::Mesh(meshes.get(v.geometry_index, v.geometry)),
+                v.current,
+            )),
+        }
+    }
+}
+
 /// The contact layer's scratch buffers and this interval's results.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Contacts {
-    ws: OctreeWorkspace,
     candidates: Vec<ObstacleRef>,
     /// Obstacles touched in this interval.
     pub touching: Vec<(ObstacleRef, Touch)>,
     /// Obstacles within the near-miss band and not touched: exact distance, metres.
     pub near: Vec<(ObstacleRef, f64)>,
+    /// Exact gaps to static obstacles measured at this sample, sorted by obstacle: the next
+    /// interval's `Before::gaps`.
+    pub gaps: Vec<(ObstacleRef, f64)>,
 }
 
+/// Slack added to the gap test for the f32 rounding of distances near the anchor, metres.
+const GAP_SLACK_M: f64 = 1e-3;
+
+/// A contact held through an interval is proved only for a reference point this far inside a
+/// part, metres (f32 shapes, f64 poses).
+const INSIDE_MARGIN_M: f64 = 1e-3;
+
 impl Contacts {
-    /// Test one interval of the vehicle in `mode` (`sensing` holds the paper's colliders).
-    /// Returns the exact tests run.
+    /// Test one interval of the vehicle in `mode` (`sensing` holds the paper's colliders,
+    /// `before` what the previous sample left). Returns the exact tests run.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &mut self,
@@ -89,115 +168,263 @@ impl Contacts {
         band_m: f64,
         sensing: &SensingState,
         motion: &Motion,
+        before: Before<'_>,
     ) -> usize {
         self.touching.clear();
         self.near.clear();
-        self.candidates.clear();
-        let swept = mode == Mode::Exact && motion.before.is_some();
-        let reach = if swept {
-            motion.swept_box()
-        } else {
-            motion.box_now()
+        self.gaps.clear();
+        let colliders = match mode {
+            Mode::Exact if motion.before.is_some() => {
+                self.gather(world, &motion.swept_box().inflated(band_m));
+                return self.swept(world, meshes, band_m, motion, before);
+            }
+            Mode::Exact => Colliders::Exact,
+            Mode::Box => Colliders::Boxes,
+            Mode::Mesh => Colliders::Meshes,
+            Mode::Paper => Colliders::Paper(sensing),
+            Mode::None | Mode::Reference => return 0,
         };
-        let query = reach.inflated(band_m);
+        self.gather(world, &motion.box_now().inflated(band_m));
+        self.discrete(world, meshes, band_m, motion, &colliders)
+    }
+
+    /// The candidates: static obstacles whose box meets `query`, moving bodies whose bounds
+    /// over the interval do.
+    fn gather(&mut self, world: &World<'_>, query: &Aabb64) {
+        self.candidates.clear();
         let candidates = &mut self.candidates;
-        world.octree.query_aabb(&query, &mut self.ws, |i| {
-            candidates.push(ObstacleRef::Static(i))
-        });
+        world
+            .statics
+            .query_aabb(query, |i| candidates.push(ObstacleRef::Static(i)));
         for d in world.dynamic {
-            if !may_reach(world, d, &query, 0.0) {
+            if !may_reach(world, d, query, 0.0) {
                 continue;
             }
             let size = d.current.position_enu_m.distance(d.previous.position_enu_m);
             let Some(v) = view_dynamic(world.scene, d) else {
                 continue;
             };
-            if v.aabb_enu_m.inflated(size).intersects(&query) {
+            if v.aabb_enu_m.inflated(size).intersects(query) {
                 candidates.push(ObstacleRef::Dynamic(d.key));
             }
         }
+    }
+
+    /// The discrete strategies: contact and distance at the sample.
+    fn discrete(
+        &mut self,
+        world: &World<'_>,
+        meshes: &mut MeshCache,
+        band_m: f64,
+        motion: &Motion,
+        colliders: &Colliders<'_>,
+    ) -> usize {
         let vehicle_geometry = &world.scene.geometries[motion.geometry_index];
-        let vehicle = match mode {
-            Mode::Box => Body::boxed(vehicle_geometry, motion.now),
-            Mode::Exact => world.shapes.body(
-                motion.geometry_index,
-                vehicle_geometry,
-                meshes,
-                motion.now,
-                false,
-            ),
-            _ => Body::new(
-                Holder::Mesh(meshes.get(motion.geometry_index, vehicle_geometry)),
-                motion.now,
-            ),
-        };
+        let vehicle = colliders.vehicle(world, meshes, motion);
+        let reach = motion.box_now();
         let mut tests = 0;
         for k in 0..self.candidates.len() {
             let o = self.candidates[k];
             let Some(v) = view(world.scene, world.dynamic, o) else {
                 continue;
             };
-            let collider = match mode {
-                Mode::Box => ColliderKind::Box,
-                Mode::Paper => match sensing.collider_of(o) {
-                    Some(c) => c,
-                    None => continue,
-                },
-                _ => ColliderKind::Mesh,
-            };
             let near_box =
                 v.aabb_enu_m.distance_to(motion.now.position_enu_m) < band_m + motion.radius_m;
-            // A moving obstacle's bounds over the interval: now, grown by how far it moved.
-            let moved_m = if swept {
-                v.current.position_enu_m.distance(v.previous.position_enu_m)
-            } else {
-                0.0
-            };
-            let could_touch = v.aabb_enu_m.inflated(moved_m).intersects(&reach)
-                && !above_terrain(v.geometry, &v.current, &reach);
+            let could_touch = v.aabb_enu_m.intersects(&reach) && !above_terrain(&v, &reach);
             // Terrain is not a near miss: its closeness is the clearance (summary).
             let near_miss_candidate = near_box && !v.geometry.is_terrain();
             if !(could_touch || near_miss_candidate) {
                 continue;
             }
-            let body = match (mode, collider) {
-                (Mode::Exact, _) => {
-                    world
-                        .shapes
-                        .body(v.geometry_index, v.geometry, meshes, v.current, true)
-                }
-                (_, ColliderKind::Box) => Body::boxed(v.geometry, v.current),
-                _ => Body::new(
-                    Holder::Mesh(meshes.get(v.geometry_index, v.geometry)),
-                    v.current,
-                ),
+            let Some(body) = colliders.obstacle(world, meshes, o, &v) else {
+                continue;
             };
-            let touches: SmallVec<[Touch; 2]> = if !could_touch {
-                SmallVec::new()
-            } else if swept {
-                tests += 2;
-                sweep_touches(&vehicle, motion, &body, &v, vehicle_geometry)
-            } else {
+            if could_touch {
                 tests += 1;
-                discrete_touch(&vehicle, motion, &body, &v, vehicle_geometry, mode)
-                    .into_iter()
-                    .collect()
-            };
-            match touches.first() {
-                Some(_) => self
-                    .touching
-                    .extend(touches.into_iter().map(|touch| (o, touch))),
-                None if near_miss_candidate => {
-                    tests += 1;
-                    let d = contact::distance_m(&vehicle.placed(), &body.placed());
-                    if d < band_m {
-                        self.near.push((o, d));
-                    }
+                if let Some(touch) = discrete_touch(&vehicle, motion, &body, &v, vehicle_geometry) {
+                    self.touching.push((o, touch));
+                    continue;
                 }
-                None => {}
+            }
+            if near_miss_candidate {
+                tests += 1;
+                let d = contact::distance_m(&vehicle.placed(), &body.placed());
+                if d < band_m {
+                    self.near.push((o, d));
+                }
             }
         }
         tests
+    }
+
+    /// The exact strategy over an interval: every reachable obstacle's exact shape, swept.
+    fn swept(
+        &mut self,
+        world: &World<'_>,
+        meshes: &mut MeshCache,
+        band_m: f64,
+        motion: &Motion,
+        before: Before<'_>,
+    ) -> usize {
+        let Some(pose_before) = motion.before else {
+            return 0;
+        };
+        let vehicle_geometry = &world.scene.geometries[motion.geometry_index];
+        let vehicle = world.shapes.body(
+            motion.geometry_index,
+            vehicle_geometry,
+            meshes,
+            motion.now,
+            false,
+        );
+        // A contact held all through needs a point of the vehicle that moves in a straight
+        // line: its reference point (the screw motion's pivot), if the vehicle holds it.
+        let holds_own_reference = vehicle_geometry.contains_local_point(glam::Vec3::ZERO);
+        let reach = motion.swept_box();
+        let (p0, p1) = (pose_before.position_enu_m, motion.now.position_enu_m);
+        let r = motion.radius_m;
+        let mut tests = 0;
+        for k in 0..self.candidates.len() {
+            let o = self.candidates[k];
+            let Some(v) = view(world.scene, world.dynamic, o) else {
+                continue;
+            };
+            let near_box = v.aabb_enu_m.distance_to(p1) < band_m + r;
+            let moved_m = v.current.position_enu_m.distance(v.previous.position_enu_m);
+            let could_touch =
+                v.aabb_enu_m.inflated(moved_m).intersects(&reach) && !above_terrain(&v, &reach);
+            let near_miss_candidate = near_box && !v.geometry.is_terrain();
+            if !(could_touch || near_miss_candidate) {
+                continue;
+            }
+            let body = world
+                .shapes
+                .body(v.geometry_index, v.geometry, meshes, v.current, true);
+            let mut gap_now: Option<f64> = None;
+            if could_touch {
+                let was_touching = before.touching.contains(&o);
+                if was_touching
+                    && holds_own_reference
+                    && matches!(o, ObstacleRef::Static(_))
+                    && held_throughout(v.geometry, &v.current, p0, p1)
+                {
+                    self.touching.push((
+                        o,
+                        Touch {
+                            point_enu_m: p1,
+                            normal_enu: DVec3::Z,
+                            fraction: 0.0,
+                            swept: true,
+                            holds_now: true,
+                        },
+                    ));
+                    continue;
+                }
+                let (a0, a1, b0, b1) = (
+                    vehicle.at(pose_before),
+                    vehicle.placed(),
+                    body.at(v.previous),
+                    body.placed(),
+                );
+                let under_terrain = v.geometry.is_terrain()
+                    && (inside_solid(v.geometry, &v.current, p0)
+                        || inside_solid(v.geometry, &v.current, p1));
+                let apart = if under_terrain {
+                    false
+                } else {
+                    let closing = contact::closing_bound_m(&a0, &a1, &b0, &b1);
+                    let slack =
+                        2.0 * f64::from(contact::tolerance_m(a0.shape, b0.shape)) + GAP_SLACK_M;
+                    // A gap parry could not measure (infinite) proves nothing.
+                    let beyond = |gaps: f64| gaps.is_finite() && gaps > closing + slack;
+                    // Terrain: half of that gap at each end, read off the height grid.
+                    let half_m = (0.5 * (closing + slack) * (1.0 + 1e-6) + 1e-6) as f32;
+                    let local = |p: DVec3| (p - v.current.position_enu_m).as_vec3();
+                    let clear = |p: DVec3| v.geometry.terrain_clear_by(local(p), r as f32, half_m);
+                    // Lower bounds first (boxes and spheres), exact gaps only when needed.
+                    let lower0 = match o {
+                        ObstacleRef::Static(_) => v.aabb_enu_m.distance_to(p0) - r,
+                        ObstacleRef::Dynamic(_) => {
+                            p0.distance(v.previous.position_enu_m)
+                                - r
+                                - crate::collision::bodies::radius_m(v.geometry)
+                        }
+                    };
+                    let lower1 = v.aabb_enu_m.distance_to(p1) - r;
+                    beyond(lower0 + lower1) || (clear(p0) && clear(p1)) || {
+                        tests += 1;
+                        let d1 = contact::distance_m(&a1, &b1);
+                        gap_now = Some(d1);
+                        beyond(lower0 + d1) || {
+                            let cached = before
+                                .gaps
+                                .binary_search_by_key(&o, |g| g.0)
+                                .ok()
+                                .map(|i| before.gaps[i].1);
+                            let d0 = cached.unwrap_or_else(|| {
+                                tests += 1;
+                                contact::distance_m(&a0, &b0)
+                            });
+                            beyond(d0 + d1)
+                        }
+                    }
+                };
+                if !apart {
+                    tests += 2;
+                    let touches =
+                        sweep_touches(&vehicle, motion, &body, &v, vehicle_geometry, was_touching);
+                    if !touches.is_empty() {
+                        let holds = touches.iter().any(|t| t.holds_now);
+                        self.touching.extend(touches.into_iter().map(|t| (o, t)));
+                        if holds && matches!(o, ObstacleRef::Static(_)) {
+                            self.gaps.push((o, 0.0));
+                        }
+                        continue;
+                    }
+                }
+            }
+            let gap = match gap_now {
+                Some(d) => d,
+                None if near_miss_candidate => {
+                    tests += 1;
+                    contact::distance_m(&vehicle.placed(), &body.placed())
+                }
+                None => continue,
+            };
+            if matches!(o, ObstacleRef::Static(_)) {
+                self.gaps.push((o, gap));
+            }
+            if near_miss_candidate && gap < band_m {
+                self.near.push((o, gap));
+            }
+        }
+        self.gaps.sort_unstable_by_key(|g| g.0);
+        tests
+    }
+}
+
+/// True when the reference point is (by a margin) inside one convex part (the box, or one
+/// block) of a static solid at both `p0` and `p1`, or under a terrain patch's surface all
+/// along the segment between them: the vehicle's reference point on its screw motion (that
+/// segment) is then inside the solid all through.
+fn held_throughout(geometry: &Geometry, pose: &BodyPose, p0: DVec3, p1: DVec3) -> bool {
+    let to_local = |p: DVec3| pose.enu_from_body.inverse() * (p - pose.position_enu_m);
+    let (l0, l1) = (to_local(p0), to_local(p1));
+    let holds_both = |min: glam::Vec3, max: glam::Vec3| {
+        let b = Aabb64::new(
+            min.as_dvec3() + INSIDE_MARGIN_M,
+            max.as_dvec3() - INSIDE_MARGIN_M,
+        );
+        b.contains(l0) && b.contains(l1)
+    };
+    match &geometry.source {
+        GeometrySource::Cuboid { min, max } => holds_both(*min, *max),
+        GeometrySource::Blocks { blocks, .. } => blocks.iter().any(|(a, b)| holds_both(*a, *b)),
+        // Terrain is placed without rotation; under its surface all along the segment.
+        GeometrySource::Terrain(_) => {
+            geometry.terrain_holds_segment(l0.as_vec3(), l1.as_vec3(), INSIDE_MARGIN_M as f32)
+        }
+        GeometrySource::Mesh { .. } => false,
     }
 }
 
@@ -208,10 +435,9 @@ fn discrete_touch(
     body: &Body,
     v: &ObstacleView<'_>,
     vehicle_geometry: &Geometry,
-    mode: Mode,
 ) -> Option<Touch> {
     let (a, b) = (vehicle.placed(), body.placed());
-    if contact::intersects(&a, &b) {
+    let point_enu_m = if contact::intersects(&a, &b) {
         let (point_enu_m, normal_enu) =
             contact::contact_point(&a, &b).unwrap_or((motion.now.position_enu_m, DVec3::Z));
         return Some(Touch {
@@ -221,8 +447,9 @@ fn discrete_touch(
             swept: false,
             holds_now: true,
         });
-    }
-    let point_enu_m = solid_overlap(motion, body, v, vehicle_geometry, mode)?;
+    } else {
+        solid_overlap(motion, body, v, vehicle_geometry)?
+    };
     Some(Touch {
         point_enu_m,
         normal_enu: DVec3::Z,
@@ -233,12 +460,15 @@ fn discrete_touch(
 }
 
 /// The contacts in the interval (sweep), and whether the last still holds at the sample.
+/// Where a contact is, is found only for a contact that will be reported: every one but a
+/// first contact that held since the last sample (`was_touching`).
 fn sweep_touches(
     vehicle: &Body,
     motion: &Motion,
     body: &Body,
     v: &ObstacleView<'_>,
     vehicle_geometry: &Geometry,
+    was_touching: bool,
 ) -> SmallVec<[Touch; 2]> {
     let mut touches = SmallVec::new();
     let Some(before) = motion.before else {
@@ -250,7 +480,14 @@ fn sweep_touches(
         body.at(v.previous),
         body.at(v.current),
     );
-    let mut hit: Option<SweepHit> = contact::sweep(&a0, &a1, &b0, &b1);
+    let locate = |k: usize, fraction: f64| {
+        if k == 0 && was_touching {
+            (motion.now.position_enu_m, DVec3::Z)
+        } else {
+            contact::locate(&a0, &a1, &b0, &b1, fraction)
+        }
+    };
+    let mut hit = contact::sweep(&a0, &a1, &b0, &b1);
     // Terrain: the vehicle may have gone under this patch from its neighbour's ground (a
     // patch's mesh is open at its edges) before it touches this patch's surface.
     let under = |u: f64| {
@@ -259,14 +496,14 @@ fn sweep_touches(
     };
     let went_under = |upto: f64| contact::bisect_first(0.0, upto, 30, under);
     if let Some(h) = &mut hit {
-        if h.fraction > 0.0 && !under(0.0) && under(h.fraction) {
-            h.fraction = went_under(h.fraction);
+        if *h > 0.0 && !under(0.0) && under(*h) {
+            *h = went_under(*h);
         }
     }
     match hit {
-        Some(h) => {
+        Some(fraction) => {
             let holds_now = contact::intersects(&vehicle.placed(), &body.placed())
-                || solid_overlap(motion, body, v, vehicle_geometry, Mode::Exact).is_some();
+                || solid_overlap(motion, body, v, vehicle_geometry).is_some();
             // A compound can be left and entered again within one interval (the wings of a
             // building at speed), and so can a surface when the vehicle travels more than its
             // size (the ground of a ridge): every span of contact is a contact.
@@ -282,24 +519,26 @@ fn sweep_touches(
             if spans.len() > 1 {
                 let last = spans.len() - 1;
                 for (k, (start, _)) in spans.into_iter().enumerate() {
-                    let fraction = if k == 0 && !under(0.0) && under(start.fraction) {
-                        went_under(start.fraction)
+                    let fraction = if k == 0 && !under(0.0) && under(start) {
+                        went_under(start)
                     } else {
-                        start.fraction
+                        start
                     };
+                    let (point_enu_m, normal_enu) = locate(k, fraction);
                     touches.push(Touch {
-                        point_enu_m: start.point_enu_m,
-                        normal_enu: start.normal_enu,
+                        point_enu_m,
+                        normal_enu,
                         fraction,
                         swept: true,
                         holds_now: holds_now && k == last,
                     });
                 }
             } else {
+                let (point_enu_m, normal_enu) = locate(0, fraction);
                 touches.push(Touch {
-                    point_enu_m: h.point_enu_m,
-                    normal_enu: h.normal_enu,
-                    fraction: h.fraction,
+                    point_enu_m,
+                    normal_enu,
+                    fraction,
                     swept: true,
                     holds_now,
                 });
@@ -310,8 +549,7 @@ fn sweep_touches(
         // patch's ground: a patch's mesh is open at its edges) or sit under it. When the
         // reference point went under during the interval, bisect for when.
         None => {
-            let Some(point_enu_m) = solid_overlap(motion, body, v, vehicle_geometry, Mode::Exact)
-            else {
+            let Some(point_enu_m) = solid_overlap(motion, body, v, vehicle_geometry) else {
                 return touches;
             };
             let (swept, fraction) = if under(0.0) {
@@ -331,25 +569,19 @@ fn sweep_touches(
     }
 }
 
-/// One solid holds the other though no surfaces touch: the vehicle inside a building or under
-/// terrain, or a small obstacle inside the vehicle's hull. Exact shapes of boxes and blocks are
-/// solids already; only triangle meshes need this.
+/// One solid holds the other though no surfaces touch: the vehicle inside a surface-meshed
+/// obstacle's solid (terrain: under it), or a surface-meshed obstacle inside the vehicle's
+/// solid. Exact shapes of boxes and blocks are solids already; only triangle meshes need this.
 fn solid_overlap(
     motion: &Motion,
     body: &Body,
     v: &ObstacleView<'_>,
     vehicle_geometry: &Geometry,
-    mode: Mode,
 ) -> Option<DVec3> {
-    let position = motion.now.position_enu_m;
-    if mode == Mode::Exact {
-        // Terrain is the one triangle-mesh solid.
-        return (v.geometry.is_terrain() && inside_solid(v.geometry, &v.current, position))
-            .then_some(position);
-    }
     if !body.is_surface() {
         return None;
     }
+    let position = motion.now.position_enu_m;
     if inside_solid(v.geometry, &v.current, position) {
         return Some(position);
     }
@@ -361,14 +593,14 @@ fn solid_overlap(
 
 /// True when `region` lies entirely above a terrain patch's surface (a cheap, conservative
 /// test that spares the exact query for a vehicle flying over terrain).
-fn above_terrain(geometry: &Geometry, pose: &BodyPose, region: &Aabb64) -> bool {
-    if !geometry.is_terrain() {
+fn above_terrain(v: &ObstacleView<'_>, region: &Aabb64) -> bool {
+    if !v.geometry.is_terrain() {
         return false;
     }
     // Terrain patches are placed without rotation.
-    let min = region.min - pose.position_enu_m;
-    let max = region.max - pose.position_enu_m;
-    geometry
+    let min = region.min - v.current.position_enu_m;
+    let max = region.max - v.current.position_enu_m;
+    v.geometry
         .terrain_max_height_in(min.x as f32, min.y as f32, max.x as f32, max.y as f32)
         .is_some_and(|top| min.z > f64::from(top))
 }

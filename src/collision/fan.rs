@@ -1,5 +1,5 @@
 //! Exact ray fans: what a range sensor on the vehicle measures. Each ray is cast against the
-//! exact shape of every obstacle it can reach (static ones front to back through the octree,
+//! exact shape of every obstacle it can reach (static ones front to back through the static `Bvh`,
 //! stopping at the nearest hit; moving ones by a scan), whatever collider the sensing layer
 //! holds for it: a sensor sees the world, not the model of it. The closed-loop feed casts its
 //! sectors here (`crate::feed`).
@@ -11,7 +11,6 @@ use glam::DVec3;
 use crate::collision::bodies::{view, ObstacleRef, World};
 use crate::collision::contact;
 use crate::collision::meshes::MeshCache;
-use crate::collision::octree::OctreeWorkspace;
 
 /// A fan of rays from one point: unit directions, ENU, and how far they reach.
 #[derive(Debug, Clone, Copy)]
@@ -29,12 +28,11 @@ pub struct Rays<'a> {
 pub(crate) fn nearest(
     world: &World<'_>,
     meshes: &mut MeshCache,
-    ws: &mut OctreeWorkspace,
     origin_enu_m: DVec3,
     dir_enu: DVec3,
     max_m: f64,
 ) -> Option<(ObstacleRef, f64)> {
-    // `bounds_checked`: the octree already knows the ray meets the obstacle's bounds.
+    // `bounds_checked`: the broad phase already knows the ray meets the obstacle's bounds.
     let mut test = |o: ObstacleRef, limit: f64, bounds_checked: bool| {
         let v = view(world.scene, world.dynamic, o)?;
         if !bounds_checked && !v.aabb_enu_m.ray_hits(origin_enu_m, dir_enu, limit) {
@@ -47,8 +45,8 @@ pub(crate) fn nearest(
             .filter(|&d| d <= limit)
     };
     let mut best = world
-        .octree
-        .cast_ray(origin_enu_m, dir_enu, max_m, ws, |i, limit| {
+        .statics
+        .cast_ray(origin_enu_m, dir_enu, max_m, |i, limit| {
             test(ObstacleRef::Static(i), limit, true)
         })
         .map(|(i, d)| (ObstacleRef::Static(i), d));

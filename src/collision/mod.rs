@@ -12,7 +12,8 @@
 //!
 //! - [`config`]: the modes and every threshold.
 //! - [`bodies`]: identities (generational keys), poses, placed colliders.
-//! - [`octree`]: the static scene's octree.
+//! - [`octree`]: the static scene's octree (the paper's nodes).
+//! - [`broad_phase`]: the static broad phase (parry's `Bvh`): region queries and rays.
 //! - [`shapes`]: the contact layer's exact shapes (cuboids, compounds, meshes).
 //! - [`contact`]: exact f64-anchored queries (intersection, distance, sweep, ray).
 //! - [`distance`]: distances through parry, with cuboid pairs repaired.
@@ -30,6 +31,7 @@
 
 pub mod approach;
 pub mod bodies;
+pub mod broad_phase;
 pub mod config;
 pub mod contact;
 pub mod contacts;

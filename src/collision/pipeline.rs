@@ -18,11 +18,12 @@ pub use crate::collision::fan::Rays;
 pub use crate::collision::sensing::{RayHit, SensingState, RAY_AXES_FRD};
 
 use crate::collision::bodies::{radius_m, World};
-use crate::collision::contacts::{Contacts, Motion};
+use crate::collision::broad_phase::StaticBroadPhase;
+use crate::collision::contacts::{Before, Contacts, Motion};
 use crate::collision::episodes::{sweepable_from, Episodes};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
-use crate::collision::octree::{Octree, OctreeWorkspace};
+use crate::collision::octree::Octree;
 use crate::collision::reference::Reference;
 use crate::collision::sensing::{Frame, Rules, Sensing};
 use crate::collision::shapes::ExactShapes;
@@ -38,6 +39,10 @@ pub struct VehicleCollision {
     episodes: Episodes,
     /// The last sample was implausible: do not sweep from it.
     last_implausible: bool,
+    /// Exact gaps to static obstacles at the sample at `gaps_t_s` (sorted by obstacle), for
+    /// the contact layer's next interval.
+    gaps: Vec<(ObstacleRef, f64)>,
+    gaps_t_s: Option<f64>,
 }
 
 impl VehicleCollision {
@@ -119,8 +124,10 @@ pub struct PipelineTotals {
 pub struct Pipeline {
     /// Settings.
     pub config: CollisionConfig,
-    /// The static scene's octree.
+    /// The static scene's octree (the sensing layer's nodes).
     pub octree: Octree,
+    /// The static broad phase (parry's `Bvh`): region queries and rays.
+    pub statics: StaticBroadPhase,
     /// Built triangle meshes (resident within the budget).
     pub meshes: MeshCache,
     /// The contact layer's exact solids.
@@ -133,7 +140,6 @@ pub struct Pipeline {
     pub totals: PipelineTotals,
     sensing: Sensing,
     contacts: Contacts,
-    ws: OctreeWorkspace,
     static_triangles: usize,
     has_terrain: bool,
 }
@@ -151,6 +157,7 @@ impl Pipeline {
         let mut pipeline = Self {
             config,
             octree: Octree::build(&boxes, config.octree),
+            statics: StaticBroadPhase::build(&boxes),
             meshes: MeshCache::new(scene.geometries.len()),
             shapes,
             reference: (config.mode == Mode::Reference).then(Reference::default),
@@ -158,7 +165,6 @@ impl Pipeline {
             totals: PipelineTotals::default(),
             sensing: Sensing::default(),
             contacts: Contacts::default(),
-            ws: OctreeWorkspace::default(),
             static_triangles: scene
                 .obstacles
                 .iter()
@@ -207,13 +213,13 @@ impl Pipeline {
             dynamic,
             own,
             octree: &self.octree,
+            statics: &self.statics,
             shapes: &self.shapes,
         };
         for (dir, hit) in rays.dirs_enu.iter().zip(out.iter_mut()) {
             *hit = crate::collision::fan::nearest(
                 &world,
                 &mut self.meshes,
-                &mut self.ws,
                 rays.origin_enu_m,
                 *dir,
                 rays.max_m,
@@ -347,7 +353,7 @@ impl Pipeline {
         // Terrain under the vehicle; a sample far below it is implausible.
         if self.has_terrain {
             report.terrain_clearance_m =
-                terrain_clearance(&self.octree, &mut self.ws, scene, current.position_enu_m);
+                terrain_clearance(&self.statics, scene, current.position_enu_m);
         }
         let implausible = report
             .terrain_clearance_m
@@ -366,6 +372,7 @@ impl Pipeline {
             dynamic,
             own: key.source(),
             octree: &self.octree,
+            statics: &self.statics,
             shapes: &self.shapes,
         };
         // Vehicle numbers beyond the MAVLink range (the bench's fleets) use the default model.
@@ -420,6 +427,13 @@ impl Pipeline {
             radius_m: radius_m(vehicle_geometry),
         };
         report.swept = cfg.mode == Mode::Exact && motion.before.is_some();
+        let before = Before {
+            touching: state.episodes.touching(),
+            gaps: match previous {
+                Some(p) if state.gaps_t_s == Some(p.t_s) => &state.gaps,
+                _ => &[],
+            },
+        };
         report.narrow_tests = self.contacts.run(
             &world,
             &mut self.meshes,
@@ -427,7 +441,10 @@ impl Pipeline {
             cfg.near_miss_m,
             &state.sensing,
             &motion,
+            before,
         );
+        std::mem::swap(&mut state.gaps, &mut self.contacts.gaps);
+        state.gaps_t_s = Some(t);
         state.episodes.update(
             scene,
             dynamic,
@@ -461,18 +478,13 @@ fn elapsed_ns(started: Instant) -> u64 {
 }
 
 /// Height of `position` above the highest terrain patch under it (None: no terrain there).
-fn terrain_clearance(
-    octree: &Octree,
-    ws: &mut OctreeWorkspace,
-    scene: &Scene,
-    position: DVec3,
-) -> Option<f64> {
+fn terrain_clearance(statics: &StaticBroadPhase, scene: &Scene, position: DVec3) -> Option<f64> {
     let column = Aabb64::new(
         DVec3::new(position.x, position.y, f64::MIN / 4.0),
         DVec3::new(position.x, position.y, f64::MAX / 4.0),
     );
     let mut ground: Option<f64> = None;
-    octree.query_aabb(&column, ws, |i| {
+    statics.query_aabb(&column, |i| {
         if let Some(z) = scene.obstacles[i as usize].terrain_height_enu_m(position.x, position.y) {
             ground = Some(ground.map_or(z, |g| g.max(z)));
         }

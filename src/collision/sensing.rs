@@ -13,7 +13,7 @@ use crate::collision::config::CollisionConfig;
 use crate::collision::contact;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
-use crate::collision::octree::{NodeId, OctreeWorkspace};
+use crate::collision::octree::NodeId;
 use crate::collision::shapes::ExactShapes;
 use crate::collision::ColliderKind;
 use crate::scene::Aabb64;
@@ -126,7 +126,6 @@ impl Frame<'_> {
 /// The layer's scratch buffers; the state comes in per vehicle.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Sensing {
-    ws: OctreeWorkspace,
     desired: Vec<ObstacleRef>,
     merged: Vec<Active>,
 }
@@ -242,9 +241,9 @@ impl Sensing {
                 );
             }
             if rules == Rules::Sensor {
-                octree.query_aabb(&region, &mut self.ws, |i| {
-                    desired.push(ObstacleRef::Static(i))
-                });
+                world
+                    .statics
+                    .query_aabb(&region, |i| desired.push(ObstacleRef::Static(i)));
             }
         }
         for d in dynamic {
@@ -336,7 +335,7 @@ impl Sensing {
     }
 
     /// Step 3: six rays along the body axes against the active colliders: static ones front to
-    /// back through the octree (stopping at the nearest hit), moving ones by a scan.
+    /// back through the static `Bvh` (stopping at the nearest hit), moving ones by a scan.
     fn cast_rays(
         &mut self,
         f: &Frame<'_>,
@@ -391,17 +390,16 @@ impl Sensing {
                 contact::ray_distance_m(position, dir, limit, &body.placed())
             };
             // The obstacle this ray hit last frame usually still is the nearest: its distance
-            // bounds the octree walk (same answer, far fewer nodes).
+            // bounds the walk (same answer, far fewer nodes).
             let seed = state.rays[k]
                 .and_then(|h| Some((h.obstacle, ray_test(h.obstacle, cfg.ray_length_m, false)?)));
             let seed_static = seed.filter(|(o, _)| matches!(o, ObstacleRef::Static(_)));
             let mut best = world
-                .octree
+                .statics
                 .cast_ray(
                     position,
                     dir,
                     seed_static.map_or(cfg.ray_length_m, |s| s.1),
-                    &mut self.ws,
                     |i, limit| ray_test(ObstacleRef::Static(i), limit, true),
                 )
                 .map(|(i, d)| (ObstacleRef::Static(i), d))

@@ -6,7 +6,7 @@
 use glam::DVec3;
 use parry3d::bounding_volume::BoundingVolume;
 
-use crate::collision::contact::{rotation_between, sweep, Placed, SweepHit, CONTACT_TOLERANCE_M};
+use crate::collision::contact::{rotation_between, sweep, Placed, CONTACT_TOLERANCE_M};
 
 /// The convex parts of a placed shape: a compound's parts, or the shape itself.
 fn convex_parts<'a>(p: &Placed<'a>) -> smallvec::SmallVec<[Placed<'a>; 8]> {
@@ -35,7 +35,8 @@ const MAX_SPAN_TRIANGLES: usize = 512;
 /// the hit that opens it. Compounds are split into their convex parts, a triangle mesh into
 /// the triangles near the path; a pair of convex parts touches over one span, found by a sweep
 /// forwards (entry) and one backwards (exit). Between two spans, `inside(fraction)` (terrain:
-/// the vehicle under the surface) says whether the contact went on. Costly (two sweeps a pair
+/// the vehicle under the surface) says whether the contact went on. Each span is (entry, exit),
+/// fractions of the interval ([`crate::collision::contact::locate`] finds where). Costly (two sweeps a pair
 /// of parts): for intervals in which a first sweep already found contact, so that leaving a
 /// wing of a building (or the ground) and entering the next within one interval is two
 /// collisions.
@@ -45,7 +46,7 @@ pub fn contact_spans(
     b0: &Placed<'_>,
     b1: &Placed<'_>,
     inside: &dyn Fn(f64) -> bool,
-) -> smallvec::SmallVec<[(SweepHit, f64); 2]> {
+) -> smallvec::SmallVec<[(f64, f64); 2]> {
     let (pa0, pa1) = (convex_parts(a0), convex_parts(a1));
     let anchor = a0.position_enu_m;
     let mut spans = match b0.shape.as_trimesh() {
@@ -86,16 +87,14 @@ pub fn contact_spans(
             pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
         }
     };
-    spans.sort_by(|x, y| x.0.fraction.total_cmp(&y.0.fraction));
-    let mut merged: smallvec::SmallVec<[(SweepHit, f64); 2]> = smallvec::SmallVec::new();
-    for (hit, exit) in spans {
+    spans.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut merged: smallvec::SmallVec<[(f64, f64); 2]> = smallvec::SmallVec::new();
+    for (enter, exit) in spans {
         match merged.last_mut() {
-            Some(last)
-                if hit.fraction <= last.1 + 1e-9 || inside(0.5 * (last.1 + hit.fraction)) =>
-            {
+            Some(last) if enter <= last.1 + 1e-9 || inside(0.5 * (last.1 + enter)) => {
                 last.1 = last.1.max(exit)
             }
-            _ => merged.push((hit, exit)),
+            _ => merged.push((enter, exit)),
         }
     }
     merged
@@ -120,7 +119,7 @@ fn pair_spans(
     pa1: &[Placed<'_>],
     pb0: &[Placed<'_>],
     pb1: &[Placed<'_>],
-) -> smallvec::SmallVec<[(SweepHit, f64); 8]> {
+) -> smallvec::SmallVec<[(f64, f64); 8]> {
     let reach_a: smallvec::SmallVec<[_; 8]> = pa0
         .iter()
         .zip(pa1)
@@ -136,8 +135,8 @@ fn pair_spans(
             let Some(enter) = sweep(a0, a1, &pb0[j], &pb1[j]) else {
                 continue;
             };
-            let exit = sweep(a1, a0, b1, b0).map_or(enter.fraction, |back| 1.0 - back.fraction);
-            spans.push((enter, exit.max(enter.fraction)));
+            let exit = sweep(a1, a0, b1, b0).map_or(enter, |back| 1.0 - back);
+            spans.push((enter, exit.max(enter)));
         }
     }
     spans
