@@ -13,7 +13,7 @@ use serde_json::json;
 use crate::collision::approach::Approaches;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{
-    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Pipeline, VehicleKey,
+    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies, Pipeline, VehicleKey,
 };
 use crate::error::{Error, Result};
 use crate::feed::{Feed, FeedConfig, FeedMessage, FrameInput};
@@ -49,7 +49,7 @@ pub struct Session {
     pub tick_cost_ns: Vec<u64>,
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     pub approaches: Approaches,
-    dynamic: Vec<DynamicBody>,
+    dynamic: MovingBodies,
     flight_start_t_s: Option<f64>,
     last_expire_t_s: f64,
     started: Instant,
@@ -118,7 +118,7 @@ impl Session {
             notable: Vec::new(),
             tick_cost_ns: Vec::new(),
             approaches: Approaches::default(),
-            dynamic: Vec::new(),
+            dynamic: MovingBodies::default(),
             flight_start_t_s: None,
             last_expire_t_s: f64::NEG_INFINITY,
             started: Instant::now(),
@@ -263,8 +263,12 @@ impl Session {
             t_before,
             current.t_s,
         );
-        self.approaches
-            .observe(sender.system_id, previous.as_ref(), &current, &self.dynamic);
+        self.approaches.observe(
+            sender.system_id,
+            previous.as_ref(),
+            &current,
+            self.dynamic.as_slice(),
+        );
         let first = self.events.len();
         let started = Instant::now();
         let key = VehicleKey {
@@ -326,6 +330,7 @@ impl Session {
                 colliders: sensing.map_or_else(Vec::new, |s| s.colliders().collect()),
                 dynamic: self
                     .dynamic
+                    .as_slice()
                     .iter()
                     .map(|d| (d.key, d.id.to_string(), d.kind, d.geometry_index, d.current))
                     .collect(),
@@ -524,7 +529,7 @@ fn body_from(sample: &TrackSample) -> BodyPose {
 /// The moving obstacles seen by vehicle `own` between `t_before` and `t_now`. Ids are shared
 /// (`Arc<str>`): after warm-up this does not allocate.
 fn fill_dynamic(
-    out: &mut Vec<DynamicBody>,
+    out: &mut MovingBodies,
     scene: &Scene,
     world: &WorldStore,
     own: SenderId,
@@ -648,8 +653,6 @@ fn fill_dynamic(
             speed_mps: now.velocity_enu_mps.length(),
         });
     }
-    // Sorted by key: the core finds a body by binary search.
-    out.sort_unstable_by_key(|d| d.key);
 }
 
 fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {

@@ -11,7 +11,7 @@ use glam::DVec3;
 use crate::collision::approach::Approaches;
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::events::Event;
-use crate::collision::pipeline::{DynamicBody, Pipeline, VehicleKey};
+use crate::collision::pipeline::{DynamicBody, MovingBodies, Pipeline, VehicleKey};
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::IngestStats;
 use crate::ingest::tlog::TlogReader;
@@ -139,7 +139,7 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
     let intruder_id: Arc<str> = Arc::from("intruder");
     let n = (encounter.duration_s * encounter.rate_hz).round().max(0.0) as usize;
     let mut tick_cost_ns = Vec::with_capacity(n + 1);
-    let mut bodies: Vec<DynamicBody> = Vec::with_capacity(scene.dynamic.len() + 1);
+    let mut bodies = MovingBodies::default();
     let mut previous: Option<TrackSample> = None;
     for i in 0..=n {
         let t_s = i as f64 / encounter.rate_hz;
@@ -169,7 +169,7 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
             &encounter.intruder,
             (t_before, t_s),
         ));
-        approaches.observe(OWNSHIP, previous.as_ref(), &current, &bodies);
+        approaches.observe(OWNSHIP, previous.as_ref(), &current, bodies.as_slice());
         let started = Instant::now();
         pipeline.step(
             scene,

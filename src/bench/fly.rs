@@ -7,7 +7,7 @@ use crate::bench::flights::{Flight, Traffic};
 use crate::bench::report::{FlightResult, FlightRow, ModeRow, SceneReport};
 use crate::bench::BenchOptions;
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey};
+use crate::collision::pipeline::{CollisionConfig, Mode, MovingBodies, Pipeline, VehicleKey};
 use crate::scene::Scene;
 use crate::session::percentiles_us;
 use crate::world::TrackSample;
@@ -43,7 +43,7 @@ pub fn run_samples(
 ) -> (Costs, Vec<Event>) {
     let mut costs = Costs::default();
     let mut events = Vec::new();
-    let mut dynamic: Vec<DynamicBody> = Vec::with_capacity(traffic.len());
+    let mut dynamic = MovingBodies::default();
     for (i, current) in samples.iter().enumerate() {
         let previous = i.checked_sub(1).map(|p| &samples[p]);
         let t_before = previous.map_or(current.t_s, |p| p.t_s);

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::collision::pipeline::{
-    BodyPose, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
+    BodyPose, CollisionConfig, DynamicBody, Mode, MovingBodies, Pipeline, VehicleKey,
 };
 use crate::geo::LocalTangentPlane;
 use crate::scene::geometry::Geometry;
@@ -180,7 +180,7 @@ pub fn fleets(scene: &Scene, fleet_sizes: &[usize], config: CollisionConfig) -> 
             let mut costs = Vec::with_capacity(n * flights[0].len());
             let mut busy_ns = 0u64;
             let model = scene.vehicle_model(1);
-            let mut bodies: Vec<DynamicBody> = Vec::with_capacity(n);
+            let mut bodies = MovingBodies::default();
             let ids: Vec<Arc<str>> = (0..n).map(|k| format!("vehicle:{k}").into()).collect();
             // Time steps in order, every vehicle at each: as a live fleet arrives. The fleet's
             // poses are gathered once a step (what a world store holds), outside the timing.

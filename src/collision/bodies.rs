@@ -12,6 +12,7 @@ use glam::{DQuat, DVec3, Vec3};
 use parry3d::shape::{Cuboid, Shape, SharedShape, TriMesh};
 
 use crate::collision::contact::Placed;
+use crate::collision::moving::MovingBodies;
 use crate::scene::geometry::Geometry;
 use crate::scene::{Aabb64, Kind, Scene};
 use crate::world::TrackSample;
@@ -211,13 +212,31 @@ impl DynamicBody {
 pub(crate) struct World<'a> {
     pub scene: &'a Scene,
     /// The moving bodies; the ticking vehicle's own body, if listed, is skipped.
-    pub dynamic: &'a [DynamicBody],
+    pub dynamic: &'a MovingBodies,
     /// The ticking vehicle as a moving body.
     pub own: BodySource,
     pub octree: &'a crate::collision::octree::Octree,
     /// The static broad phase (region queries and rays).
     pub statics: &'a crate::collision::broad_phase::StaticBroadPhase,
     pub shapes: &'a crate::collision::shapes::ExactShapes,
+}
+
+impl World<'_> {
+    /// Call `visit(index, body)` for every moving body but the ticking vehicle's own that may
+    /// come within `lead_s` seconds of its speed of `region` in this interval.
+    pub fn moving_near(
+        &self,
+        region: &Aabb64,
+        lead_s: f64,
+        mut visit: impl FnMut(usize, &DynamicBody),
+    ) {
+        let own = self.own;
+        self.dynamic.near(self.scene, region, lead_s, |i, d| {
+            if d.key.source != own {
+                visit(i, d)
+            }
+        });
+    }
 }
 
 /// Everything a stage needs to know about an obstacle at this tick.
@@ -237,7 +256,7 @@ pub(crate) struct ObstacleView<'s> {
 /// ended): state that names it is stale.
 pub(crate) fn view<'s>(
     scene: &'s Scene,
-    dynamic: &'s [DynamicBody],
+    dynamic: &'s MovingBodies,
     o: ObstacleRef,
 ) -> Option<ObstacleView<'s>> {
     match o {
@@ -259,44 +278,18 @@ pub(crate) fn view<'s>(
                 id: &s.id,
             })
         }
-        ObstacleRef::Dynamic(key) => {
-            // Sorted by key (as sessions and the bench fill it): a binary search; otherwise a
-            // scan. A key not there is a track that ended.
-            let d = match dynamic.binary_search_by_key(&key, |d| d.key) {
-                Ok(i) => &dynamic[i],
-                Err(_) => dynamic.iter().find(|d| d.key == key)?,
-            };
-            view_dynamic(scene, d)
-        }
+        ObstacleRef::Dynamic(key) => view_dynamic(scene, dynamic, dynamic.find(scene, key)?),
     }
 }
 
-/// True when moving body `d` may come within `margin_m` of `region` in this interval (a cheap
-/// sphere test before its bounds are computed), and is not the ticking vehicle itself.
-pub(crate) fn may_reach(
-    world: &World<'_>,
-    d: &DynamicBody,
-    region: &Aabb64,
-    margin_m: f64,
-) -> bool {
-    if d.key.source == world.own {
-        return false;
-    }
-    let Some(g) = world.scene.geometries.get(d.geometry_index) else {
-        return false;
-    };
-    let moved_m = d.current.position_enu_m.distance(d.previous.position_enu_m);
-    region.distance_to(d.current.position_enu_m) <= radius_m(g) + moved_m + margin_m
-}
-
-/// The moving body `d` at this tick.
-pub(crate) fn view_dynamic<'s>(scene: &'s Scene, d: &'s DynamicBody) -> Option<ObstacleView<'s>> {
+/// Moving body `i` of `dynamic` at this tick (`None` for a model the scene does not have).
+pub(crate) fn view_dynamic<'s>(
+    scene: &'s Scene,
+    dynamic: &'s MovingBodies,
+    i: usize,
+) -> Option<ObstacleView<'s>> {
+    let d = dynamic.get(i);
     let g = scene.geometries.get(d.geometry_index)?;
-    let aabb = crate::scene::Placement {
-        position_enu_m: d.current.position_enu_m,
-        enu_from_local: d.current.enu_from_body,
-    }
-    .enu_aabb(&g.local_aabb);
     Some(ObstacleView {
         geometry: g,
         geometry_index: d.geometry_index,
@@ -305,7 +298,7 @@ pub(crate) fn view_dynamic<'s>(scene: &'s Scene, d: &'s DynamicBody) -> Option<O
         speed_mps: d.speed_mps,
         previous: d.previous,
         current: d.current,
-        aabb_enu_m: aabb,
+        aabb_enu_m: dynamic.aabb(scene, i),
         id: &d.id,
     })
 }

@@ -20,8 +20,7 @@ use glam::DVec3;
 use smallvec::SmallVec;
 
 use crate::collision::bodies::{
-    inside_solid, may_reach, view, view_dynamic, Body, BodyPose, Holder, ObstacleRef, ObstacleView,
-    World,
+    inside_solid, view, Body, BodyPose, Holder, ObstacleRef, ObstacleView, World,
 };
 use crate::collision::config::Mode;
 use crate::collision::contact;
@@ -196,18 +195,17 @@ impl Contacts {
         world
             .statics
             .query_aabb(query, |i| candidates.push(ObstacleRef::Static(i)));
-        for d in world.dynamic {
-            if !may_reach(world, d, query, 0.0) {
-                continue;
-            }
+        world.moving_near(query, 0.0, |i, d| {
             let size = d.current.position_enu_m.distance(d.previous.position_enu_m);
-            let Some(v) = view_dynamic(world.scene, d) else {
-                continue;
-            };
-            if v.aabb_enu_m.inflated(size).intersects(query) {
+            if world
+                .dynamic
+                .aabb(world.scene, i)
+                .inflated(size)
+                .intersects(query)
+            {
                 candidates.push(ObstacleRef::Dynamic(d.key));
             }
-        }
+        });
     }
 
     /// The discrete strategies: contact and distance at the sample.

@@ -6,9 +6,10 @@
 
 use std::sync::Arc;
 
-use crate::collision::bodies::{view, DynamicBody, ObstacleRef};
+use crate::collision::bodies::{view, ObstacleRef};
 use crate::collision::contacts::Touch;
 use crate::collision::events::{Event, EventKind};
+use crate::collision::moving::MovingBodies;
 use crate::scene::Scene;
 use crate::world::TrackSample;
 
@@ -66,7 +67,7 @@ impl Episodes {
     pub(crate) fn update(
         &mut self,
         scene: &Scene,
-        dynamic: &[DynamicBody],
+        dynamic: &MovingBodies,
         touching_now: &[(ObstacleRef, Touch)],
         near_now: &[(ObstacleRef, f64)],
         t_before: f64,

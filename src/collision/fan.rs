@@ -11,6 +11,7 @@ use glam::DVec3;
 use crate::collision::bodies::{view, ObstacleRef, World};
 use crate::collision::contact;
 use crate::collision::meshes::MeshCache;
+use crate::scene::Aabb64;
 
 /// A fan of rays from one point: unit directions, ENU, and how far they reach.
 #[derive(Debug, Clone, Copy)]
@@ -50,12 +51,16 @@ pub(crate) fn nearest(
             test(ObstacleRef::Static(i), limit, true)
         })
         .map(|(i, d)| (ObstacleRef::Static(i), d));
-    for d in world.dynamic.iter().filter(|d| d.key.source != world.own) {
+    let reach = Aabb64::new(origin_enu_m, origin_enu_m).union(Aabb64::new(
+        origin_enu_m + dir_enu * max_m,
+        origin_enu_m + dir_enu * max_m,
+    ));
+    world.moving_near(&reach, 0.0, |_, d| {
         let limit = best.map_or(max_m, |b| b.1);
         let o = ObstacleRef::Dynamic(d.key);
         if let Some(distance) = test(o, limit, false).filter(|&x| x < limit) {
             best = Some((o, distance));
         }
-    }
+    });
     best
 }

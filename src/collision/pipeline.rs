@@ -15,6 +15,7 @@ pub use crate::collision::bodies::{
 };
 pub use crate::collision::config::{CollisionConfig, Mode};
 pub use crate::collision::fan::Rays;
+pub use crate::collision::moving::MovingBodies;
 pub use crate::collision::sensing::{RayHit, SensingState, RAY_AXES_FRD};
 
 use crate::collision::bodies::{radius_m, World};
@@ -204,7 +205,7 @@ impl Pipeline {
         &mut self,
         scene: &Scene,
         own: BodySource,
-        dynamic: &[DynamicBody],
+        dynamic: &MovingBodies,
         rays: Rays<'_>,
         out: &mut [Option<f64>],
     ) {
@@ -237,7 +238,7 @@ impl Pipeline {
         vehicle: VehicleKey,
         previous: Option<&TrackSample>,
         current: &TrackSample,
-        dynamic: &[DynamicBody],
+        dynamic: &MovingBodies,
         events: &mut Vec<Event>,
     ) -> TickReport {
         let first_event = events.len();
@@ -252,7 +253,7 @@ impl Pipeline {
                     vehicle,
                     previous,
                     current,
-                    dynamic,
+                    dynamic.as_slice(),
                     events,
                 );
                 TickReport {
@@ -319,7 +320,7 @@ impl Pipeline {
         key: VehicleKey,
         previous: Option<&TrackSample>,
         current: &TrackSample,
-        dynamic: &[DynamicBody],
+        dynamic: &MovingBodies,
         events: &mut Vec<Event>,
     ) -> TickReport {
         let cfg = self.config;
@@ -462,6 +463,7 @@ impl Pipeline {
                 report.active_mesh = scene.obstacles.len() + dynamic.len();
                 report.active_triangles = self.static_triangles
                     + dynamic
+                        .as_slice()
                         .iter()
                         .map(|d| scene.geometries[d.geometry_index].triangle_count())
                         .sum::<usize>()

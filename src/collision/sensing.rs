@@ -8,7 +8,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::collision::bodies::{may_reach, view, view_dynamic, Body, ObstacleRef, World};
+use crate::collision::bodies::{view, Body, ObstacleRef, World};
 use crate::collision::config::CollisionConfig;
 use crate::collision::contact;
 use crate::collision::events::{Event, EventKind};
@@ -127,7 +127,10 @@ impl Frame<'_> {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Sensing {
     desired: Vec<ObstacleRef>,
+    numbers: Vec<u32>,
     merged: Vec<Active>,
+    /// The moving bodies with a collider and their boxes, for this frame's rays.
+    moving: Vec<(ObstacleRef, Aabb64)>,
 }
 
 impl Sensing {
@@ -221,7 +224,10 @@ impl Sensing {
         };
         state.queried = Some(region);
         self.desired.clear();
-        let desired = &mut self.desired;
+        // Sorted as plain numbers (static indices, then moving bodies' key ranks), which is
+        // the order of their `ObstacleRef`s.
+        let numbers = &mut self.numbers;
+        numbers.clear();
         // With the static answer reused, only the moving bodies (the tail of the sorted active
         // list) are merged again.
         let from = if reuse_static {
@@ -233,38 +239,35 @@ impl Sensing {
         };
         if !reuse_static {
             if let Some(node) = node {
-                desired.extend(
-                    octree
-                        .leaf_items(node)
-                        .iter()
-                        .map(|&i| ObstacleRef::Static(i)),
-                );
+                numbers.extend_from_slice(octree.leaf_items(node));
             }
             if rules == Rules::Sensor {
-                world
-                    .statics
-                    .query_aabb(&region, |i| desired.push(ObstacleRef::Static(i)));
+                world.statics.query_aabb(&region, |i| numbers.push(i));
             }
+            numbers.sort_unstable();
+            numbers.dedup();
+            self.desired
+                .extend(numbers.iter().map(|&i| ObstacleRef::Static(i)));
+            numbers.clear();
         }
-        for d in dynamic {
-            let lead = if rules == Rules::Sensor {
-                d.speed_mps * cfg.look_ahead_s
-            } else {
-                0.0
-            };
-            if !may_reach(world, d, &region, lead) {
-                continue;
+        let lead_s = if rules == Rules::Sensor {
+            cfg.look_ahead_s
+        } else {
+            0.0
+        };
+        world.moving_near(&region, lead_s, |i, d| {
+            let lead = d.speed_mps * lead_s;
+            if dynamic.aabb(scene, i).inflated(lead).intersects(&region) {
+                numbers.push(dynamic.rank(scene, i));
             }
-            let o = ObstacleRef::Dynamic(d.key);
-            let Some(v) = view_dynamic(scene, d) else {
-                continue;
-            };
-            if v.aabb_enu_m.inflated(lead).intersects(&region) {
-                desired.push(o);
-            }
-        }
-        desired.sort_unstable();
-        desired.dedup();
+        });
+        numbers.sort_unstable();
+        numbers.dedup();
+        self.desired.extend(
+            numbers
+                .iter()
+                .map(|&r| ObstacleRef::Dynamic(dynamic.key_at_rank(scene, r))),
+        );
         state.node = node;
         // Merge the active list (sorted) from `from` on with the desired one.
         self.merged.clear();
@@ -352,6 +355,19 @@ impl Sensing {
         } = *f;
         let (scene, dynamic) = (world.scene, world.dynamic);
         let position = current.position_enu_m;
+        // The moving bodies with a collider (the sorted active list's tail) that a ray can
+        // reach, with their boxes, looked up once for the six rays.
+        self.moving.clear();
+        let first_moving = state
+            .active
+            .partition_point(|a| matches!(a.obstacle, ObstacleRef::Static(_)));
+        self.moving.extend(
+            state.active[first_moving..]
+                .iter()
+                .filter_map(|a| Some((a.obstacle, view(scene, dynamic, a.obstacle)?.aabb_enu_m)))
+                .filter(|(_, aabb)| aabb.distance_to(position) <= cfg.ray_length_m),
+        );
+        let moving = &self.moving;
         for (k, axis) in RAY_AXES_FRD.iter().enumerate() {
             let dir = current.attitude.enu_from_frd * axis.as_dvec3();
             let active = &state.active;
@@ -404,13 +420,13 @@ impl Sensing {
                 )
                 .map(|(i, d)| (ObstacleRef::Static(i), d))
                 .or(seed_static);
-            for a in active
-                .iter()
-                .filter(|a| matches!(a.obstacle, ObstacleRef::Dynamic(_)))
-            {
+            for &(o, aabb) in moving {
                 let limit = best.map_or(cfg.ray_length_m, |b| b.1);
-                if let Some(d) = ray_test(a.obstacle, limit, false).filter(|&d| d < limit) {
-                    best = Some((a.obstacle, d));
+                if !aabb.ray_hits(position, dir, limit) {
+                    continue;
+                }
+                if let Some(d) = ray_test(o, limit, true).filter(|&d| d < limit) {
+                    best = Some((o, d));
                 }
             }
             counts.ray_tests += tests;

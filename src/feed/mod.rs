@@ -23,7 +23,9 @@ use glam::DVec3;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use serde::Serialize;
 
-use crate::collision::pipeline::{BodySource, DynamicBody, Pipeline, Rays, VehicleKey};
+use crate::collision::pipeline::{
+    BodySource, DynamicBody, MovingBodies, Pipeline, Rays, VehicleKey,
+};
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::SenderId;
 use crate::scene::{DynamicSource, Scene};
@@ -247,7 +249,7 @@ pub struct FrameInput<'a> {
     /// Its newest sample.
     pub current: &'a TrackSample,
     /// The moving bodies at this sample (the vehicle's own is skipped).
-    pub dynamic: &'a [DynamicBody],
+    pub dynamic: &'a MovingBodies,
 }
 
 impl Feed {
@@ -496,7 +498,7 @@ fn body_velocity(d: &DynamicBody) -> DVec3 {
 fn aircraft<'a>(
     input: &'a FrameInput<'a>,
 ) -> impl Iterator<Item = (wire::Aircraft<'a>, &'a DynamicBody)> + 'a {
-    input.dynamic.iter().filter_map(move |d| {
+    input.dynamic.as_slice().iter().filter_map(move |d| {
         let icao_address = match d.key.source {
             BodySource::Scripted(i) => match input.scene.dynamic.get(i as usize)?.source {
                 DynamicSource::Icao(_) => return None,

@@ -43,7 +43,14 @@ fn fly_with(
     for (i, s) in flight.iter().enumerate() {
         let previous = i.checked_sub(1).map(|j| &flight[j]);
         let bodies = dynamic(previous.map_or(s.t_s, |p| p.t_s), s.t_s);
-        pipeline.step(scene, VehicleKey::new(1), previous, s, &bodies, &mut events);
+        pipeline.step(
+            scene,
+            VehicleKey::new(1),
+            previous,
+            s,
+            &bodies.into(),
+            &mut events,
+        );
     }
     pipeline.finish(&mut events);
     (pipeline, events)
