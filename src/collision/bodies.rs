@@ -311,6 +311,8 @@ pub(crate) enum Holder {
     Mesh(Arc<TriMesh>),
     /// An exact solid made of parts (a union of blocks as a parry `Compound`).
     Solid(SharedShape),
+    /// Terrain as a parry `HeightField`: a surface, whose inside is what lies under it.
+    Field(SharedShape),
 }
 
 /// A shape with its placement.
@@ -319,6 +321,9 @@ pub(crate) struct Body {
     position_enu_m: DVec3,
     rotation: DQuat,
     pivot_local_m: Vec3,
+    /// The shape's frame in the body's frame (identity but for a height field, whose up is
+    /// its y axis).
+    local_rotation: DQuat,
 }
 
 impl Body {
@@ -329,6 +334,22 @@ impl Body {
             position_enu_m: pose.position_enu_m,
             rotation: pose.enu_from_body,
             pivot_local_m: Vec3::ZERO,
+            local_rotation: DQuat::IDENTITY,
+        }
+    }
+
+    /// A terrain patch's height field (centred on the patch, y up), placed at `pose`.
+    pub fn field(shape: SharedShape, geometry: &Geometry, pose: BodyPose) -> Body {
+        let local_rotation = field_rotation();
+        // The field's centre in the patch's frame: the middle of its footprint, at height 0.
+        let c = geometry.local_aabb.center();
+        let centre = Vec3::new(c.x, c.y, 0.0);
+        Body {
+            holder: Holder::Field(shape),
+            position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
+            rotation: pose.enu_from_body * local_rotation,
+            pivot_local_m: (local_rotation.inverse() * -centre.as_dvec3()).as_vec3(),
+            local_rotation,
         }
     }
 
@@ -340,12 +361,13 @@ impl Body {
             position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
             rotation: pose.enu_from_body,
             pivot_local_m: -centre,
+            local_rotation: DQuat::IDENTITY,
         }
     }
 
     /// True when the body is a surface mesh (it holds no inside).
     pub fn is_surface(&self) -> bool {
-        matches!(self.holder, Holder::Mesh(_))
+        matches!(self.holder, Holder::Mesh(_) | Holder::Field(_))
     }
 
     /// True when the body is a solid of several convex parts (a compound of blocks).
@@ -359,7 +381,7 @@ impl Body {
             shape: match &self.holder {
                 Holder::Box(c) => c as &dyn Shape,
                 Holder::Mesh(m) => m.as_ref() as &dyn Shape,
-                Holder::Solid(s) => s.as_ref(),
+                Holder::Solid(s) | Holder::Field(s) => s.as_ref(),
             },
             position_enu_m: self.position_enu_m,
             enu_from_shape: self.rotation,
@@ -369,10 +391,16 @@ impl Body {
 
     /// The same body moved so that its reference point has pose `pose`.
     pub fn at(&self, pose: BodyPose) -> Placed<'_> {
-        let offset = -(pose.enu_from_body * self.pivot_local_m.as_dvec3());
-        self.placed()
-            .moved(pose.position_enu_m + offset, pose.enu_from_body)
+        let rotation = pose.enu_from_body * self.local_rotation;
+        let offset = -(rotation * self.pivot_local_m.as_dvec3());
+        self.placed().moved(pose.position_enu_m + offset, rotation)
     }
+}
+
+/// The rotation from a parry height field's frame (y up, rows along z) to a terrain patch's
+/// (z up): +90 degrees about x, so that the field's y is up and its z is south.
+pub(crate) fn field_rotation() -> DQuat {
+    DQuat::from_rotation_x(std::f64::consts::FRAC_PI_2)
 }
 
 /// True when `point` is inside the obstacle's solid (see [`Geometry::contains_local_point`]).

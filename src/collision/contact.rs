@@ -10,7 +10,8 @@ use parry3d::math::Pose;
 use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastOptions};
 use parry3d::shape::Shape;
 
-use crate::collision::distance::shape_distance;
+use crate::collision::distance::{shape_distance, shapes_intersect, Dispatcher};
+use parry3d::query::QueryDispatcher;
 
 /// A shape placed in the scene.
 #[derive(Clone, Copy)]
@@ -61,7 +62,7 @@ impl<'a> Placed<'a> {
 pub fn intersects(a: &Placed<'_>, b: &Placed<'_>) -> bool {
     let anchor = a.position_enu_m;
     let (pa, pb) = (a.pose_about(anchor), b.pose_about(anchor));
-    if query::intersection_test(&pa, a.shape, &pb, b.shape).is_ok_and(|i| i.intersecting) {
+    if shapes_intersect(&pa, a.shape, &pb, b.shape) {
         return true;
     }
     let tolerance = tolerance_m(a.shape, b.shape);
@@ -140,9 +141,10 @@ const MAX_RECASTS: usize = 64;
 pub(crate) fn tolerance_m(a: &dyn Shape, b: &dyn Shape) -> f32 {
     // Only triangle meshes reach sizes where f32 matters (boxes and blocks are tested part by
     // part, in the frame of the part).
-    let size = |s: &dyn Shape| {
-        s.as_trimesh()
-            .map_or(0.0, |m| m.local_aabb().half_extents().length())
+    let size = |s: &dyn Shape| match (s.as_trimesh(), s.as_heightfield()) {
+        (Some(m), _) => m.local_aabb().half_extents().length(),
+        (_, Some(f)) => f.root_aabb().half_extents().length(),
+        _ => 0.0,
     };
     CONTACT_TOLERANCE_M as f32 + 1e-6 * size(a).max(size(b))
 }
@@ -227,12 +229,20 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
                 stop_at_penetration: true,
                 ..ShapeCastOptions::default()
             };
-            query::cast_shapes(&pa, ma.linvel, a0.shape, &pb, mb.linvel, b0.shape, options)
+            Dispatcher
+                .cast_shapes(
+                    &pa.inv_mul(&pb),
+                    pa.rotation.inverse() * (mb.linvel - ma.linvel),
+                    a0.shape,
+                    b0.shape,
+                    options,
+                )
                 .ok()
                 .flatten()
                 .map(|hit| hit.time_of_impact + start)
         } else {
-            query::cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, start, 1.0, true)
+            Dispatcher
+                .cast_shapes_nonlinear(&ma, a0.shape, &mb, b0.shape, start, 1.0, true)
                 .ok()
                 .flatten()
                 .map(|hit| hit.time_of_impact)
@@ -263,13 +273,12 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
         return None;
     }
     let overlaps_at = |t: f32| {
-        query::intersection_test(
+        shapes_intersect(
             &ma.position_at_time(t),
             a0.shape,
             &mb.position_at_time(t),
             b0.shape,
         )
-        .is_ok_and(|i| i.intersecting)
     };
     let toi = if overlaps_at(1.0) {
         bisect_first(start.min(1.0), 1.0, 24, overlaps_at)

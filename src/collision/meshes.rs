@@ -1,6 +1,8 @@
 //! The mesh cache: a triangle-mesh collider is built the first time any obstacle using that
 //! geometry needs one, then shared; beyond a memory budget the least recently used mesh that
 //! no current tick needs is evicted (and rebuilt if it is needed again, which is counted).
+//! Two ways in: [`MeshCache::get`] builds what a contact needs whatever the budget (correctness
+//! first), [`MeshCache::prefetch`] makes a mesh resident ahead of need only if it fits.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -31,6 +33,10 @@ pub struct MeshCache {
     pub peak_bytes: usize,
     /// Time spent building.
     pub build_time: Duration,
+    /// Meshes a residency decision wanted but the budget had no room for.
+    pub prefetch_refused: usize,
+    /// Most bytes the meshes may hold (`usize::MAX`: no budget).
+    budget_bytes: usize,
 }
 
 /// Estimated heap bytes of a parry `TriMesh` with this many vertices and triangles: 12 B per
@@ -39,14 +45,70 @@ pub fn trimesh_bytes(vertices: usize, triangles: usize) -> usize {
     12 * vertices + 12 * triangles + 64 * triangles
 }
 
+/// [`trimesh_bytes`] of a geometry's mesh before it is built (a loaded mesh's vertices as
+/// given; otherwise, as a closed grid has, half a vertex per triangle).
+fn geometry_bytes(geometry: &Geometry) -> usize {
+    let triangles = geometry.triangle_count();
+    let vertices = match &geometry.source {
+        crate::scene::geometry::GeometrySource::Mesh { vertices, .. } => vertices.len(),
+        _ => triangles / 2 + 8,
+    };
+    trimesh_bytes(vertices, triangles)
+}
+
 impl MeshCache {
     /// A cache for `geometries` geometries.
     pub fn new(geometries: usize) -> Self {
         Self {
             meshes: vec![None; geometries],
             last_used: vec![0; geometries],
+            budget_bytes: usize::MAX,
             ..Self::default()
         }
+    }
+
+    /// Hold at most `bytes` of meshes (what [`prefetch`](Self::prefetch) fills and
+    /// [`evict_to`](Self::evict_to) is called with).
+    pub fn set_budget(&mut self, bytes: usize) {
+        self.budget_bytes = bytes;
+    }
+
+    /// The budget, bytes.
+    pub fn budget(&self) -> usize {
+        self.budget_bytes
+    }
+
+    /// Make geometry `index`'s mesh resident ahead of need if it fits within the budget (after
+    /// evicting meshes no tick has used since the last one). True when it is resident.
+    ///
+    /// ```
+    /// use savsim::collision::meshes::MeshCache;
+    /// use savsim::scene::geometry::Geometry;
+    /// use glam::Vec3;
+    /// let tower = Geometry::blocks(vec![(Vec3::ZERO, Vec3::splat(10.0))], 1.0).unwrap();
+    /// let mut cache = MeshCache::new(1);
+    /// cache.set_budget(1000);
+    /// assert!(!cache.prefetch(0, &tower), "600 triangles do not fit in 1000 bytes");
+    /// assert_eq!((cache.built, cache.prefetch_refused), (0, 1));
+    /// cache.set_budget(1 << 20);
+    /// assert!(cache.prefetch(0, &tower));
+    /// assert!(cache.built(0).is_some());
+    /// ```
+    pub fn prefetch(&mut self, index: usize, geometry: &Geometry) -> bool {
+        if self.built(index).is_some() {
+            self.touch(index);
+            return true;
+        }
+        let need = geometry_bytes(geometry);
+        if self.bytes.saturating_add(need) > self.budget_bytes {
+            self.evict_to(self.budget_bytes.saturating_sub(need));
+        }
+        if self.bytes.saturating_add(need) > self.budget_bytes {
+            self.prefetch_refused += 1;
+            return false;
+        }
+        self.get(index, geometry);
+        true
     }
 
     /// Start a new tick: meshes used from now on are this tick's.

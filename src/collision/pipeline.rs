@@ -174,7 +174,13 @@ impl Pipeline {
             has_terrain: scene.obstacles.iter().any(|o| o.geometry.is_terrain()),
         };
         if config.mode == Mode::Mesh {
+            // "Every obstacle a mesh" keeps them all: what that costs is what it shows.
             pipeline.build_every_mesh(scene);
+        } else {
+            let mib = config.mesh_budget_mib.max(0.0);
+            pipeline
+                .meshes
+                .set_budget((mib * 1024.0 * 1024.0).min(usize::MAX as f64) as usize);
         }
         pipeline
     }
@@ -264,10 +270,8 @@ impl Pipeline {
             }
             _ => self.step_vehicle(scene, vehicle, previous, current, dynamic, events),
         };
-        if self.config.mode != Mode::Mesh {
-            let budget = (self.config.mesh_budget_mib * 1024.0 * 1024.0) as usize;
-            self.meshes.evict_to(budget);
-        }
+        let budget = self.meshes.budget();
+        self.meshes.evict_to(budget);
         self.count(&report, &events[first_event..]);
         report
     }

@@ -381,7 +381,11 @@ impl Sensing {
                     return None;
                 }
                 tests += 1;
-                if act.collider == ColliderKind::Box {
+                // A mesh collider whose mesh the budget did not keep is seen as its box.
+                let unbuilt = rules == Rules::Sensor
+                    && ExactShapes::needs_mesh(v.geometry)
+                    && meshes.built(v.geometry_index).is_none();
+                if act.collider == ColliderKind::Box || unbuilt {
                     // A box collider is an oriented box: a slab test in its frame.
                     let (cuboid, centre) = v.geometry.box_collider();
                     let to_local = v.current.enu_from_body.inverse();
@@ -483,9 +487,15 @@ fn rate_and_swap(
             && beta > cfg.mesh_beta
             && hit.distance_m < cfg.mesh_within_m
         {
-            // Residency: the mesh is built now, by the sensing layer, before a contact needs it.
-            if rules == Rules::Paper || ExactShapes::needs_mesh(v.geometry) {
+            // Residency: the mesh is built now, by the sensing layer, before a contact needs it
+            // (the paper's collider in `paper`; within the budget for the sensor, which keeps
+            // the box when there is no room).
+            if rules == Rules::Paper {
                 meshes.get(v.geometry_index, v.geometry);
+            } else if ExactShapes::needs_mesh(v.geometry)
+                && !meshes.prefetch(v.geometry_index, v.geometry)
+            {
+                continue;
             }
             swap(
                 act,
@@ -543,14 +553,23 @@ fn make_resident_ahead(f: &Frame<'_>, meshes: &mut MeshCache, state: &SensingSta
         ..
     } = *f;
     let reach_m = current.velocity_enu_mps.length() * cfg.look_ahead_s + cfg.near_miss_m.max(1.0);
-    for act in &state.active {
-        let Some(v) = view(world.scene, world.dynamic, act.obstacle) else {
+    // Nearest first, within the budget: what a contact needs soonest is resident first.
+    let mut ahead: smallvec::SmallVec<[(f64, ObstacleRef); 16]> = state
+        .active
+        .iter()
+        .filter_map(|act| {
+            let v = view(world.scene, world.dynamic, act.obstacle)?;
+            let d = v.aabb_enu_m.distance_to(current.position_enu_m);
+            (ExactShapes::needs_mesh(v.geometry) && d <= reach_m).then_some((d, act.obstacle))
+        })
+        .collect();
+    ahead.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    for (_, o) in ahead {
+        let Some(v) = view(world.scene, world.dynamic, o) else {
             continue;
         };
-        if ExactShapes::needs_mesh(v.geometry)
-            && v.aabb_enu_m.distance_to(current.position_enu_m) <= reach_m
-        {
-            meshes.get(v.geometry_index, v.geometry);
+        if !meshes.prefetch(v.geometry_index, v.geometry) {
+            break;
         }
     }
 }

@@ -1,17 +1,20 @@
 //! The contact layer's exact shapes: a cuboid is its own box, a union of blocks a parry
-//! `Compound` of cuboids (solid, cheap, built once at start-up), terrain and loaded meshes
+//! `Compound` of cuboids (solid, cheap, built once at start-up), a terrain patch a parry
+//! `HeightField` (built once at start-up from its heights: a copy of them), loaded meshes
 //! triangle meshes from the [`MeshCache`]. Exact first, then cheap: a triangle mesh only for
 //! what has no better shape.
 
 use glam::{Quat, Vec3};
 use parry3d::math::Pose;
-use parry3d::shape::SharedShape;
+use parry3d::shape::{HeightField, SharedShape};
+use parry3d::utils::Array2;
 
 use crate::collision::bodies::{Body, BodyPose, Holder};
 use crate::collision::meshes::MeshCache;
-use crate::scene::geometry::{Geometry, GeometrySource};
+use crate::scene::geometry::{Geometry, GeometrySource, TerrainPatch};
 
-/// The solids built for block geometries, by geometry index.
+/// The solids built for block geometries and the height fields for terrain patches, by
+/// geometry index.
 #[derive(Clone, Default)]
 pub struct ExactShapes {
     solids: Vec<Option<SharedShape>>,
@@ -31,7 +34,8 @@ impl std::fmt::Debug for ExactShapes {
 }
 
 impl ExactShapes {
-    /// Build the solid of every block geometry (a few cuboids each: milliseconds for a city).
+    /// Build the solid of every block geometry (a few cuboids each: milliseconds for a city)
+    /// and the height field of every terrain patch.
     pub fn new(geometries: &[std::sync::Arc<Geometry>]) -> Self {
         let solids = geometries
             .iter()
@@ -48,6 +52,7 @@ impl ExactShapes {
                         })
                         .collect(),
                 )),
+                GeometrySource::Terrain(patch) => Some(height_field(patch)),
                 _ => None,
             })
             .collect();
@@ -62,10 +67,7 @@ impl ExactShapes {
 
     /// True when geometry `index`'s exact shape is a triangle mesh (built on demand).
     pub(crate) fn needs_mesh(geometry: &Geometry) -> bool {
-        matches!(
-            geometry.source,
-            GeometrySource::Mesh { .. } | GeometrySource::Terrain(_)
-        )
+        matches!(geometry.source, GeometrySource::Mesh { .. })
     }
 
     /// The exact shape of geometry `index` at `pose`. A mesh not held yet is built (and counted
@@ -86,7 +88,11 @@ impl ExactShapes {
                     None => Body::new(Holder::Mesh(meshes.get(index, geometry)), pose),
                 }
             }
-            GeometrySource::Mesh { .. } | GeometrySource::Terrain(_) => {
+            GeometrySource::Terrain(_) => match self.solids.get(index).and_then(Option::as_ref) {
+                Some(field) => Body::field(field.clone(), geometry, pose),
+                None => Body::new(Holder::Mesh(meshes.get(index, geometry)), pose),
+            },
+            GeometrySource::Mesh { .. } => {
                 if for_contact && meshes.built(index).is_none() {
                     meshes.built_on_contact += 1;
                 }
@@ -94,4 +100,16 @@ impl ExactShapes {
             }
         }
     }
+}
+
+/// A terrain patch as a parry `HeightField` in the field's frame (y up, x east, rows along z,
+/// which is south: see `bodies::field_rotation`), centred on the patch. Its cells split along
+/// the same diagonal as the patch's triangles (parry's default subdivision in that frame).
+fn height_field(p: &TerrainPatch) -> SharedShape {
+    let c = p.grid.cell_m;
+    let heights = Array2::from_fn(p.ny, p.nx, |i, j| {
+        p.grid.at(p.x0 + j, p.y0 + (p.ny - 1 - i)) - p.base_m
+    });
+    let scale = Vec3::new((p.nx - 1) as f32 * c, 1.0, (p.ny - 1) as f32 * c);
+    SharedShape::new(HeightField::new(heights, scale))
 }

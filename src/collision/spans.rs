@@ -1,5 +1,5 @@
 //! Every span of contact within one interval, not only the first: a body's convex parts (a
-//! compound's blocks, a mesh's triangles near the path) swept pair by pair, forwards for the
+//! compound's blocks, a mesh's or height field's triangles near the path) swept pair by pair, forwards for the
 //! entry and backwards for the exit, and the spans joined. Costly; used where a first sweep
 //! already found contact.
 
@@ -49,43 +49,50 @@ pub fn contact_spans(
 ) -> smallvec::SmallVec<[(f64, f64); 2]> {
     let (pa0, pa1) = (convex_parts(a0), convex_parts(a1));
     let anchor = a0.position_enu_m;
-    let mut spans = match b0.shape.as_trimesh() {
-        Some(mesh) => {
-            // The triangles near the path, in the mesh's frame (at both ends of its motion).
-            let path = pa0
+    let surface = b0.shape.as_trimesh().is_some() || b0.shape.as_heightfield().is_some();
+    let mut spans = if surface {
+        // The triangles near the path, in the surface's frame (at both ends of its motion).
+        let path = pa0
+            .iter()
+            .zip(&pa1)
+            .map(|(p0, p1)| part_reach(anchor, p0, p1))
+            .reduce(|x, y| x.merged(&y));
+        let Some(path) = path else {
+            return smallvec::SmallVec::new();
+        };
+        let near = |b: &Placed<'_>| path.transform_by(&b.pose_about(anchor).inverse());
+        let query = near(b0).merged(&near(b1));
+        let mut triangles: Vec<parry3d::shape::Triangle> = Vec::new();
+        if let Some(mesh) = b0.shape.as_trimesh() {
+            triangles.extend(
+                mesh.bvh()
+                    .intersect_aabb(&query)
+                    .take(MAX_SPAN_TRIANGLES)
+                    .map(|i| mesh.triangle(i)),
+            );
+        } else if let Some(field) = b0.shape.as_heightfield() {
+            field.map_elements_in_local_aabb(&query, &mut |_, t| {
+                if triangles.len() < MAX_SPAN_TRIANGLES {
+                    triangles.push(*t)
+                }
+            });
+        }
+        let as_parts = |b: &Placed<'_>| -> Vec<Placed<'_>> {
+            triangles
                 .iter()
-                .zip(&pa1)
-                .map(|(p0, p1)| part_reach(anchor, p0, p1))
-                .reduce(|x, y| x.merged(&y));
-            let Some(path) = path else {
-                return smallvec::SmallVec::new();
-            };
-            let near = |b: &Placed<'_>| path.transform_by(&b.pose_about(anchor).inverse());
-            let query = near(b0).merged(&near(b1));
-            let triangles: Vec<parry3d::shape::Triangle> = mesh
-                .bvh()
-                .intersect_aabb(&query)
-                .take(MAX_SPAN_TRIANGLES)
-                .map(|i| mesh.triangle(i))
-                .collect();
-            let as_parts = |b: &Placed<'_>| -> Vec<Placed<'_>> {
-                triangles
-                    .iter()
-                    .map(|t| Placed {
-                        shape: t,
-                        position_enu_m: b.position_enu_m,
-                        enu_from_shape: b.enu_from_shape,
-                        pivot_local_m: b.pivot_local_m,
-                    })
-                    .collect()
-            };
-            let (pb0, pb1) = (as_parts(b0), as_parts(b1));
-            pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
-        }
-        None => {
-            let (pb0, pb1) = (convex_parts(b0), convex_parts(b1));
-            pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
-        }
+                .map(|t| Placed {
+                    shape: t,
+                    position_enu_m: b.position_enu_m,
+                    enu_from_shape: b.enu_from_shape,
+                    pivot_local_m: b.pivot_local_m,
+                })
+                .collect()
+        };
+        let (pb0, pb1) = (as_parts(b0), as_parts(b1));
+        pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
+    } else {
+        let (pb0, pb1) = (convex_parts(b0), convex_parts(b1));
+        pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
     };
     spans.sort_by(|x, y| x.0.total_cmp(&y.0));
     let mut merged: smallvec::SmallVec<[(f64, f64); 2]> = smallvec::SmallVec::new();
