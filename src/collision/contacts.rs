@@ -478,93 +478,74 @@ fn sweep_touches(
         body.at(v.previous),
         body.at(v.current),
     );
-    let locate = |k: usize, fraction: f64| {
-        if k == 0 && was_touching {
-            (motion.now.position_enu_m, DVec3::Z)
+    let (p0, p1) = (before.position_enu_m, motion.now.position_enu_m);
+    // Terrain: when the reference point is under this patch (a patch's surface is open at its
+    // edges: the vehicle may go under it from its neighbour's ground without touching it).
+    let under: SmallVec<[(f64, f64); 4]> = if v.geometry.is_terrain() {
+        let local = |p: DVec3| (p - v.current.position_enu_m).as_vec3();
+        match v.geometry.terrain_under_runs(local(p0), local(p1)) {
+            Some(runs) => runs
+                .iter()
+                .map(|&(s, e)| (f64::from(s), f64::from(e)))
+                .collect(),
+            // Too many cells to walk: whether it is under at the two samples.
+            None => [0.0, 1.0]
+                .into_iter()
+                .filter(|&u| inside_solid(v.geometry, &v.current, p0.lerp(p1, u)))
+                .map(|u| (u, u))
+                .collect(),
+        }
+    } else {
+        SmallVec::new()
+    };
+    let first = contact::sweep(&a0, &a1, &b0, &b1);
+    let first = match (first, under.first()) {
+        (Some(f), Some(r)) => Some(f.min(r.0)),
+        (f, r) => f.or(r.map(|r| r.0)),
+    };
+    let Some(first) = first else {
+        return touches;
+    };
+    let holds_now = contact::intersects(&vehicle.placed(), &body.placed())
+        || solid_overlap(motion, body, v, vehicle_geometry).is_some();
+    // A compound can be left and entered again within one interval (the wings of a building
+    // at speed), and so can a surface when the vehicle travels more than its size (the ground
+    // of a ridge), or goes under it (from a neighbour's ground): every span of contact is a
+    // contact.
+    let travel_m = p0.distance(p1);
+    let spans = if vehicle.is_compound()
+        || body.is_compound()
+        || (body.is_surface() && travel_m > 2.0 * motion.radius_m)
+        || !under.is_empty()
+    {
+        crate::collision::spans::contact_spans(&a0, &a1, &b0, &b1, &under)
+    } else {
+        SmallVec::new()
+    };
+    let starts: SmallVec<[f64; 2]> = if spans.len() > 1 {
+        spans.iter().map(|s| s.0).collect()
+    } else {
+        smallvec::smallvec![first]
+    };
+    let last = starts.len() - 1;
+    for (k, fraction) in starts.into_iter().enumerate() {
+        let (point_enu_m, normal_enu) = if k == 0 && was_touching {
+            (p1, DVec3::Z)
+        } else if under.iter().any(|r| r.0 == fraction) {
+            // Went under the patch: the reference point is where it did.
+            (p0.lerp(p1, fraction), DVec3::Z)
         } else {
             contact::locate(&a0, &a1, &b0, &b1, fraction)
-        }
-    };
-    let mut hit = contact::sweep(&a0, &a1, &b0, &b1);
-    // Terrain: the vehicle may have gone under this patch from its neighbour's ground (a
-    // patch's mesh is open at its edges) before it touches this patch's surface.
-    let under = |u: f64| {
-        let p = before.position_enu_m.lerp(motion.now.position_enu_m, u);
-        v.geometry.is_terrain() && inside_solid(v.geometry, &v.current, p)
-    };
-    let went_under = |upto: f64| contact::bisect_first(0.0, upto, 30, under);
-    if let Some(h) = &mut hit {
-        if *h > 0.0 && !under(0.0) && under(*h) {
-            *h = went_under(*h);
-        }
+        };
+        touches.push(Touch {
+            point_enu_m,
+            normal_enu,
+            fraction,
+            swept: fraction > 0.0 || !under.first().is_some_and(|r| r.0 == 0.0),
+            holds_now: holds_now && k == last,
+        });
     }
-    match hit {
-        Some(fraction) => {
-            let holds_now = contact::intersects(&vehicle.placed(), &body.placed())
-                || solid_overlap(motion, body, v, vehicle_geometry).is_some();
-            // A compound can be left and entered again within one interval (the wings of a
-            // building at speed), and so can a surface when the vehicle travels more than its
-            // size (the ground of a ridge): every span of contact is a contact.
-            let travel_m = before.position_enu_m.distance(motion.now.position_enu_m);
-            let spans = if vehicle.is_compound()
-                || body.is_compound()
-                || (body.is_surface() && travel_m > 2.0 * motion.radius_m)
-            {
-                crate::collision::spans::contact_spans(&a0, &a1, &b0, &b1, &under)
-            } else {
-                SmallVec::new()
-            };
-            if spans.len() > 1 {
-                let last = spans.len() - 1;
-                for (k, (start, _)) in spans.into_iter().enumerate() {
-                    let fraction = if k == 0 && !under(0.0) && under(start) {
-                        went_under(start)
-                    } else {
-                        start
-                    };
-                    let (point_enu_m, normal_enu) = locate(k, fraction);
-                    touches.push(Touch {
-                        point_enu_m,
-                        normal_enu,
-                        fraction,
-                        swept: true,
-                        holds_now: holds_now && k == last,
-                    });
-                }
-            } else {
-                let (point_enu_m, normal_enu) = locate(0, fraction);
-                touches.push(Touch {
-                    point_enu_m,
-                    normal_enu,
-                    fraction,
-                    swept: true,
-                    holds_now,
-                });
-            }
-            touches
-        }
-        // No surface crossed: still, the vehicle may have gone under terrain (from another
-        // patch's ground: a patch's mesh is open at its edges) or sit under it. When the
-        // reference point went under during the interval, bisect for when.
-        None => {
-            let Some(point_enu_m) = solid_overlap(motion, body, v, vehicle_geometry) else {
-                return touches;
-            };
-            let (swept, fraction) = if under(0.0) {
-                (false, 1.0)
-            } else {
-                (true, went_under(1.0))
-            };
-            touches.push(Touch {
-                point_enu_m,
-                normal_enu: DVec3::Z,
-                fraction,
-                swept,
-                holds_now: true,
-            });
-            touches
-        }
-    }
+    touches
 }
 
 /// One solid holds the other though no surfaces touch: the vehicle inside a surface-meshed

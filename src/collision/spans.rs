@@ -31,21 +31,20 @@ fn convex_parts<'a>(p: &Placed<'a>) -> smallvec::SmallVec<[Placed<'a>; 8]> {
 const MAX_SPAN_TRIANGLES: usize = 512;
 
 /// Every contact of the interval, not only the first: the times (fractions) during which body
-/// `a` (from `a0` to `a1`) touches body `b` (from `b0` to `b1`), as disjoint spans, each with
-/// the hit that opens it. Compounds are split into their convex parts, a triangle mesh into
-/// the triangles near the path; a pair of convex parts touches over one span, found by a sweep
-/// forwards (entry) and one backwards (exit). Between two spans, `inside(fraction)` (terrain:
-/// the vehicle under the surface) says whether the contact went on. Each span is (entry, exit),
-/// fractions of the interval ([`crate::collision::contact::locate`] finds where). Costly (two sweeps a pair
-/// of parts): for intervals in which a first sweep already found contact, so that leaving a
-/// wing of a building (or the ground) and entering the next within one interval is two
+/// `a` (from `a0` to `a1`) touches body `b` (from `b0` to `b1`), as disjoint spans (entry,
+/// exit) in order. Compounds are split into their convex parts, a triangle mesh or height
+/// field into the triangles near the path; a pair of convex parts touches over one span, found
+/// by a sweep forwards (entry) and one backwards (exit). `solid` are spans known otherwise
+/// (terrain: the vehicle's reference point under the surface), joined in. Costly (two sweeps a
+/// pair of parts): for intervals in which a first sweep already found contact, so that leaving
+/// a wing of a building (or the ground) and entering the next within one interval is two
 /// collisions.
 pub fn contact_spans(
     a0: &Placed<'_>,
     a1: &Placed<'_>,
     b0: &Placed<'_>,
     b1: &Placed<'_>,
-    inside: &dyn Fn(f64) -> bool,
+    solid: &[(f64, f64)],
 ) -> smallvec::SmallVec<[(f64, f64); 2]> {
     let (pa0, pa1) = (convex_parts(a0), convex_parts(a1));
     let anchor = a0.position_enu_m;
@@ -94,13 +93,12 @@ pub fn contact_spans(
         let (pb0, pb1) = (convex_parts(b0), convex_parts(b1));
         pair_spans(anchor, &pa0, &pa1, &pb0, &pb1)
     };
+    spans.extend_from_slice(solid);
     spans.sort_by(|x, y| x.0.total_cmp(&y.0));
     let mut merged: smallvec::SmallVec<[(f64, f64); 2]> = smallvec::SmallVec::new();
     for (enter, exit) in spans {
         match merged.last_mut() {
-            Some(last) if enter <= last.1 + 1e-9 || inside(0.5 * (last.1 + enter)) => {
-                last.1 = last.1.max(exit)
-            }
+            Some(last) if enter <= last.1 + 1e-9 => last.1 = last.1.max(exit),
             _ => merged.push((enter, exit)),
         }
     }

@@ -503,6 +503,91 @@ impl Geometry {
         })
     }
 
+    /// The parts of the segment from `a` to `b` (local metres) that lie over a terrain patch
+    /// and under its surface, as fractions of the segment, in order: exactly (the surface is
+    /// linear between the points where the segment crosses the grid's lines and the cells'
+    /// diagonals). `None` when this is not terrain or the segment crosses too many cells.
+    ///
+    /// ```
+    /// use savsim::scene::geometry::{Geometry, HeightGrid, TerrainPatch};
+    /// use glam::Vec3;
+    /// use std::sync::Arc;
+    /// // A ridge along y = 10, 20 m high, between flat ground at 0 m.
+    /// let heights = vec![0.0, 0.0, 0.0, 20.0, 20.0, 20.0, 0.0, 0.0, 0.0];
+    /// let grid = Arc::new(HeightGrid { nx: 3, ny: 3, cell_m: 10.0, heights_m: heights });
+    /// let ridge = Geometry::terrain(TerrainPatch { grid, x0: 0, y0: 0, nx: 3, ny: 3, base_m: 0.0 }).unwrap();
+    /// // Across the ridge at 10 m: under it from y = 5 to y = 15, a quarter to three quarters.
+    /// let runs = ridge.terrain_under_runs(Vec3::new(5.0, -10.0, 10.0), Vec3::new(5.0, 30.0, 10.0)).unwrap();
+    /// assert_eq!(runs.len(), 1);
+    /// assert!((runs[0].0 - 0.375).abs() < 1e-6 && (runs[0].1 - 0.625).abs() < 1e-6, "{runs:?}");
+    /// ```
+    pub fn terrain_under_runs(&self, a: Vec3, b: Vec3) -> Option<SmallVec<[(f32, f32); 4]>> {
+        let GeometrySource::Terrain(p) = &self.source else {
+            return None;
+        };
+        let c = p.grid.cell_m;
+        let (w, h) = ((p.nx - 1) as f32 * c, (p.ny - 1) as f32 * c);
+        // The part of the segment over the patch (a slab clip in x and y).
+        let (mut t0, mut t1) = (0.0f32, 1.0f32);
+        for (o, d, hi) in [(a.x, b.x - a.x, w), (a.y, b.y - a.y, h)] {
+            if d == 0.0 {
+                if o < 0.0 || o > hi {
+                    return Some(SmallVec::new());
+                }
+            } else {
+                let (u, v) = ((0.0 - o) / d, (hi - o) / d);
+                t0 = t0.max(u.min(v));
+                t1 = t1.min(u.max(v));
+            }
+        }
+        if t0 > t1 {
+            return Some(SmallVec::new());
+        }
+        let (ua, ub) = (a / c, b / c);
+        let mut at: SmallVec<[f32; 64]> = SmallVec::new();
+        at.push(t0);
+        at.push(t1);
+        for (w0, w1) in [(ua.x, ub.x), (ua.y, ub.y), (ua.x - ua.y, ub.x - ub.y)] {
+            let (lo, hi) = (w0.min(w1), w0.max(w1));
+            let mut k = lo.floor() + 1.0;
+            while k < hi {
+                let t = (k - w0) / (w1 - w0);
+                if t > t0 && t < t1 {
+                    if at.len() >= 256 {
+                        return None;
+                    }
+                    at.push(t);
+                }
+                k += 1.0;
+            }
+        }
+        at.sort_unstable_by(f32::total_cmp);
+        // Depth under the surface (positive: under), linear between breakpoints.
+        let depth = |t: f32| {
+            let q = a.lerp(b, t);
+            surface_at(p, q.x / c, q.y / c) - q.z
+        };
+        let mut runs: SmallVec<[(f32, f32); 4]> = SmallVec::new();
+        let mut push = |s: f32, e: f32| match runs.last_mut() {
+            Some(last) if s <= last.1 => last.1 = last.1.max(e),
+            _ => runs.push((s, e)),
+        };
+        for pair in at.windows(2) {
+            let (s, e) = (pair[0], pair[1]);
+            let (ds, de) = (depth(s), depth(e));
+            match (ds > 0.0, de > 0.0) {
+                (true, true) => push(s, e),
+                (true, false) => push(s, s + (e - s) * ds / (ds - de)),
+                (false, true) => push(s + (e - s) * ds / (ds - de), e),
+                (false, false) => {}
+            }
+        }
+        if at.len() == 2 && t0 == t1 && depth(t0) > 0.0 {
+            push(t0, t1);
+        }
+        Some(runs)
+    }
+
     /// True for a terrain patch.
     pub fn is_terrain(&self) -> bool {
         matches!(self.source, GeometrySource::Terrain(_))
