@@ -2,13 +2,16 @@
 //! geometry needs one, then shared; beyond a memory budget the least recently used mesh that
 //! no current tick needs is evicted (and rebuilt if it is needed again, which is counted).
 //! Two ways in: [`MeshCache::get`] builds what a contact needs whatever the budget (correctness
-//! first), [`MeshCache::prefetch`] makes a mesh resident ahead of need only if it fits.
+//! first), [`MeshCache::prefetch`] makes a mesh resident ahead of need only if it fits, built
+//! by a worker thread (`collision::mesh_worker`) and installed at the next sensing frame
+//! ([`MeshCache::install_requested`]), so that the tick path rarely builds one.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use parry3d::shape::TriMesh;
 
+use crate::collision::mesh_worker::{MeshWorker, Slot};
 use crate::scene::geometry::Geometry;
 
 /// Built meshes by geometry index.
@@ -37,6 +40,16 @@ pub struct MeshCache {
     pub prefetch_refused: usize,
     /// Most bytes the meshes may hold (`usize::MAX`: no budget).
     budget_bytes: usize,
+    /// Meshes asked of the worker and not installed yet: geometry index, where the result
+    /// appears, the bytes reserved for it.
+    requested: Vec<(usize, Arc<Slot>, usize)>,
+    /// Bytes reserved for the requested meshes.
+    reserved_bytes: usize,
+    /// The worker thread, started on the first request (`None` before, or if it could not
+    /// start: then prefetches build here).
+    worker: Option<MeshWorker>,
+    /// Build prefetched meshes on the worker (default) or on the caller's thread.
+    use_worker: bool,
 }
 
 /// Estimated heap bytes of a parry `TriMesh` with this many vertices and triangles: 12 B per
@@ -63,8 +76,45 @@ impl MeshCache {
             meshes: vec![None; geometries],
             last_used: vec![0; geometries],
             budget_bytes: usize::MAX,
+            use_worker: true,
             ..Self::default()
         }
+    }
+
+    /// Build prefetched meshes on a worker thread (`true`, the default) or at once on the
+    /// caller's thread. Either way, the same meshes are resident at the same decisions.
+    pub fn set_worker(&mut self, on: bool) {
+        self.use_worker = on;
+    }
+
+    /// True when geometry `index`'s mesh is built or asked for.
+    pub fn held_or_requested(&self, index: usize) -> bool {
+        self.built(index).is_some() || self.requested.iter().any(|r| r.0 == index)
+    }
+
+    /// Install every mesh asked of the worker, waiting for any still being built (called at
+    /// each sensing frame, so that the same meshes are resident whatever the worker's speed).
+    pub fn install_requested(&mut self) {
+        for (index, slot, reserved) in std::mem::take(&mut self.requested) {
+            self.reserved_bytes -= reserved;
+            let (mesh, took) = slot.wait();
+            self.build_time += took;
+            self.install(index, mesh);
+        }
+    }
+
+    fn install(&mut self, index: usize, mesh: Arc<TriMesh>) {
+        if index >= self.meshes.len() {
+            self.meshes.resize(index + 1, None);
+            self.last_used.resize(index + 1, 0);
+        }
+        self.last_used[index] = self.tick;
+        self.built += 1;
+        self.triangles += mesh.num_triangles();
+        let bytes = trimesh_bytes(mesh.vertices().len(), mesh.num_triangles());
+        self.bytes += bytes;
+        self.peak_bytes = self.peak_bytes.max(self.bytes);
+        self.meshes[index] = Some((mesh, bytes));
     }
 
     /// Hold at most `bytes` of meshes (what [`prefetch`](Self::prefetch) fills and
@@ -91,23 +141,45 @@ impl MeshCache {
     /// assert!(!cache.prefetch(0, &tower), "600 triangles do not fit in 1000 bytes");
     /// assert_eq!((cache.built, cache.prefetch_refused), (0, 1));
     /// cache.set_budget(1 << 20);
-    /// assert!(cache.prefetch(0, &tower));
+    /// assert!(cache.prefetch(0, &tower), "asked of the worker");
+    /// cache.install_requested();
     /// assert!(cache.built(0).is_some());
     /// ```
     pub fn prefetch(&mut self, index: usize, geometry: &Geometry) -> bool {
-        if self.built(index).is_some() {
+        if self.held_or_requested(index) {
             self.touch(index);
             return true;
         }
         let need = geometry_bytes(geometry);
-        if self.bytes.saturating_add(need) > self.budget_bytes {
-            self.evict_to(self.budget_bytes.saturating_sub(need));
+        let held = |c: &Self| c.bytes.saturating_add(c.reserved_bytes);
+        if held(self).saturating_add(need) > self.budget_bytes {
+            let room = self
+                .budget_bytes
+                .saturating_sub(need)
+                .saturating_sub(self.reserved_bytes);
+            self.evict_to(room);
         }
-        if self.bytes.saturating_add(need) > self.budget_bytes {
+        if held(self).saturating_add(need) > self.budget_bytes {
             self.prefetch_refused += 1;
             return false;
         }
-        self.get(index, geometry);
+        if self.use_worker && self.worker.is_none() {
+            self.worker = MeshWorker::start();
+        }
+        match self
+            .worker
+            .as_ref()
+            .filter(|_| self.use_worker)
+            .and_then(|w| w.request(geometry))
+        {
+            Some(slot) => {
+                self.requested.push((index, slot, need));
+                self.reserved_bytes += need;
+            }
+            None => {
+                self.get(index, geometry);
+            }
+        }
         true
     }
 
@@ -133,15 +205,19 @@ impl MeshCache {
         if let Some((mesh, _)) = &self.meshes[index] {
             return mesh.clone();
         }
+        // Asked of the worker already: that one, when it is done.
+        if let Some(k) = self.requested.iter().position(|r| r.0 == index) {
+            let (_, slot, reserved) = self.requested.remove(k);
+            self.reserved_bytes -= reserved;
+            let (mesh, took) = slot.wait();
+            self.build_time += took;
+            self.install(index, mesh.clone());
+            return mesh;
+        }
         let started = Instant::now();
         let mesh = Arc::new(geometry.build_trimesh());
         self.build_time += started.elapsed();
-        self.built += 1;
-        self.triangles += mesh.num_triangles();
-        let bytes = trimesh_bytes(mesh.vertices().len(), mesh.num_triangles());
-        self.bytes += bytes;
-        self.peak_bytes = self.peak_bytes.max(self.bytes);
-        self.meshes[index] = Some((mesh.clone(), bytes));
+        self.install(index, mesh.clone());
         mesh
     }
 

@@ -19,6 +19,7 @@
 //! - [`distance`]: distances through parry, with cuboid pairs repaired.
 //! - [`spans`]: every span of contact within an interval (part by part).
 //! - [`moving`]: the moving bodies of a tick and their broad phase.
+//! - [`mesh_worker`]: the thread that builds meshes off the tick path.
 //! - [`meshes`]: the triangle meshes, built on demand, resident within a budget.
 //! - [`contacts`]: the contact layer, one strategy per mode.
 //! - [`sensing`]: the sensing layer (the paper's algorithm).
@@ -40,6 +41,7 @@ pub mod distance;
 pub mod episodes;
 pub mod events;
 pub mod fan;
+pub mod mesh_worker;
 pub mod meshes;
 pub mod moving;
 pub mod octree;

@@ -402,6 +402,8 @@ impl Pipeline {
                 .is_none_or(|last| t - last >= period_s - 1e-9 || t < last);
             if due {
                 let started = Instant::now();
+                // What the last frame asked the mesh worker for is resident from here on.
+                self.meshes.install_requested();
                 let frame = Frame {
                     world: &world,
                     cfg: &cfg,

@@ -93,7 +93,7 @@ impl ExactShapes {
                 None => Body::new(Holder::Mesh(meshes.get(index, geometry)), pose),
             },
             GeometrySource::Mesh { .. } => {
-                if for_contact && meshes.built(index).is_none() {
+                if for_contact && !meshes.held_or_requested(index) {
                     meshes.built_on_contact += 1;
                 }
                 Body::new(Holder::Mesh(meshes.get(index, geometry)), pose)

@@ -407,18 +407,14 @@ fn box_obj(size: [f64; 3], n: usize) -> String {
     obj
 }
 
-/// A mesh budget smaller than the flight needs: a street of 24 loaded meshes (models from
-/// files, the one kind of exact shape that is a triangle mesh), 0.3 MiB of budget for
-/// meshes of about 0.1 MiB each. Meshes are evicted and rebuilt, the held bytes stay
-/// within the budget, and nothing is missed against the reference.
-#[test]
-fn a_mesh_budget_smaller_than_the_flight_needs_misses_nothing() {
-    let dir = tempfile::tempdir().unwrap();
+/// A street of 24 loaded meshes (models from files: the one kind of exact shape that is a
+/// triangle mesh, about 0.1 MiB each), every third across the street, and a flight along it.
+fn street_of_meshes(dir: &std::path::Path) -> (Scene, Vec<TrackSample>) {
     let mut body = String::new();
     for k in 0..24 {
         let size = [12.0 + k as f64 * 0.25, 10.0, 20.0 + (k % 5) as f64 * 4.0];
-        std::fs::write(dir.path().join(format!("b{k}.obj")), box_obj(size, 10)).unwrap();
-        // Along y = +-9 m either side of the street, every third one across it (a collision).
+        std::fs::write(dir.join(format!("b{k}.obj")), box_obj(size, 10)).unwrap();
+        // Either side of the street (y = +-12 m), every third one across it (a collision).
         let y = match k % 3 {
             0 => 0.0,
             1 => 12.0,
@@ -429,7 +425,7 @@ fn a_mesh_budget_smaller_than_the_flight_needs_misses_nothing() {
             40.0 * k as f64
         );
     }
-    let path = dir.path().join("street.toml");
+    let path = dir.join("street.toml");
     std::fs::write(
         &path,
         format!(
@@ -438,7 +434,6 @@ fn a_mesh_budget_smaller_than_the_flight_needs_misses_nothing() {
         ),
     )
     .unwrap();
-    let s = savsim::scene::load(&path).unwrap();
     let flight = straight(
         ORIGIN,
         DVec3::new(-30.0, 3.0, 12.0),
@@ -446,6 +441,16 @@ fn a_mesh_budget_smaller_than_the_flight_needs_misses_nothing() {
         20.0,
         10.0,
     );
+    (savsim::scene::load(&path).unwrap(), flight)
+}
+
+/// A mesh budget smaller than the flight needs: the street of meshes under 0.3 MiB. Meshes are
+/// evicted and rebuilt, the held bytes stay within the budget, and nothing is missed against
+/// the reference.
+#[test]
+fn a_mesh_budget_smaller_than_the_flight_needs_misses_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (s, flight) = street_of_meshes(dir.path());
     let mut reference = Pipeline::new(&s, config(Mode::Reference));
     let truth = run_samples(&mut reference, &s, 1, &flight, &[]).1;
     let truth = collisions(&truth);
@@ -743,4 +748,46 @@ fn a_swarm_through_the_moving_bodies_broad_phase_agrees_with_the_reference() {
         .filter(|e| matches!(e.kind, EventKind::NearMiss { .. }))
         .collect();
     assert!(near.len() >= 8, "{near:?}");
+}
+
+/// The mesh worker builds the meshes the sensing layer asks for off the tick path; the same
+/// meshes are resident at the same decisions whether it runs or not: the same events, the same
+/// counts, and no mesh built for a contact on the flight along the street.
+#[test]
+fn the_mesh_worker_changes_where_meshes_are_built_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let (s, flight) = street_of_meshes(dir.path());
+    let run = |worker: bool, budget_mib: f64| {
+        let mut p = Pipeline::new(
+            &s,
+            CollisionConfig {
+                mesh_budget_mib: budget_mib,
+                ..config(Mode::Exact)
+            },
+        );
+        p.meshes.set_worker(worker);
+        let events = run_samples(&mut p, &s, 1, &flight, &[]).1;
+        let m = &p.meshes;
+        let counts = (
+            m.built,
+            m.built_on_contact,
+            m.evicted,
+            m.peak_bytes,
+            m.prefetch_refused,
+        );
+        (events, counts)
+    };
+    for budget_mib in [512.0, 0.3] {
+        let (with, counts_with) = run(true, budget_mib);
+        let (without, counts_without) = run(false, budget_mib);
+        assert_eq!(with, without, "budget {budget_mib} MiB");
+        assert_eq!(counts_with, counts_without, "budget {budget_mib} MiB");
+        if budget_mib > 1.0 {
+            assert_eq!(
+                counts_with.1, 0,
+                "every mesh was resident before a contact needed it"
+            );
+            assert!(counts_with.0 >= 8, "{counts_with:?}");
+        }
+    }
 }

@@ -1,0 +1,75 @@
+//! A thread that builds triangle meshes off the tick path: the sensing layer asks for the
+//! meshes ahead of the vehicle, the worker builds them while the contact layer runs the
+//! ticks in between, and the [`MeshCache`](crate::collision::meshes::MeshCache) installs them
+//! at fixed points (the next sensing frame, or a contact that needs one), waiting only for a
+//! build still running. What is resident at each decision therefore depends on the inputs
+//! alone, never on how fast the worker was.
+//!
+//! One named thread (`savsim-meshes`) per cache that asks, started on the first request; it
+//! ends when every handle to it is dropped. Jobs go over a bounded channel (a full one makes
+//! the asker wait: the worker never waits on the asker, so neither can deadlock).
+
+use std::sync::mpsc::{sync_channel, SyncSender};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Duration;
+
+use parry3d::shape::TriMesh;
+
+use crate::scene::geometry::Geometry;
+
+/// Jobs that may wait in the channel.
+const QUEUE: usize = 256;
+
+/// Where one build's result appears.
+#[derive(Debug, Default)]
+pub(crate) struct Slot {
+    result: Mutex<Option<(Arc<TriMesh>, Duration)>>,
+    done: Condvar,
+}
+
+impl Slot {
+    /// The mesh and how long it took to build, waiting for it if it is still being built.
+    pub fn wait(&self) -> (Arc<TriMesh>, Duration) {
+        let mut result = self.result.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if let Some(done) = result.as_ref() {
+                return done.clone();
+            }
+            result = self.done.wait(result).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+}
+
+/// A handle to the worker (cheap to clone: clones share the thread).
+#[derive(Debug, Clone)]
+pub(crate) struct MeshWorker {
+    jobs: SyncSender<(Geometry, Arc<Slot>)>,
+}
+
+impl MeshWorker {
+    /// Start the worker thread, or `None` if the system will not start one (the caller then
+    /// builds on its own thread).
+    pub fn start() -> Option<Self> {
+        let (jobs, queue) = sync_channel::<(Geometry, Arc<Slot>)>(QUEUE);
+        std::thread::Builder::new()
+            .name("savsim-meshes".into())
+            .spawn(move || {
+                for (geometry, slot) in queue {
+                    let started = std::time::Instant::now();
+                    let mesh = Arc::new(geometry.build_trimesh());
+                    let mut result = slot.result.lock().unwrap_or_else(|e| e.into_inner());
+                    *result = Some((mesh, started.elapsed()));
+                    slot.done.notify_all();
+                }
+            })
+            .ok()?;
+        Some(Self { jobs })
+    }
+
+    /// Ask for `geometry`'s mesh; `None` if the worker is gone (build it yourself).
+    pub fn request(&self, geometry: &Geometry) -> Option<Arc<Slot>> {
+        let slot = Arc::new(Slot::default());
+        self.jobs.send((geometry.clone(), slot.clone())).ok()?;
+        Some(slot)
+    }
+}
