@@ -3,6 +3,7 @@
 //! - `step/<mode>`: one flight of the bench set (a crossing at 40 m), every tick, per mode;
 //! - `ray_fan`: the six 300 m rays cast front to back through the octree at a downtown point
 //!   (each obstacle hit at its box);
+//! - `ray_fan/bvh`: the same six rays through the static `Bvh` the sensing layer casts on.
 //! - `broadphase/*`: the obstacles in a 600 m box, by savsim's octree, parry's Bvh and a
 //!   linear scan;
 //! - `mesh_build/*`: turning a building and an airliner model into parry TriMeshes.
@@ -15,8 +16,9 @@ use parry3d::bounding_volume::Aabb;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
 use savsim::bench::flights::flight_set;
 use savsim::bench::run_samples;
+use savsim::collision::broad_phase::StaticBroadPhase;
 use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
-use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline, RAY_AXES_FRD};
+use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline, SensorFan};
 use savsim::scene::{Aabb64, Kind, Scene};
 
 fn city() -> Scene {
@@ -71,14 +73,30 @@ fn ray_fan(c: &mut Criterion) {
     let octree = Octree::build(&boxes, OctreeConfig::default());
     let mut ws = OctreeWorkspace::default();
     let origin = DVec3::new(8.0, 50.0, 40.0);
+    let statics = StaticBroadPhase::build(&boxes);
+    let axes: Vec<DVec3> = (0..6)
+        .map(|k| SensorFan::Axes.direction_enu(k, glam::DQuat::IDENTITY))
+        .collect();
     c.bench_function("ray_fan", |b| {
         b.iter(|| {
-            RAY_AXES_FRD.map(|axis| {
-                let dir = axis.as_dvec3();
-                octree.cast_ray(origin, dir, 300.0, &mut ws, |i, limit| {
-                    boxes[i as usize].ray_entry(origin, dir, limit)
+            axes.iter()
+                .map(|&dir| {
+                    octree.cast_ray(origin, dir, 300.0, &mut ws, |i, limit| {
+                        boxes[i as usize].ray_entry(origin, dir, limit)
+                    })
                 })
-            })
+                .collect::<Vec<_>>()
+        })
+    });
+    c.bench_function("ray_fan/bvh", |b| {
+        b.iter(|| {
+            axes.iter()
+                .map(|&dir| {
+                    statics.cast_ray(origin, dir, 300.0, |i, limit| {
+                        boxes[i as usize].ray_entry(origin, dir, limit)
+                    })
+                })
+                .collect::<Vec<_>>()
         })
     });
 }

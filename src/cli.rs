@@ -149,6 +149,11 @@ pub struct CollisionArgs {
     /// Sensing frames per second (the paper's node, rays and beta) in `exact` mode.
     #[arg(long, default_value_t = 20.0)]
     pub sensor_hz: f64,
+    /// The sensing layer's rays: `six` (the paper's body axes), `ring:N` (N around the body's
+    /// horizontal plane, plus up and down) or `level-ring:N` (N around the horizon, levelled,
+    /// plus up and down).
+    #[arg(long, default_value = "six")]
+    pub sensor_fan: String,
     /// Most memory resident triangle meshes may hold, MiB.
     #[arg(long, default_value_t = 512.0)]
     pub mesh_budget_mib: f64,

@@ -317,7 +317,12 @@ impl Session {
                 system_id: sender.system_id,
                 pose: BodyPose::of(&current),
                 model: scene.vehicle_model(sender.system_id),
-                rays_m: sensing.map_or([None; 6], |s| s.rays.map(|r| r.map(|h| h.distance_m))),
+                rays: sensing.map_or_else(Vec::new, |s| {
+                    s.rays
+                        .iter()
+                        .map(|(dir, hit)| (*dir, hit.map(|h| h.distance_m)))
+                        .collect()
+                }),
                 ray_length_m: pipeline.config.ray_length_m,
                 feed: self
                     .feed

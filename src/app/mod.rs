@@ -13,7 +13,7 @@ use crate::cli::{
     SceneCommand, SceneKind,
 };
 use crate::collision::events::EventKind;
-use crate::collision::pipeline::CollisionConfig;
+use crate::collision::pipeline::{CollisionConfig, SensorFan};
 use crate::collision::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
@@ -58,6 +58,8 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         max_gap_s: args.max_gap_s,
         max_below_terrain_m: args.max_below_terrain_m,
         sensor_hz: args.sensor_hz,
+        sensor_fan: SensorFan::parse(&args.sensor_fan)
+            .map_err(|why| Error::Usage(format!("--sensor-fan {why}")))?,
         mesh_budget_mib: args.mesh_budget_mib,
         ahp,
         ..defaults

@@ -66,6 +66,97 @@ impl Mode {
     }
 }
 
+/// The sensing layer's rays: which directions it casts at each frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SensorFan {
+    /// The paper's six body axes: forward, back, right, left, down, up.
+    Axes,
+    /// `rays` rays evenly spaced around the body's horizontal plane (forward first, then
+    /// clockwise seen from above), plus body up and down.
+    Ring {
+        /// Rays around (3 to 360).
+        rays: u16,
+    },
+    /// `rays` rays evenly spaced around the horizon, levelled (the heading only: a pitched
+    /// or rolled vehicle's ring does not see the ground), plus straight up and down.
+    LevelRing {
+        /// Rays around (3 to 360).
+        rays: u16,
+    },
+}
+
+impl SensorFan {
+    /// The fan of a name: `six` (the paper), `ring:N` or `level-ring:N`.
+    ///
+    /// ```
+    /// use savsim::collision::config::SensorFan;
+    /// assert_eq!(SensorFan::parse("six"), Ok(SensorFan::Axes));
+    /// assert_eq!(SensorFan::parse("level-ring:72"), Ok(SensorFan::LevelRing { rays: 72 }));
+    /// assert!(SensorFan::parse("ring:2").is_err());
+    /// assert_eq!(SensorFan::Ring { rays: 8 }.len(), 10);
+    /// ```
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let count = |n: &str| match n.parse::<u16>() {
+            Ok(n) if (3..=360).contains(&n) => Ok(n),
+            _ => Err(format!("{n:?}: give 3 to 360 rays")),
+        };
+        match text.split_once(':') {
+            None if text == "six" => Ok(SensorFan::Axes),
+            Some(("ring", n)) => Ok(SensorFan::Ring { rays: count(n)? }),
+            Some(("level-ring", n)) => Ok(SensorFan::LevelRing { rays: count(n)? }),
+            _ => Err(format!("{text:?}: use six, ring:N or level-ring:N")),
+        }
+    }
+
+    /// How many rays a frame casts.
+    pub fn len(self) -> usize {
+        match self {
+            SensorFan::Axes => 6,
+            SensorFan::Ring { rays } | SensorFan::LevelRing { rays } => usize::from(rays) + 2,
+        }
+    }
+
+    /// False: a fan always has rays (for clippy's `len` rule).
+    pub fn is_empty(self) -> bool {
+        false
+    }
+
+    /// Ray `k`'s direction in ENU for a body whose FRD axes turn into ENU by `enu_from_frd`.
+    pub fn direction_enu(self, k: usize, enu_from_frd: glam::DQuat) -> glam::DVec3 {
+        use glam::DVec3;
+        const AXES_FRD: [DVec3; 6] = [
+            DVec3::X,
+            DVec3::NEG_X,
+            DVec3::Y,
+            DVec3::NEG_Y,
+            DVec3::Z,
+            DVec3::NEG_Z,
+        ];
+        let around = |n: u16| (k as f64) * std::f64::consts::TAU / f64::from(n);
+        match self {
+            SensorFan::Axes => enu_from_frd * AXES_FRD[k.min(5)],
+            SensorFan::Ring { rays } => {
+                let frd = match k.checked_sub(usize::from(rays)) {
+                    None => DVec3::new(around(rays).cos(), around(rays).sin(), 0.0),
+                    Some(0) => DVec3::Z,
+                    Some(_) => DVec3::NEG_Z,
+                };
+                enu_from_frd * frd
+            }
+            SensorFan::LevelRing { rays } => match k.checked_sub(usize::from(rays)) {
+                // Clockwise from the heading seen from above: ENU angles go down.
+                None => {
+                    let f = enu_from_frd * DVec3::X;
+                    let heading = f.y.atan2(f.x) - around(rays);
+                    DVec3::new(heading.cos(), heading.sin(), 0.0)
+                }
+                Some(0) => DVec3::NEG_Z,
+                Some(_) => DVec3::Z,
+            },
+        }
+    }
+}
+
 /// Collision settings. Every default and unit is in the field's doc.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CollisionConfig {
@@ -95,6 +186,8 @@ pub struct CollisionConfig {
     /// Sensing frames per second in `exact` mode (every sample when telemetry is slower).
     /// Default 20. `paper` senses at every sample.
     pub sensor_hz: f64,
+    /// The sensing layer's rays. Default the paper's six body axes.
+    pub sensor_fan: SensorFan,
     /// Most memory the built triangle meshes may hold, MiB; the least recently used mesh
     /// that no tick needs is evicted beyond it. Default 512. (`mesh` mode keeps all.)
     pub mesh_budget_mib: f64,
@@ -118,6 +211,7 @@ impl Default for CollisionConfig {
             max_gap_s: 1.0,
             max_below_terrain_m: 50.0,
             sensor_hz: 20.0,
+            sensor_fan: SensorFan::Axes,
             mesh_budget_mib: 512.0,
             ahp: AhpWeights::from_matrix(PAPER_MATRIX).expect("the paper's matrix is valid"),
             octree: OctreeConfig::default(),

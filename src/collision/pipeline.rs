@@ -13,10 +13,10 @@ use glam::DVec3;
 pub use crate::collision::bodies::{
     BodyKey, BodyPose, BodySource, DynamicBody, ObstacleRef, VehicleKey,
 };
-pub use crate::collision::config::{CollisionConfig, Mode};
+pub use crate::collision::config::{CollisionConfig, Mode, SensorFan};
 pub use crate::collision::fan::Rays;
 pub use crate::collision::moving::MovingBodies;
-pub use crate::collision::sensing::{RayHit, SensingState, RAY_AXES_FRD};
+pub use crate::collision::sensing::{RayHit, SensingState};
 
 use crate::collision::bodies::{radius_m, World};
 use crate::collision::broad_phase::StaticBroadPhase;

@@ -6,7 +6,7 @@
 //!
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 
 use crate::collision::bodies::{view, Body, ObstacleRef, World};
 use crate::collision::config::CollisionConfig;
@@ -18,16 +18,6 @@ use crate::collision::shapes::ExactShapes;
 use crate::collision::ColliderKind;
 use crate::scene::Aabb64;
 use crate::world::TrackSample;
-
-/// The six body axes, in FRD: forward, back, right, left, down, up.
-pub const RAY_AXES_FRD: [Vec3; 6] = [
-    Vec3::X,
-    Vec3::NEG_X,
-    Vec3::Y,
-    Vec3::NEG_Y,
-    Vec3::Z,
-    Vec3::NEG_Z,
-];
 
 /// The nearest hit of one ray.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,8 +55,9 @@ pub struct SensingState {
     /// The region the static obstacles were last queried for.
     queried: Option<Aabb64>,
     pub(crate) active: Vec<Active>,
-    /// The rays' nearest hits at the last frame (order of [`RAY_AXES_FRD`]).
-    pub rays: [Option<RayHit>; 6],
+    /// The rays at the last frame, in the order of the fan (`CollisionConfig::sensor_fan`):
+    /// direction (ENU unit vector) and nearest hit.
+    pub rays: Vec<(DVec3, Option<RayHit>)>,
     /// Time of the last frame, seconds.
     pub(crate) last_frame_t_s: Option<f64>,
     /// What the last frame counted (the colliders change only at frames).
@@ -368,8 +359,10 @@ impl Sensing {
                 .filter(|(_, aabb)| aabb.distance_to(position) <= cfg.ray_length_m),
         );
         let moving = &self.moving;
-        for (k, axis) in RAY_AXES_FRD.iter().enumerate() {
-            let dir = current.attitude.enu_from_frd * axis.as_dvec3();
+        let fan = cfg.sensor_fan;
+        state.rays.resize(fan.len(), (DVec3::ZERO, None));
+        for k in 0..fan.len() {
+            let dir = fan.direction_enu(k, current.attitude.enu_from_frd);
             let active = &state.active;
             let mut tests = 0;
             // `bounds_checked`: the caller already knows the ray meets the obstacle's bounds.
@@ -412,6 +405,7 @@ impl Sensing {
             // The obstacle this ray hit last frame usually still is the nearest: its distance
             // bounds the walk (same answer, far fewer nodes).
             let seed = state.rays[k]
+                .1
                 .and_then(|h| Some((h.obstacle, ray_test(h.obstacle, cfg.ray_length_m, false)?)));
             let seed_static = seed.filter(|(o, _)| matches!(o, ObstacleRef::Static(_)));
             let mut best = world
@@ -434,11 +428,14 @@ impl Sensing {
                 }
             }
             counts.ray_tests += tests;
-            state.rays[k] = best.map(|(obstacle, d)| RayHit {
-                obstacle,
-                distance_m: d,
-                point_enu_m: position + dir * d,
-            });
+            state.rays[k] = (
+                dir,
+                best.map(|(obstacle, d)| RayHit {
+                    obstacle,
+                    distance_m: d,
+                    point_enu_m: position + dir * d,
+                }),
+            );
         }
     }
 }
@@ -466,8 +463,8 @@ fn rate_and_swap(
     for act in state.active.iter_mut() {
         act.beta = 0.0;
     }
-    for k in 0..6 {
-        let Some(hit) = state.rays[k] else { continue };
+    for k in 0..state.rays.len() {
+        let Some(hit) = state.rays[k].1 else { continue };
         let Ok(i) = state
             .active
             .binary_search_by_key(&hit.obstacle, |a| a.obstacle)

@@ -19,7 +19,6 @@ use super::markers::Markers;
 use super::rows::Rows;
 use super::{paths, TickFrame, VizMsg, VizOptions};
 use crate::collision::bodies::BodySource;
-use crate::collision::pipeline::RAY_AXES_FRD;
 use crate::scene::{Aabb64, Kind, Scene};
 
 /// Static scenes with at most this many triangles are drawn as meshes, larger ones as boxes.
@@ -43,7 +42,7 @@ struct Vehicle {
     node: Option<Aabb64>,
     had_hits: bool,
     /// Which rays hit, as last logged (their colours).
-    ray_hits: Option<[bool; 6]>,
+    ray_hits: Option<Vec<bool>>,
 }
 
 struct State<'s> {
@@ -358,8 +357,7 @@ fn log_rays(
     let mut vectors = Vec::new();
     let mut colors = Vec::new();
     let mut hits = Vec::new();
-    for (axis, hit) in RAY_AXES_FRD.iter().zip(f.rays_m) {
-        let dir = f.pose.enu_from_body * axis.as_dvec3();
+    for &(dir, hit) in &f.rays {
         let length = hit.unwrap_or(f.ray_length_m);
         vectors.push((dir * length).as_vec3().to_array());
         colors.push(if hit.is_some() {
@@ -372,8 +370,8 @@ fn log_rays(
         }
     }
     let path = paths::vehicle_part(id, "rays");
-    let hit_pattern = f.rays_m.map(|r| r.is_some());
-    if v.ray_hits != Some(hit_pattern) {
+    let hit_pattern: Vec<bool> = f.rays.iter().map(|r| r.1.is_some()).collect();
+    if v.ray_hits.as_deref() != Some(&hit_pattern[..]) {
         rows.log(
             rec,
             path.clone(),
@@ -383,7 +381,8 @@ fn log_rays(
         )?;
         v.ray_hits = Some(hit_pattern);
     }
-    rows.arrows(rec, path, &vectors, &[position.to_array(); 6])?;
+    let origins = vec![position.to_array(); vectors.len()];
+    rows.arrows(rec, path, &vectors, &origins)?;
     if !hits.is_empty() || v.had_hits {
         v.had_hits = !hits.is_empty();
         rows.log(

@@ -25,6 +25,7 @@ use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
+use glam::DVec3;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use crate::collision::events::Event;
@@ -104,8 +105,9 @@ pub struct TickFrame {
     pub pose: BodyPose,
     /// Geometry index of the vehicle's model.
     pub model: usize,
-    /// Each ray's hit distance (None: no hit within the ray length), FRD order.
-    pub rays_m: [Option<f64>; 6],
+    /// The sensing rays: direction (ENU unit vector) and hit distance (None: no hit within
+    /// the ray length), in the fan's order.
+    pub rays: Vec<(DVec3, Option<f64>)>,
     /// Ray length, metres.
     pub ray_length_m: f64,
     /// The closed-loop feed's readings cast at this tick (empty when none was): direction and
