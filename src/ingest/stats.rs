@@ -11,21 +11,7 @@ use serde::Serialize;
 
 use crate::ingest::decode::Rejection;
 use crate::ingest::frame::{message_info, FrameStatus, RawFrame};
-
-/// A sender's (system id, component id): how savsim keys vehicles, never by endpoint.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct SenderId {
-    /// MAVLink system id.
-    pub system_id: u8,
-    /// MAVLink component id.
-    pub component_id: u8,
-}
-
-impl std::fmt::Display for SenderId {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.system_id, self.component_id)
-    }
-}
+pub use crate::world::report::SenderId;
 
 /// Ids below this are counted in an array (every common.xml message and ArduPilot's 150-230);
 /// the rest (ArduPilot's 11000s, 42000s) in a map. 4 KiB per input instead of 512 KiB keeps a

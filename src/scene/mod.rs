@@ -1,7 +1,8 @@
 //! Scenes: a geodetic origin, static obstacles, dynamic obstacles and vehicle models.
 //!
 //! - [`geometry`]: shapes kept as descriptions, triangles on demand.
-//! - [`format`](mod@format): the TOML scene file (documented in scenes/README.md) and its loader.
+//! - [`format`](mod@format): the TOML scene file (documented in scenes/README.md) and its loader;
+//!   `spec` (the items as written), `build` (shapes, positions), `sections` (each section read).
 //! - [`mesh_files`]: OBJ, STL, glTF/GLB and COLLADA readers.
 //! - [`models`]: built-in models (the default quadcopter, airliners, balloons).
 //! - [`gen`]: the deterministic `city` and `mountain` generators.
@@ -9,6 +10,7 @@
 //! The loaded [`Scene`] is plain data in local ENU metres relative to the origin; nothing here
 //! builds colliders (that is `collision`'s job) or knows of MAVLink sockets.
 
+pub(crate) mod build;
 pub mod cityjson;
 pub mod format;
 pub mod gen;
@@ -16,6 +18,8 @@ pub mod geometry;
 pub mod info;
 pub mod mesh_files;
 pub mod models;
+pub(crate) mod sections;
+pub mod spec;
 pub mod terrain;
 
 use std::sync::Arc;

@@ -12,8 +12,9 @@ use glam::{DMat3, DQuat, DVec3, EulerRot};
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavType};
 
 use crate::geo::{Geodetic, LocalTangentPlane};
-use crate::ingest::decode::{AdsbReport, AttitudeReport, PositionReport, Report};
-use crate::ingest::stats::SenderId;
+pub mod report;
+
+use report::{AdsbReport, AttitudeReport, PositionReport, Report, SenderId};
 
 /// How the store ages and remembers tracks. Defaults in the field docs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -327,7 +328,7 @@ impl WorldStore {
     ///
     /// ```
     /// use savsim::{geo::Geodetic, world::{WorldStore, WorldConfig, WorldUpdate}};
-    /// use savsim::ingest::{decode::{Report, PositionReport}, stats::SenderId};
+    /// use savsim::world::report::{PositionReport, Report, SenderId};
     /// let origin = Geodetic::new(-35.363261, 149.165230, 584.0);
     /// let mut world = WorldStore::new(origin, WorldConfig::default());
     /// let sender = SenderId { system_id: 1, component_id: 1 };
