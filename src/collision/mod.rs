@@ -17,6 +17,7 @@
 //! - [`shapes`]: the contact layer's exact shapes (cuboids, compounds, meshes).
 //! - [`contact`]: exact f64-anchored queries (intersection, distance, sweep, ray).
 //! - [`distance`]: distances through parry, with cuboid pairs repaired.
+//! - [`swept`]: the contact layer's `exact` strategy (shortcuts that prove, then sweeps).
 //! - [`spans`]: every span of contact within an interval (part by part).
 //! - [`moving`]: the moving bodies of a tick and their broad phase.
 //! - [`mesh_worker`]: the thread that builds meshes off the tick path.
@@ -50,6 +51,7 @@ pub mod reference;
 pub mod sensing;
 pub mod shapes;
 pub mod spans;
+pub mod swept;
 pub mod threat;
 
 /// Which collider an obstacle currently has.

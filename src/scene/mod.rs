@@ -1,6 +1,7 @@
 //! Scenes: a geodetic origin, static obstacles, dynamic obstacles and vehicle models.
 //!
-//! - [`geometry`]: shapes kept as descriptions, triangles on demand.
+//! - [`geometry`]: shapes kept as descriptions, triangles on demand; [`surface`]: queries of a
+//!   terrain patch's surface.
 //! - [`format`](mod@format): the TOML scene file (documented in scenes/README.md) and its loader;
 //!   `spec` (the items as written), `build` (shapes, positions), `sections` (each section read).
 //! - [`mesh_files`]: OBJ, STL, glTF/GLB and COLLADA readers.
@@ -20,6 +21,7 @@ pub mod mesh_files;
 pub mod models;
 pub(crate) mod sections;
 pub mod spec;
+pub mod surface;
 pub mod terrain;
 
 use std::sync::Arc;
