@@ -23,7 +23,8 @@
 //! - [`mesh_worker`]: the thread that builds meshes off the tick path.
 //! - [`meshes`]: the triangle meshes, built on demand, resident within a budget.
 //! - [`contacts`]: the contact layer, one strategy per mode.
-//! - [`sensing`]: the sensing layer (the paper's algorithm).
+//! - [`sensing`]: the sensing layer (the paper's algorithm): node, activation, rays;
+//!   [`swaps`]: its threat, collider swaps and residency.
 //! - [`threat`]: AHP weights and beta.
 //! - [`episodes`]: contacts and near misses into events.
 //! - [`reference`](mod@reference): the independent ground truth (dense sub-stepping).
@@ -51,6 +52,7 @@ pub mod reference;
 pub mod sensing;
 pub mod shapes;
 pub mod spans;
+pub mod swaps;
 pub mod swept;
 pub mod threat;
 
