@@ -129,6 +129,10 @@ pub struct BenchArgs {
     /// Largest fleet of the fleet run (1, 10, 100, ... up to this; 0 skips it).
     #[arg(long, default_value_t = 1000)]
     pub fleet_max: usize,
+    /// The residency run's mesh budget, MiB: the first scene with every building a triangle
+    /// mesh, the flight set in one run (0 skips it).
+    #[arg(long, default_value_t = 64.0)]
+    pub residency_budget_mib: f64,
     /// Do not run: print the report and draw the chart of a saved `--json` report.
     #[arg(long)]
     pub from_json: Option<PathBuf>,

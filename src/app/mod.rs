@@ -208,6 +208,7 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
         },
         scale_sizes: decades(100, args.scale_max),
         fleet_sizes: decades(1, args.fleet_max),
+        residency_budget_mib: args.residency_budget_mib.max(0.0),
     };
     let report = match &args.from_json {
         Some(path) => {

@@ -24,6 +24,7 @@ pub mod flights;
 pub mod fly;
 pub mod machine;
 pub mod report;
+pub mod residency;
 pub mod scale;
 
 pub use compare::collisions;
@@ -89,6 +90,8 @@ pub struct BenchOptions {
     pub scale_sizes: Vec<usize>,
     /// Fleet sizes for the fleet run in the first scene (empty: none).
     pub fleet_sizes: Vec<usize>,
+    /// The residency run's mesh budget, MiB (0: no residency run).
+    pub residency_budget_mib: f64,
 }
 
 /// Run the bench; `progress` hears what is being done.
@@ -106,7 +109,7 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
         }
     }
     let mut scenes = Vec::new();
-    let mut first_scene: Option<Scene> = None;
+    let mut first_scene: Option<(Scene, Vec<Flight>)> = None;
     for choice in &options.scenes {
         let path = choice.path();
         progress(&format!("loading {}", path.display()));
@@ -129,7 +132,7 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
             &mut progress,
         ));
         if first_scene.is_none() {
-            first_scene = Some(scene);
+            first_scene = Some((scene, flights));
         }
     }
     let scale = if options.scale_sizes.is_empty() {
@@ -143,7 +146,7 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
         )
     };
     let fleets = match (&first_scene, options.fleet_sizes.is_empty()) {
-        (Some(scene), false) => {
+        (Some((scene, _)), false) => {
             progress("fleets: 1 .. 1000 vehicles");
             scale::fleets(
                 scene,
@@ -156,11 +159,24 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
         }
         _ => Vec::new(),
     };
+    let residency = match &first_scene {
+        Some((scene, flights)) if options.residency_budget_mib > 0.0 => {
+            progress("residency: the first scene's buildings as meshes, under a budget");
+            Some(residency::run(
+                scene,
+                flights,
+                options.config,
+                options.residency_budget_mib,
+            ))
+        }
+        _ => None,
+    };
     let mut report = BenchReport {
         machine: machine::machine(),
         scenes,
         scale,
         fleets,
+        residency,
         goals: Vec::new(),
         peak_rss_bytes: peak_rss_bytes(),
         wall_s: started.elapsed().as_secs_f64(),

@@ -132,6 +132,13 @@ fn bench_writes_a_report_json_and_a_chart() {
     assert!(report["scenes"][0]["flights"].as_array().unwrap().len() >= 15);
     assert_eq!(report["scale"].as_array().unwrap().len(), 4);
     assert_eq!(report["fleets"].as_array().unwrap().len(), 2);
+    // The residency run: the tower and the gate as loaded meshes, under the default budget.
+    let residency = &report["residency"];
+    assert_eq!(residency["mesh_obstacles"], 2, "{residency}");
+    assert_eq!(residency["missed"], 0, "{residency}");
+    assert_eq!(residency["false_collisions"], 0, "{residency}");
+    assert!(residency["collisions"].as_u64().unwrap() > 0, "{residency}");
+    assert!(residency["peak_bytes"].as_u64() <= residency["budget_bytes"].as_u64());
     let png = std::fs::read(&chart).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
 }
