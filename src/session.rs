@@ -444,6 +444,8 @@ impl Session {
                 "meshes_built": p.meshes.built,
                 "meshes_built_on_contact": p.meshes.built_on_contact,
                 "meshes_evicted": p.meshes.evicted,
+                "meshes_prefetch_refused": p.meshes.prefetch_refused,
+                "mesh_budget_bytes": p.meshes.budget(),
                 "mesh_bytes_peak": p.meshes.peak_bytes,
                 "mesh_triangles_built": p.meshes.triangles,
                 "mesh_bytes_built": p.meshes.bytes,
