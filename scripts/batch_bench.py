@@ -17,7 +17,8 @@ import time
 import pyarrow.parquet as pq
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "target", "release", "savsim")
+# The binary: SAVSIM_BIN, or the release build's.
+BIN = os.environ.get("SAVSIM_BIN") or os.path.join(ROOT, "target", "release", "savsim")
 MEASURED = {"tick_cost_us_median", "tick_cost_us_p99", "wall_s"}
 
 
