@@ -303,6 +303,9 @@ pub struct LiveArgs {
     /// The closed-loop feed.
     #[command(flatten)]
     pub feed: FeedArgs,
+    /// Record every frame the feed sends to this tlog, as sent (needs --feed).
+    #[arg(long)]
+    pub feed_out: Option<PathBuf>,
 }
 
 /// `savsim record`.

@@ -9,7 +9,7 @@
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
 use std::sync::Arc;
@@ -46,6 +46,9 @@ pub struct LiveOptions {
     /// The closed-loop feed's own identity (docs/closed-loop.md). Default 255/196
     /// (MAV_COMP_ID_OBSTACLE_AVOIDANCE of savsim's system).
     pub feed_from: SenderId,
+    /// Record every frame the feed sends (its heartbeats too) to this tlog, stamped with the
+    /// time it was handed to the link (`--feed-out`). Default none.
+    pub feed_out: Option<PathBuf>,
 }
 
 impl Default for LiveOptions {
@@ -57,6 +60,7 @@ impl Default for LiveOptions {
             gcs: SupervisorConfig::default().gcs,
             queue_len: 65_536,
             feed_from: FEED_FROM,
+            feed_out: None,
         }
     }
 }
@@ -187,6 +191,8 @@ struct FeedSender {
     unrouted: u64,
     heartbeats: u64,
     latency_us: hdrhistogram::Histogram<u64>,
+    /// `--feed-out`: what was sent, as sent.
+    record: Option<(PathBuf, TlogWriter<BufWriter<std::fs::File>>)>,
 }
 
 impl FeedSender {
@@ -199,7 +205,19 @@ impl FeedSender {
             unrouted: 0,
             heartbeats: 0,
             latency_us: new_histogram(),
+            record: None,
         }
+    }
+
+    /// Hand `bytes` to the link for `to`, and record them.
+    fn send(&mut self, network: &Network, to: Endpoint, bytes: Vec<u8>, now_s: f64) {
+        if let Some((path, rec)) = self.record.as_mut() {
+            if let Err(e) = rec.write_record((now_s * 1e6).max(0.0) as u64, &bytes) {
+                tracing::warn!("--feed-out {}: {e}; no longer recording", path.display());
+                self.record = None;
+            }
+        }
+        network.send(Outgoing { to, bytes });
     }
 
     fn report(&self) -> FeedLinkReport {
@@ -268,10 +286,8 @@ impl LiveSession {
                 if !feed.endpoints.contains(&to) {
                     feed.endpoints.push(to);
                 }
-                network.send(Outgoing {
-                    to,
-                    bytes: feed.outbox.encode(&m.message),
-                });
+                let bytes = feed.outbox.encode(&m.message);
+                feed.send(network, to, bytes, now_s);
                 feed.sent += 1;
             }
             let waited_us = ((now_s - received_t_s) * 1e6).max(0.0) as u64;
@@ -279,11 +295,10 @@ impl LiveSession {
         }
         if now_s >= feed.next_heartbeat_t_s && !feed.endpoints.is_empty() {
             feed.next_heartbeat_t_s = now_s + 1.0;
-            for &to in &feed.endpoints {
-                network.send(Outgoing {
-                    to,
-                    bytes: feed.outbox.encode(&crate::feed::wire::heartbeat()),
-                });
+            for k in 0..feed.endpoints.len() {
+                let to = feed.endpoints[k];
+                let bytes = feed.outbox.encode(&crate::feed::wire::heartbeat());
+                feed.send(network, to, bytes, now_s);
                 feed.heartbeats += 1;
             }
         }
@@ -378,6 +393,13 @@ pub fn run_links(
     let feeding = session.feed.is_some();
     let mut thread = LiveSession::new(session, supervisor, recorder);
     thread.feed = FeedSender::new(options.feed_from);
+    if let Some(path) = &options.feed_out {
+        if !feeding {
+            return Err(Error::Usage("--feed-out needs --feed".into()));
+        }
+        let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
+        thread.feed.record = Some((path.clone(), TlogWriter::new(BufWriter::new(file))));
+    }
     thread.session.own = vec![options.gcs, options.feed_from];
     let deadline = options.duration.map(|d| Instant::now() + d);
     // Per link: when it last brought anything, and whether its silence was logged.
@@ -435,6 +457,11 @@ pub fn run_links(
     if let Some(rec) = thread.recorder.as_mut() {
         if let Err(e) = rec.flush() {
             thread.result = thread.result.and(Err(Error::file("recording", e)));
+        }
+    }
+    if let Some((path, rec)) = thread.feed.record.as_mut() {
+        if let Err(e) = rec.flush() {
+            thread.result = thread.result.and(Err(Error::file(path.clone(), e)));
         }
     }
     let mut session = thread.session;

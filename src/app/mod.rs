@@ -406,6 +406,7 @@ fn live_options(connect: &[String], rate_hz: f64, duration_s: Option<f64>) -> Re
 
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let mut options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
+    options.feed_out = args.feed_out.clone();
     let mut session = session_for(&args.collision)?;
     if let Some(feed_hz) = start_feed(&mut session, &args.feed)? {
         // The feed is cast at samples: ask for them at least as often.
