@@ -11,10 +11,19 @@
 
 use glam::DVec3;
 
-/// Horizontal bins: 72 of 5 degrees, bin `j` centred `5 j` degrees clockwise from the nose.
+/// Horizontal bins: 72 of 5 degrees, bin `j` centred `BIN0_DEG + 5 j` degrees clockwise from
+/// the nose.
 pub const BINS: usize = 72;
 /// Width of one bin, degrees.
 pub const BIN_DEG: f64 = 5.0;
+/// Where bin 0 is centred, degrees clockwise from the nose (OBSTACLE_DISTANCE's
+/// `angle_offset`): 20 degrees left, so that each 45-degree sector is nine consecutive bins,
+/// bins 9 k to 9 k + 8 for sector k. ArduPilot (AP_Proximity_MAV) walks the bins in order and
+/// keeps, for each sector, the nearest of the last run of bins that fell in it: with bin 0 on
+/// the nose the forward sector is two runs (0 to 20 degrees, then 340 to 355) and only the
+/// second counted, so a wall dead ahead went unseen in a SITL run against ArduCopter whenever
+/// the bins 5 to 20 degrees left of the nose saw something farther. PX4 takes any offset.
+pub const BIN0_DEG: f64 = -20.0;
 /// Horizontal sectors: 8 of 45 degrees, sector `k` centred `45 k` degrees from the nose.
 pub const SECTORS: usize = 8;
 /// Bins per sector: the nine bins centred within 20 degrees of the sector's centre line.
@@ -64,29 +73,33 @@ impl Levelled {
         self.forward_enu * c + self.right_enu * s
     }
 
-    /// The 72 bins' centre lines, ENU unit vectors, bin 0 along the nose.
+    /// The 72 bins' centre lines, ENU unit vectors, bin 0 at [`BIN0_DEG`].
     pub fn bin_directions(&self, out: &mut [DVec3; BINS]) {
         for (j, d) in out.iter_mut().enumerate() {
-            *d = self.direction(j as f64 * BIN_DEG);
+            *d = self.direction(BIN0_DEG + j as f64 * BIN_DEG);
         }
     }
 }
 
 /// Sector `k`'s distance: the nearest of its nine bins (the bins centred 20, 15, ... 0, ...
-/// 20 degrees either side of the sector's centre line), or `None` if none saw anything.
+/// 20 degrees either side of the sector's centre line: bins 9 k to 9 k + 8), or `None` if
+/// none saw anything.
 ///
 /// ```
 /// use savsim::feed::sectors::{sector_from_bins, BINS};
 /// let mut bins = [None; BINS];
-/// bins[4] = Some(7.0); // 20 degrees right of the nose: still sector 0
-/// bins[5] = Some(3.0); // 25 degrees: sector 1
+/// bins[8] = Some(7.0); // 20 degrees right of the nose: still sector 0
+/// bins[9] = Some(3.0); // 25 degrees: sector 1
+/// bins[0] = Some(9.0); // 20 degrees left of the nose: sector 0 too
 /// assert_eq!(sector_from_bins(&bins, 0), Some(7.0));
 /// assert_eq!(sector_from_bins(&bins, 1), Some(3.0));
 /// assert_eq!(sector_from_bins(&bins, 4), None);
 /// ```
 pub fn sector_from_bins(bins: &[Option<f64>; BINS], k: usize) -> Option<f64> {
-    let centre = k * BINS_PER_SECTOR;
-    (0..BINS_PER_SECTOR)
-        .filter_map(|i| bins[(centre + BINS + i - BINS_PER_SECTOR / 2) % BINS])
+    let first = k * BINS_PER_SECTOR;
+    bins[first..first + BINS_PER_SECTOR]
+        .iter()
+        .flatten()
+        .copied()
         .min_by(f64::total_cmp)
 }

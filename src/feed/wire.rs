@@ -11,7 +11,7 @@ use mavlink::dialects::ardupilotmega::{
 };
 use num_traits::FromPrimitive;
 
-use crate::feed::sectors::{BINS, BIN_DEG};
+use crate::feed::sectors::{BIN0_DEG, BINS, BIN_DEG};
 use crate::geo::Geodetic;
 use crate::scene::Kind;
 
@@ -82,8 +82,9 @@ pub fn distance_sensor(
     })
 }
 
-/// OBSTACLE_DISTANCE: 72 bins of 5 degrees clockwise from the nose, in `MAV_FRAME_BODY_FRD`,
-/// `angle_offset` 0; `None` is "nothing seen" (max + 1).
+/// OBSTACLE_DISTANCE: 72 bins of 5 degrees clockwise, in `MAV_FRAME_BODY_FRD`, bin 0 centred
+/// 20 degrees left of the nose (`angle_offset` -20: see `sectors::BIN0_DEG`); `None` is
+/// "nothing seen" (max + 1).
 pub fn obstacle_distance(
     time_boot_ms: u32,
     range: Range,
@@ -102,7 +103,7 @@ pub fn obstacle_distance(
         min_distance: range.min_cm(),
         increment: BIN_DEG as u8,
         increment_f: BIN_DEG as f32,
-        angle_offset: 0.0,
+        angle_offset: BIN0_DEG as f32,
         frame: MavFrame::MAV_FRAME_BODY_FRD,
     })
 }

@@ -225,7 +225,9 @@ fn sector_bin_and_rangefinder_distances_match_an_exact_ray_cast_within_a_centime
                     }
                     MavMessage::OBSTACLE_DISTANCE(od) => {
                         for (j, &got) in od.distances.iter().enumerate() {
-                            let want = slab_distance(origin, levelled(yaw, 5.0 * j as f64), 40.0);
+                            // Bin 0 is centred 20 degrees left of the nose.
+                            let want =
+                                slab_distance(origin, levelled(yaw, 5.0 * j as f64 - 20.0), 40.0);
                             assert!(
                                 (i64::from(got) - want_cm(want)).abs() <= 1,
                                 "pose {i} bin {j}: {got} cm, want {want:?}"

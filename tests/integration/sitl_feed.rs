@@ -50,6 +50,11 @@ struct Heard {
     collisions: Vec<(u32, u8, u8)>,
     /// SYS_STATUS's proximity sensor: when its health changed, and to what.
     proximity_health: Vec<(Instant, bool)>,
+    /// The copter's own DISTANCE_SENSOR (its proximity sectors and rangefinder, as it sees
+    /// them): its clock (ms), orientation, current distance (cm).
+    distance_sensors: Vec<(u32, u8, u16)>,
+    /// RANGEFINDER's distance (m) beside the relative altitude (m) last heard with it.
+    rangefinder: Vec<(f32, f64)>,
 }
 
 /// The GCS on SITL's SERIAL1 (TCP 5762), as sysid 250: a reader thread and a writer.
@@ -94,6 +99,18 @@ impl Gcs {
                                     && st.onboard_control_sensors_health.contains(bit);
                                 if heard.proximity_health.last().map(|h| h.1) != Some(healthy) {
                                     heard.proximity_health.push((Instant::now(), healthy));
+                                }
+                            }
+                            MavMessage::DISTANCE_SENSOR(d) if h.component_id == 1 => {
+                                heard.distance_sensors.push((
+                                    d.time_boot_ms,
+                                    d.orientation as u8,
+                                    d.current_distance,
+                                ));
+                            }
+                            MavMessage::RANGEFINDER(r) => {
+                                if let Some(p) = heard.east_north_up {
+                                    heard.rangefinder.push((r.distance, p.2));
                                 }
                             }
                             MavMessage::COLLISION(c) => {
@@ -216,6 +233,8 @@ struct Flight {
     shutdown: Arc<AtomicBool>,
     savsim: Option<std::thread::JoinHandle<savsim::app::live::LiveRun>>,
     speedup: f64,
+    /// savsim's `--feed-out`: every frame the feed sent.
+    feed_out: PathBuf,
     _sitl: Sitl,
     _dir: tempfile::TempDir,
 }
@@ -271,9 +290,12 @@ impl Flight {
         let shutdown = Arc::new(AtomicBool::new(false));
         let stop = shutdown.clone();
         let limit = Duration::from_secs_f64(300.0 / speedup + 30.0);
+        let feed_out = dir.path().join("feed.tlog");
+        let record_feed = feed.map(|_| feed_out.clone());
         let savsim = std::thread::spawn(move || {
             let options = LiveOptions {
                 duration: Some(limit),
+                feed_out: record_feed,
                 ..LiveOptions::default()
             };
             let handle = rt.handle().clone();
@@ -286,6 +308,7 @@ impl Flight {
             shutdown,
             savsim: Some(savsim),
             speedup,
+            feed_out,
             _sitl: sitl,
             _dir: dir,
         }
@@ -552,4 +575,229 @@ fn arducopter_proximity_is_healthy_while_fed_and_not_after() {
     assert!(unhealthy, "still healthy 5 s after the feed stopped");
     assert!(went.saturating_duration_since(stopped) < Duration::from_secs(1));
     drop(flight);
+}
+
+/// The feed savsim sent, from its `--feed-out` recording: DISTANCE_SENSOR as (vehicle clock ms,
+/// orientation, distance cm, min cm, max cm) and OBSTACLE_DISTANCE as (vehicle clock ms, its
+/// 72 distances, min cm, max cm, angle_offset). Read with the mavlink crate.
+#[allow(clippy::type_complexity)]
+fn sent_feed(
+    bytes: &[u8],
+) -> (
+    Vec<(u32, u8, u16, u16, u16)>,
+    Vec<(u32, [u16; 72], u16, u16, f32)>,
+) {
+    let (mut at, mut sensors, mut obstacles) = (0, Vec::new(), Vec::new());
+    while at + 8 < bytes.len() {
+        let frame = &bytes[at + 8..];
+        let len = 12 + usize::from(frame[1]) + if frame[2] & 1 == 1 { 13 } else { 0 };
+        let mut r = mavlink::MavlinkReader::new(&frame[..len]);
+        match r.read_any_message::<MavMessage>() {
+            Ok((_, MavMessage::DISTANCE_SENSOR(d))) => sensors.push((
+                d.time_boot_ms,
+                d.orientation as u8,
+                d.current_distance,
+                d.min_distance,
+                d.max_distance,
+            )),
+            Ok((_, MavMessage::OBSTACLE_DISTANCE(o))) => {
+                obstacles.push((
+                    (o.time_usec / 1000) as u32,
+                    o.distances,
+                    o.min_distance,
+                    o.max_distance,
+                    o.angle_offset,
+                ));
+            }
+            _ => {}
+        }
+        at += 8 + len;
+    }
+    (sensors, obstacles)
+}
+
+/// Hover near b1852's east face (N -30, E -45, 30 m up, nose west: the face 12 m ahead) with
+/// the feed `feed` and `params`, asking for the copter's DISTANCE_SENSOR; what the copter said
+/// and savsim's recording of what it sent.
+fn hover_by_the_face(bin: &PathBuf, params: &str, feed: &str) -> (Heard, Vec<u8>) {
+    let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    let mut flight = Flight::start(bin, params, city, Some(feed), 1.0);
+    flight.take_off_to(30.0, -30.0, -45.0);
+    // Its DISTANCE_SENSOR at 10 Hz on SERIAL1; 15 s of hovering.
+    let hover = flight.wall(15.0);
+    let from = Instant::now();
+    flight.gcs.until(hover, |g| {
+        if from.elapsed() < Duration::from_secs(1) {
+            g.command(
+                MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                [132.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            );
+        }
+        false
+    });
+    let heard = flight.gcs.heard();
+    let path = flight.feed_out.clone();
+    // Stopping savsim flushes its recording; read it before the flight's directory goes.
+    flight.stop_savsim();
+    (heard, std::fs::read(path).unwrap())
+}
+
+/// Every echo of the copter's proximity sectors in the last 10 s, against what savsim sent in
+/// the 600 ms of the copter's clock before it: the closest sent value per echo, per sector.
+fn echoes_against(heard: &Heard, sent: impl Fn(u32, u8) -> Vec<u16>) -> (usize, Vec<String>) {
+    let last_ms = heard.distance_sensors.last().map_or(0, |d| d.0);
+    let (mut checked, mut wrong) = (0, Vec::new());
+    for &(t_ms, orientation, cm) in &heard.distance_sensors {
+        if orientation > 7 || t_ms + 10_000 < last_ms {
+            continue;
+        }
+        let candidates = sent(t_ms, orientation);
+        let Some(closest) = candidates.iter().map(|&s| s.abs_diff(cm)).min() else {
+            continue;
+        };
+        checked += 1;
+        if closest > 1 {
+            wrong.push(format!(
+                "sector {orientation} at {t_ms} ms: echoed {cm} cm, sent {candidates:?}"
+            ));
+        }
+    }
+    (checked, wrong)
+}
+
+/// ArduPilot's MAVProximity autotest, its echo half: the copter reports back each proximity
+/// sector it was fed (its own DISTANCE_SENSOR, orientations 0-7) within 1 cm of what savsim
+/// sent for that sector.
+#[test]
+fn arducopter_echoes_every_sector_it_was_fed_within_a_centimetre() {
+    let Some(bin) = arducopter() else { return };
+    if !inside_own_network_namespace(
+        "sitl_feed::arducopter_echoes_every_sector_it_was_fed_within_a_centimetre",
+    ) {
+        return;
+    }
+    let (heard, feed_out) = hover_by_the_face(&bin, "PRX1_TYPE 2\nPRX_FILT 0\n", "proximity");
+    let (sent, _) = sent_feed(&feed_out);
+    let (checked, wrong) = echoes_against(&heard, |t_ms, orientation| {
+        sent.iter()
+            .filter(|s| s.1 == orientation && s.0 <= t_ms && s.0 + 600 >= t_ms && s.2 <= s.4)
+            .map(|s| s.2)
+            .collect()
+    });
+    let sectors: std::collections::BTreeSet<u8> = heard
+        .distance_sensors
+        .iter()
+        .map(|d| d.1)
+        .filter(|&o| o <= 7)
+        .collect();
+    eprintln!(
+        "{checked} echoes checked, sectors {sectors:?}, {} wrong",
+        wrong.len()
+    );
+    assert!(checked >= 50, "too few echoes: {checked}");
+    assert!(
+        sectors.contains(&0),
+        "the face ahead (sector 0) was echoed: {sectors:?}"
+    );
+    assert!(wrong.is_empty(), "{wrong:?}");
+}
+
+/// ArduPilot's OBSTACLE_DISTANCE_3D autotest, for the 72-bin OBSTACLE_DISTANCE savsim sends:
+/// the copter's proximity sectors (its DISTANCE_SENSOR echo) are, within 1 cm, the nearest of
+/// savsim's bins whose angle falls in each 45-degree sector (body FRD, clockwise from the nose).
+#[test]
+fn arducopter_reads_obstacle_distance_bins_into_its_sectors() {
+    let Some(bin) = arducopter() else { return };
+    if !inside_own_network_namespace(
+        "sitl_feed::arducopter_reads_obstacle_distance_bins_into_its_sectors",
+    ) {
+        return;
+    }
+    let (heard, feed_out) =
+        hover_by_the_face(&bin, "PRX1_TYPE 2\nPRX_FILT 0\n", "obstacle-distance");
+    let (_, sent) = sent_feed(&feed_out);
+    // The nearest in-range bin of sector k: bin j at angle_offset + 5 j degrees clockwise,
+    // in sector (angle + 22.5) / 45 (ArduPilot's AP_Proximity_Boundary_3D::get_face).
+    let sector_of = |frame: &(u32, [u16; 72], u16, u16, f32), k: u8| {
+        (0..72)
+            .filter(|&j| {
+                let angle = (f64::from(frame.4) + 5.0 * j as f64).rem_euclid(360.0);
+                ((angle + 22.5) / 45.0).floor() as u8 % 8 == k
+            })
+            .map(|j| frame.1[j])
+            .filter(|&d| d != 65535 && d >= frame.2 && d <= frame.3)
+            .min()
+    };
+    // OBSTACLE_DISTANCE carries time_usec: savsim stamps it with the vehicle's clock.
+    let (checked, wrong) = echoes_against(&heard, |t_ms, orientation| {
+        sent.iter()
+            .filter(|s| s.0 <= t_ms && s.0 + 600 >= t_ms)
+            .filter_map(|s| sector_of(s, orientation))
+            .collect()
+    });
+    eprintln!(
+        "{checked} echoes checked, {} wrong, {} frames sent",
+        wrong.len(),
+        sent.len()
+    );
+    assert!(checked >= 50, "too few echoes: {checked}");
+    assert!(wrong.is_empty(), "{wrong:?}");
+}
+
+/// ArduPilot's FlyRangeFinderMAVlink autotest: with RNGFND1_TYPE=10 and savsim's
+/// `--feed rangefinder`, the copter's rangefinder (RANGEFINDER) agrees with its altitude above
+/// home (GLOBAL_POSITION_INT.relative_alt) within 1 m while it hovers over the street at the
+/// city's origin, and its own DISTANCE_SENSOR (downward) says the same.
+#[test]
+fn arducopter_rangefinder_agrees_with_its_altitude() {
+    let Some(bin) = arducopter() else { return };
+    if !inside_own_network_namespace("sitl_feed::arducopter_rangefinder_agrees_with_its_altitude") {
+        return;
+    }
+    let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    let params = "RNGFND1_TYPE 10\nRNGFND1_MIN 0.2\nRNGFND1_MAX 40\n";
+    let mut flight = Flight::start(&bin, params, city, Some("rangefinder"), 1.0);
+    flight.take_off_to(10.0, 0.0, 0.0);
+    let hover = flight.wall(8.0);
+    let from = Instant::now();
+    flight.gcs.until(hover, |g| {
+        if from.elapsed() < Duration::from_secs(1) {
+            for id in [173.0, 132.0] {
+                g.command(
+                    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                    [id, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                );
+            }
+        }
+        false
+    });
+    let heard = flight.gcs.heard();
+    drop(flight);
+    let late: Vec<&(f32, f64)> = heard.rangefinder.iter().rev().take(40).collect();
+    let worst = late
+        .iter()
+        .map(|(d, alt)| (f64::from(*d) - alt).abs())
+        .fold(0.0, f64::max);
+    let downward: Vec<u16> = heard
+        .distance_sensors
+        .iter()
+        .filter(|d| d.1 == 25)
+        .map(|d| d.2)
+        .collect();
+    eprintln!(
+        "RANGEFINDER against relative_alt over the last {} readings: worst {worst:.2} m; last {:?}; downward DISTANCE_SENSOR last {:?}",
+        late.len(),
+        late.first(),
+        downward.last()
+    );
+    assert!(late.len() >= 20, "too few RANGEFINDER readings");
+    assert!(worst <= 1.0);
+    let alt = late[0].1;
+    let last_cm = *downward
+        .last()
+        .expect("the copter's downward DISTANCE_SENSOR");
+    assert!(
+        (f64::from(last_cm) / 100.0 - alt).abs() <= 1.0,
+        "{last_cm} cm at {alt} m"
+    );
 }

@@ -7,7 +7,8 @@ every frame of savsim's feed component against the rules of docs/closed-loop.md:
 - DISTANCE_SENSOR: readings grouped by time_boot_ms into frames; each frame has every expected
   orientation exactly once; min/max as configured, in cm; a reading in [min, max] or max + 1
   (nothing seen); frames' stamps strictly increase.
-- OBSTACLE_DISTANCE: 72 bins, increment 5 deg, MAV_FRAME_BODY_FRD (12), angle_offset 0,
+- OBSTACLE_DISTANCE: 72 bins, increment 5 deg, MAV_FRAME_BODY_FRD (12), angle_offset -20 (bin 0
+  centred 20 degrees left of the nose: each 45-degree sector nine consecutive bins),
   readings in [min, max + 1] (never 0, never UINT16_MAX), time_usec increasing.
 - ADSB_VEHICLE: 24-bit ICAO address, flags 0x1FF, tslc <= 1, heading < 36000.
 - HEARTBEAT from the feed component: MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID.
@@ -80,8 +81,8 @@ def main():
                 fail(f"{len(m.distances)} bins")
             if m.increment != 5 or abs(m.increment_f - 5.0) > 1e-6:
                 fail(f"increment {m.increment} / {m.increment_f}")
-            if m.frame != 12 or m.angle_offset != 0:
-                fail(f"frame {m.frame}, angle_offset {m.angle_offset}: want 12 (BODY_FRD), 0")
+            if m.frame != 12 or m.angle_offset != -20:
+                fail(f"frame {m.frame}, angle_offset {m.angle_offset}: want 12 (BODY_FRD), -20")
             if m.min_distance != args.min_cm or m.max_distance != args.max_cm:
                 fail(f"min/max {m.min_distance}/{m.max_distance}")
             for d in m.distances:
