@@ -8,7 +8,12 @@
 //! - `sitl`: two ArduCopter SITLs on one UDP link, one rebooted (needs `SAVSIM_ARDUCOPTER`;
 //!   runs in a network namespace of its own).
 //! - `sitl_feed`: ArduCopter SITL fed by savsim's proximity feed stops before a wall of the
-//!   bundled city, and flies into it without the feed (needs `SAVSIM_ARDUCOPTER`).
+//!   bundled city, and flies into it without the feed; ArduPilot's own autotests for these
+//!   inputs mirrored (proximity health and echo, OBSTACLE_DISTANCE, rangefinder); ADS-B
+//!   avoidance of a scripted airliner (needs `SAVSIM_ARDUCOPTER`).
+//! - `sitl_px4`: two PX4 SIH quadrotors on one UDP link, one restarted (needs `SAVSIM_PX4`).
+//! - `sitl_px4_feed`: PX4's collision prevention keeps its distance from a wall with savsim's
+//!   OBSTACLE_DISTANCE feed, and PX4's obstacle map is savsim's bins (needs `SAVSIM_PX4`).
 //! - `supervisor`: per-vehicle routing, requests, fallback, stale streams and reboots, on
 //!   frames and times the test chooses.
 //! - `faults`: live faults (garbage, truncation, repeats, reordering, reboots) and a 10 s burst
@@ -53,6 +58,7 @@ mod shared_fixtures;
 mod sitl;
 mod sitl_feed;
 mod sitl_px4;
+mod sitl_px4_feed;
 mod supervisor;
 mod terrain;
 #[cfg(feature = "viz")]

@@ -222,7 +222,7 @@ impl Gcs {
 /// East, north (m) of the scene's origin and up (m) for a GLOBAL_POSITION_INT: the WGS84
 /// radii of curvature at the origin (exact to millimetres within 100 m; shares no code with
 /// savsim's geodesy).
-fn east_north(lat_e7: i32, lon_e7: i32, relative_alt_mm: i32) -> (f64, f64, f64) {
+pub(crate) fn east_north(lat_e7: i32, lon_e7: i32, relative_alt_mm: i32) -> (f64, f64, f64) {
     let (a, e2) = (6_378_137.0f64, 6.694_379_990_14e-3);
     let phi = ORIGIN_LAT_DEG.to_radians();
     let w = (1.0 - e2 * phi.sin().powi(2)).sqrt();
@@ -614,16 +614,16 @@ fn arducopter_proximity_is_healthy_while_fed_and_not_after() {
     drop(flight);
 }
 
-/// The feed savsim sent, from its `--feed-out` recording: DISTANCE_SENSOR as (vehicle clock ms,
-/// orientation, distance cm, min cm, max cm) and OBSTACLE_DISTANCE as (vehicle clock ms, its
-/// 72 distances, min cm, max cm, angle_offset). Read with the mavlink crate.
-#[allow(clippy::type_complexity)]
-fn sent_feed(
-    bytes: &[u8],
-) -> (
-    Vec<(u32, u8, u16, u16, u16)>,
-    Vec<(u32, [u16; 72], u16, u16, f32)>,
-) {
+/// One OBSTACLE_DISTANCE savsim sent: vehicle clock (ms), its 72 distances, min cm, max cm,
+/// angle_offset.
+pub(crate) type ObstacleFrame = (u32, [u16; 72], u16, u16, f32);
+
+/// One DISTANCE_SENSOR savsim sent: vehicle clock (ms), orientation, distance cm, min cm,
+/// max cm.
+type SensorReading = (u32, u8, u16, u16, u16);
+
+/// The feed savsim sent, from its `--feed-out` recording. Read with the mavlink crate.
+pub(crate) fn sent_feed(bytes: &[u8]) -> (Vec<SensorReading>, Vec<ObstacleFrame>) {
     let (mut at, mut sensors, mut obstacles) = (0, Vec::new(), Vec::new());
     while at + 8 < bytes.len() {
         let frame = &bytes[at + 8..];
@@ -755,7 +755,7 @@ fn arducopter_reads_obstacle_distance_bins_into_its_sectors() {
     let (_, sent) = sent_feed(&feed_out);
     // The nearest in-range bin of sector k: bin j at angle_offset + 5 j degrees clockwise,
     // in sector (angle + 22.5) / 45 (ArduPilot's AP_Proximity_Boundary_3D::get_face).
-    let sector_of = |frame: &(u32, [u16; 72], u16, u16, f32), k: u8| {
+    let sector_of = |frame: &ObstacleFrame, k: u8| {
         (0..72)
             .filter(|&j| {
                 let angle = (f64::from(frame.4) + 5.0 * j as f64).rem_euclid(360.0);

@@ -26,7 +26,7 @@ use savsim::session::Session;
 use crate::common::{frame_v2, heartbeat};
 use crate::sitl::{inside_own_network_namespace, reboot_shutdown, two_vehicles_to_the_end, Sitl};
 
-fn px4() -> Option<PathBuf> {
+pub(crate) fn px4() -> Option<PathBuf> {
     let path = std::env::var_os("SAVSIM_PX4").map(PathBuf::from);
     if path.is_none() {
         eprintln!("skipped: set SAVSIM_PX4 to PX4's build/px4_sitl_default/bin/px4 (docs/live.md)");
@@ -34,10 +34,12 @@ fn px4() -> Option<PathBuf> {
     path
 }
 
-/// Start SIH quadrotor `instance` in `dir` (its own working directory), home `east_m` east of
-/// the city's origin.
-fn start_px4(bin: &Path, instance: u8, dir: &Path, east_m: f64) -> Sitl {
+/// Start SIH quadrotor `instance` in `dir` (its own working directory), home `north_m`
+/// north and `east_m` east of the city's origin (spherical metres: PX4's home need not be
+/// exact).
+pub(crate) fn start_px4(bin: &Path, instance: u8, dir: &Path, north_m: f64, east_m: f64) -> Sitl {
     let etc = bin.parent().and_then(Path::parent).unwrap().join("etc");
+    let lat_deg = -35.363261 + north_m / 111_320.0;
     let lon_deg = 149.165230 + east_m / (111_320.0 * (-35.363261f64).to_radians().cos());
     std::fs::create_dir_all(dir).unwrap();
     let log = std::fs::OpenOptions::new()
@@ -51,7 +53,7 @@ fn start_px4(bin: &Path, instance: u8, dir: &Path, east_m: f64) -> Sitl {
         .arg(etc)
         .env("PX4_SYS_AUTOSTART", "10040")
         .env("PX4_SIM_MODEL", "sihsim_quadx")
-        .env("PX4_HOME_LAT", "-35.363261")
+        .env("PX4_HOME_LAT", lat_deg.to_string())
         .env("PX4_HOME_LON", lon_deg.to_string())
         .env("PX4_HOME_ALT", "584")
         .stdin(Stdio::null())
@@ -82,8 +84,8 @@ fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
         .block_on(Link::open(&ConnectAddress::UdpIn(gcs.into())))
         .unwrap();
     let (dir0, dir1) = (dir.path().join("0"), dir.path().join("1"));
-    let first = start_px4(&bin, 0, &dir0, 0.0);
-    let _second = start_px4(&bin, 1, &dir1, 30.0);
+    let first = start_px4(&bin, 0, &dir0, 0.0, 0.0);
+    let _second = start_px4(&bin, 1, &dir1, 0.0, 30.0);
     let companion = std::thread::spawn({
         let (bin, dir0) = (bin.clone(), dir0.clone());
         move || {
@@ -106,7 +108,7 @@ fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
                     let asked = Instant::now();
                     while asked.elapsed() < Duration::from_secs(10) {
                         if let Ok(Some(_)) = vehicle.0.try_wait() {
-                            vehicle = start_px4(&bin, 0, &dir0, 0.0);
+                            vehicle = start_px4(&bin, 0, &dir0, 0.0, 0.0);
                             restarted = true;
                             break;
                         }
