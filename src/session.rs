@@ -229,6 +229,11 @@ impl Session {
         if self.own.contains(&decoded.sender) {
             return Ok(());
         }
+        if let Some(feed) = &mut self.feed {
+            if feed.is_echo(&decoded.report) {
+                return Ok(());
+            }
+        }
         if let WorldUpdate::VehicleMoved(sender) =
             self.world.apply(t_s, decoded.sender, &decoded.report)
         {
@@ -481,6 +486,7 @@ impl Session {
             "feed": self.feed.as_ref().map(|f| json!({
                 "kinds": f.config.kinds,
                 "hz": f.config.hz,
+                "adsb_echoes": f.adsb_echoes,
                 "vehicles": f.counts().map(|(id, c)| json!({
                     "sysid": id.system_id,
                     "compid": id.component_id,

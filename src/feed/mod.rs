@@ -29,6 +29,7 @@ use crate::collision::pipeline::{
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::SenderId;
 use crate::scene::{DynamicSource, Scene};
+use crate::world::report::Report;
 use crate::world::TrackSample;
 use sectors::{Levelled, BINS, SECTORS};
 use wire::Range;
@@ -230,6 +231,9 @@ pub struct Reading {
 pub struct Feed {
     /// Settings.
     pub config: FeedConfig,
+    /// ADSB_VEHICLE reports of the feed's own aircraft that came back (a vehicle re-streams
+    /// the traffic it was told about): never applied to the world.
+    pub adsb_echoes: u64,
     vehicles: BTreeMap<SenderId, VehicleFeed>,
     dirs: [DVec3; BINS],
     bins: [Option<f64>; BINS],
@@ -257,11 +261,23 @@ impl Feed {
     pub fn new(config: FeedConfig) -> Self {
         Self {
             config,
+            adsb_echoes: 0,
             vehicles: BTreeMap::new(),
             dirs: [DVec3::ZERO; BINS],
             bins: [None; BINS],
             readings: Vec::new(),
         }
+    }
+
+    /// True (and counted) for an ADS-B report of an aircraft this feed sends as ADS-B: the
+    /// vehicle or its router handing savsim's own traffic back, under the vehicle's identity
+    /// (ArduPilot with ADSB_TYPE > 0 and PX4 both re-stream the traffic they receive). Applied,
+    /// it would become a second body at the aircraft's place.
+    pub fn is_echo(&mut self, report: &Report) -> bool {
+        let echo = matches!(report, Report::Adsb(a)
+            if self.config.kinds.adsb && is_feed_icao(a.icao_address));
+        self.adsb_echoes += u64::from(echo);
+        echo
     }
 
     /// Each vehicle's counts.
@@ -492,6 +508,17 @@ fn body_velocity(d: &DynamicBody) -> DVec3 {
     along * d.speed_mps
 }
 
+/// The ICAO addresses the feed gives the aircraft it sends: `0xF0xxxx` the scene's track
+/// `xxxx`, `0xF1SSCC` MAVLink vehicle SS/CC: the top of the address space, which ICAO has not
+/// allocated to any state.
+const TRACK_ICAO: u32 = 0xF0_0000;
+const VEHICLE_ICAO: u32 = 0xF1_0000;
+
+/// Whether `icao` is one the feed gives an aircraft.
+fn is_feed_icao(icao: u32) -> bool {
+    matches!(icao & 0xFF_0000, TRACK_ICAO | VEHICLE_ICAO)
+}
+
 /// The aircraft a vehicle is told about: the scene's scripted tracks and declared vehicles, and
 /// every other MAVLink vehicle savsim mirrors; not ADS-B traffic (the vehicle's own receiver
 /// or its GCS already has it) and never the vehicle itself.
@@ -503,7 +530,7 @@ fn aircraft<'a>(
             BodySource::Scripted(i) => match input.scene.dynamic.get(i as usize)?.source {
                 DynamicSource::Icao(_) => return None,
                 DynamicSource::Waypoints(_) | DynamicSource::SystemId(_) => {
-                    0xF0_0000 | (i & 0xFFFF)
+                    TRACK_ICAO | (i & 0xFFFF)
                 }
             },
             BodySource::Vehicle {
@@ -513,7 +540,7 @@ fn aircraft<'a>(
                 if (vehicle, component_id) == (input.key.vehicle, input.key.component_id) {
                     return None;
                 }
-                0xF1_0000 | (u32::from(vehicle & 0xFF) << 8) | u32::from(component_id)
+                VEHICLE_ICAO | (u32::from(vehicle & 0xFF) << 8) | u32::from(component_id)
             }
             BodySource::Traffic(_) => return None,
         };

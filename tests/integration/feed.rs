@@ -616,3 +616,58 @@ fn live_feed_out_records_exactly_what_the_vehicle_received() {
         assert_eq!(checked["last"]["0"], 1000, "{checked}");
     }
 }
+
+/// A vehicle re-streams the traffic it was told about under its own identity (ArduPilot with
+/// ADSB_TYPE > 0, PX4's transponder relay): those ADSB_VEHICLE are the feed's own aircraft
+/// coming back, counted and never made a second body; other traffic the vehicle reports is
+/// applied as before.
+#[test]
+fn traffic_the_vehicle_re_streams_is_not_read_back_as_traffic() {
+    let scene = scene_at(
+        ORIGIN,
+        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
+         { t_s = 0.0, position_enu_m = [2000.0, 0.0, 30.0] }, \
+         { t_s = 100.0, position_enu_m = [-2000.0, 0.0, 30.0] }]\n",
+    );
+    let plane = LocalTangentPlane::new(ORIGIN);
+    let mut session =
+        Session::new(Some(Arc::new(scene)), CollisionConfig::default(), None).unwrap();
+    session.start_feed(config("adsb")).unwrap();
+    let (mut seq, mut echoed) = (0, 0);
+    let pose = (DVec3::new(0.0, 0.0, 30.0), 0.0, 0.0, 0.0);
+    for i in 0..50u32 {
+        let t_s = 1000.0 + f64::from(i) * 0.1;
+        let mut bytes = pose_frames(&plane, 1, &mut seq, 60_000 + i * 100, pose);
+        // Last sample's ADS-B, handed back by the vehicle (1/1) ...
+        for m in session.feed_out.drain(..) {
+            if let MavMessage::ADSB_VEHICLE(mut a) = m.message {
+                bytes.extend(frame_v2(1, 1, seq, &MavMessage::ADSB_VEHICLE(a.clone())));
+                echoed += 1;
+                // ... beside an aircraft of its own receiver's, 300 m north.
+                a.ICAO_address = 0x48_40D6;
+                a.lat += 27_000;
+                bytes.extend(frame_v2(
+                    1,
+                    1,
+                    seq.wrapping_add(1),
+                    &MavMessage::ADSB_VEHICLE(a),
+                ));
+                seq = seq.wrapping_add(2);
+            }
+        }
+        feed(&mut session, t_s, &bytes);
+    }
+    assert!(echoed >= 5, "the feed sent ADS-B {echoed} times");
+    let traffic: Vec<u32> = session.world.traffic.keys().copied().collect();
+    assert_eq!(
+        traffic,
+        [0x48_40D6],
+        "only the receiver's own aircraft is traffic"
+    );
+    let summary = session.summary("replay", "test");
+    assert_eq!(
+        summary["feed"]["adsb_echoes"], echoed,
+        "{}",
+        summary["feed"]
+    );
+}

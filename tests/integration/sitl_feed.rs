@@ -12,7 +12,7 @@
 
 use std::io::Write;
 use std::net::TcpStream;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -22,9 +22,10 @@ use mavlink::dialects::ardupilotmega::{
     MavCmd, MavFrame, MavMessage, MavModeFlag, MavSysStatusSensor, PositionTargetTypemask,
     COMMAND_LONG_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
-use savsim::app::live::{run_links, LiveOptions};
+use savsim::app::live::{run_links, LiveOptions, LiveRun};
 use savsim::collision::pipeline::CollisionConfig;
 use savsim::feed::{FeedConfig, FeedKinds};
+use savsim::ingest::live::Link;
 use savsim::scene::Scene;
 use savsim::session::Session;
 
@@ -236,12 +237,46 @@ pub(crate) fn east_north(lat_e7: i32, lon_e7: i32, relative_alt_mm: i32) -> (f64
     )
 }
 
+/// savsim live over `scene` on `link` (on `rt`), with `feed` (if any) recorded to `feed_out`,
+/// on a thread of its own until `limit` passes or `stop` is set.
+pub(crate) fn start_savsim(
+    rt: tokio::runtime::Runtime,
+    link: Link,
+    scene: Scene,
+    feed: Option<&str>,
+    limit: Duration,
+    feed_out: &Path,
+    stop: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<LiveRun> {
+    let mut session =
+        Session::new(Some(Arc::new(scene)), CollisionConfig::default(), None).unwrap();
+    if let Some(list) = feed {
+        session
+            .start_feed(FeedConfig {
+                kinds: FeedKinds::parse(list).unwrap(),
+                ..FeedConfig::default()
+            })
+            .unwrap();
+    }
+    let options = LiveOptions {
+        duration: Some(limit),
+        feed_out: feed.map(|_| feed_out.to_path_buf()),
+        ..LiveOptions::default()
+    };
+    std::thread::spawn(move || {
+        let handle = rt.handle().clone();
+        let run = run_links(&handle, vec![link], &options, session, None, stop).unwrap();
+        drop(rt);
+        run
+    })
+}
+
 /// A SITL flight under way: the copter, savsim live on its SERIAL0 (a thread), the test's GCS
 /// on its SERIAL1.
 struct Flight {
     gcs: Gcs,
     shutdown: Arc<AtomicBool>,
-    savsim: Option<std::thread::JoinHandle<savsim::app::live::LiveRun>>,
+    savsim: Option<std::thread::JoinHandle<LiveRun>>,
     speedup: f64,
     /// savsim's `--feed-out`: every frame the feed sent.
     feed_out: PathBuf,
@@ -287,32 +322,10 @@ impl Flight {
                 .spawn()
                 .expect("start ArduCopter SITL"),
         );
-        let mut session =
-            Session::new(Some(Arc::new(scene)), CollisionConfig::default(), None).unwrap();
-        if let Some(list) = feed {
-            session
-                .start_feed(FeedConfig {
-                    kinds: FeedKinds::parse(list).unwrap(),
-                    ..FeedConfig::default()
-                })
-                .unwrap();
-        }
         let shutdown = Arc::new(AtomicBool::new(false));
-        let stop = shutdown.clone();
         let limit = Duration::from_secs_f64(300.0 / speedup + 30.0);
         let feed_out = dir.path().join("feed.tlog");
-        let record_feed = feed.map(|_| feed_out.clone());
-        let savsim = std::thread::spawn(move || {
-            let options = LiveOptions {
-                duration: Some(limit),
-                feed_out: record_feed,
-                ..LiveOptions::default()
-            };
-            let handle = rt.handle().clone();
-            let run = run_links(&handle, vec![link], &options, session, None, stop).unwrap();
-            drop(rt);
-            run
-        });
+        let savsim = start_savsim(rt, link, scene, feed, limit, &feed_out, shutdown.clone());
         Flight {
             gcs: Gcs::connect(),
             shutdown,
@@ -384,7 +397,7 @@ impl Flight {
     }
 
     /// Stop savsim (SITL goes on); savsim's run.
-    fn stop_savsim(&mut self) -> savsim::app::live::LiveRun {
+    fn stop_savsim(&mut self) -> LiveRun {
         self.shutdown.store(true, Ordering::Relaxed);
         let mut run = self.savsim.take().expect("savsim runs").join().unwrap();
         run.session.finish().unwrap();
@@ -392,7 +405,7 @@ impl Flight {
     }
 
     /// Stop savsim and SITL; savsim's run.
-    fn finish(mut self) -> savsim::app::live::LiveRun {
+    fn finish(mut self) -> LiveRun {
         self.stop_savsim()
     }
 }

@@ -34,6 +34,16 @@ pub(crate) fn px4() -> Option<PathBuf> {
     path
 }
 
+/// Held while a test runs PX4, taken before it runs itself again in its namespace: PX4 SITL's
+/// instance N keeps a lock and a server socket in /tmp (`px4_lock-N`, `px4-sock-N`), which a
+/// network namespace does not separate, so two tests running PX4 at once (the test harness's
+/// threads) would share instance 0.
+pub(crate) fn px4_serial() -> std::sync::MutexGuard<'static, ()> {
+    static PX4: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    PX4.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// Start SIH quadrotor `instance` in `dir` (its own working directory), home `north_m`
 /// north and `east_m` east of the city's origin (spherical metres: PX4's home need not be
 /// exact).
@@ -74,6 +84,7 @@ fn send(socket: &UdpSocket, to: SocketAddr, sequence: &mut u8, message: &MavMess
 fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
     let Some(bin) = px4() else { return };
     let test = "sitl_px4::two_px4_sih_on_one_udp_link_one_restarted_with_a_companion";
+    let _serial = px4_serial();
     if !inside_own_network_namespace(test) {
         return;
     }

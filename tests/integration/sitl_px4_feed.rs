@@ -15,7 +15,7 @@
 //! data PX4 refuses to move), savsim reports the collision.
 
 use std::net::{SocketAddr, UdpSocket};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -24,29 +24,32 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavType,
     COMMAND_INT_DATA, COMMAND_LONG_DATA, MANUAL_CONTROL_DATA, PARAM_SET_DATA,
 };
-use savsim::app::live::{run_links, LiveOptions, LiveRun};
-use savsim::collision::pipeline::CollisionConfig;
-use savsim::feed::{FeedConfig, FeedKinds};
+use savsim::app::live::LiveRun;
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
-use savsim::session::Session;
+use savsim::scene::Scene;
 
 use crate::common::{frame_v2, heartbeat, root, runtime};
-use crate::sitl::inside_own_network_namespace;
-use crate::sitl_feed::{east_north, sent_feed, ObstacleFrame};
-use crate::sitl_px4::{px4, start_px4};
+use crate::sitl::{inside_own_network_namespace, Sitl};
+use crate::sitl_feed::{east_north, sent_feed, start_savsim, ObstacleFrame};
+use crate::sitl_px4::{px4, px4_serial, start_px4};
 
 /// b1852's east face, scene E metres; where the flight starts, scene N metres.
 const FACE_EAST_M: f64 = -57.0;
 const START_NORTH_M: f64 = -30.0;
-/// PX4's main mode POSCTL in custom_mode's third byte.
+/// PX4's main modes (custom_mode's third byte): POSCTL, AUTO; AUTO's sub mode LAND (its
+/// fourth byte).
 const POSCTL: u32 = 3;
+const AUTO: u32 = 4;
+const AUTO_LAND: u32 = 6;
 
 /// What the pilot heard from PX4 (1/1) on the onboard link.
 #[derive(Debug, Default, Clone)]
 struct Heard {
     armed: bool,
     custom_mode: u32,
+    /// Every custom_mode PX4 reported, in order (main mode in byte 2, sub mode in byte 3).
+    modes: Vec<u32>,
     /// East, north, up (m) of the city's origin, PX4's clock (ms) and heading (cdeg).
     position: Option<(f64, f64, f64)>,
     time_boot_ms: u32,
@@ -56,6 +59,13 @@ struct Heard {
     /// PX4's OBSTACLE_DISTANCE (its fused map): its clock (ms), distances, angle_offset.
     obstacle: Vec<(u32, [u16; 72], f32)>,
     texts: Vec<String>,
+}
+
+/// A PX4 parameter's value.
+#[derive(Clone, Copy)]
+enum Param {
+    Real(f32),
+    Int(i32),
 }
 
 /// The pilot: a ground station on PX4's onboard link, a reader thread and a writer.
@@ -109,6 +119,9 @@ impl Pilot {
                                 .base_mode
                                 .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
                             heard.custom_mode = hb.custom_mode;
+                            if heard.modes.last() != Some(&hb.custom_mode) {
+                                heard.modes.push(hb.custom_mode);
+                            }
                         }
                         MavMessage::GLOBAL_POSITION_INT(p) => {
                             let at = east_north(p.lat, p.lon, p.relative_alt);
@@ -165,13 +178,18 @@ impl Pilot {
         }));
     }
 
-    fn param(&mut self, name: &str, value: f32, kind: MavParamType) {
+    fn param(&mut self, name: &str, value: Param) {
+        // PX4 encodes parameters bytewise: an integer's bits travel in the float field.
+        let (param_value, param_type) = match value {
+            Param::Real(v) => (v, MavParamType::MAV_PARAM_TYPE_REAL32),
+            Param::Int(v) => (f32::from_bits(v as u32), MavParamType::MAV_PARAM_TYPE_INT32),
+        };
         self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-            param_value: value,
+            param_value,
             target_system: 1,
             target_component: 1,
             param_id: name.into(),
-            param_type: kind,
+            param_type,
         }));
     }
 
@@ -213,81 +231,114 @@ impl Pilot {
     }
 }
 
-/// Fly at the face with or without the feed: (PX4 heard, savsim's run, the feed it sent).
-fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
-    let dir = tempfile::tempdir().unwrap();
-    let rt = runtime();
-    let gcs: SocketAddr = "127.0.0.1:14550".parse().unwrap();
-    let link = rt
-        .block_on(Link::open(&ConnectAddress::UdpIn(gcs.into())))
-        .unwrap();
-    let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
-    let mut session = Session::new(Some(Arc::new(city)), CollisionConfig::default(), None).unwrap();
-    if with_feed {
-        session
-            .start_feed(FeedConfig {
-                kinds: FeedKinds::parse("obstacle-distance").unwrap(),
-                ..FeedConfig::default()
-            })
-            .unwrap();
-    }
-    let feed_out = dir.path().join("feed.tlog");
-    let shutdown = Arc::new(AtomicBool::new(false));
-    let savsim = std::thread::spawn({
-        let (stop, feed_out) = (shutdown.clone(), with_feed.then(|| feed_out.clone()));
-        move || {
-            let options = LiveOptions {
-                duration: Some(Duration::from_secs(240)),
-                feed_out,
-                ..LiveOptions::default()
-            };
-            let handle = rt.handle().clone();
-            let run = run_links(&handle, vec![link], &options, session, None, stop).unwrap();
-            drop(rt);
-            run
-        }
-    });
-    let _px4 = start_px4(bin, 0, &dir.path().join("px4"), START_NORTH_M, 0.0);
-    let mut pilot = Pilot::connect();
+/// A PX4 flight under way: the quadrotor, savsim live on its GCS link (a thread), the pilot on
+/// its onboard link.
+struct Flight {
+    pilot: Pilot,
+    shutdown: Arc<AtomicBool>,
+    savsim: std::thread::JoinHandle<LiveRun>,
+    /// savsim's `--feed-out`: every frame the feed sent.
+    feed_out: PathBuf,
+    /// When savsim's run began (a scripted track's clock).
+    began: Instant,
+    _px4: Sitl,
+    _dir: tempfile::TempDir,
+}
 
-    // Positions and PX4's obstacle map at 10 Hz on this link, CP_DIST, a 30 m take-off; arm.
-    let cp_dist = if with_feed { 5.0 } else { -1.0 };
-    let mut asked = Instant::now() - Duration::from_secs(10);
-    let armed = pilot.until(Duration::from_secs(90), 0, |p, h| {
-        if h.armed {
-            return true;
+impl Flight {
+    /// savsim over `scene` with `feed` (if any), then PX4 with home `north_m` north of the
+    /// city's origin.
+    fn start(bin: &Path, scene: Scene, feed: Option<&str>, north_m: f64) -> Flight {
+        let dir = tempfile::tempdir().unwrap();
+        let rt = runtime();
+        let gcs: SocketAddr = "127.0.0.1:14550".parse().unwrap();
+        let link = rt
+            .block_on(Link::open(&ConnectAddress::UdpIn(gcs.into())))
+            .unwrap();
+        let feed_out = dir.path().join("feed.tlog");
+        let shutdown = Arc::new(AtomicBool::new(false));
+        let began = Instant::now();
+        let limit = Duration::from_secs(300);
+        let savsim = start_savsim(rt, link, scene, feed, limit, &feed_out, shutdown.clone());
+        let px4 = start_px4(bin, 0, &dir.path().join("px4"), north_m, 0.0);
+        Flight {
+            pilot: Pilot::connect(),
+            shutdown,
+            savsim,
+            feed_out,
+            began,
+            _px4: px4,
+            _dir: dir,
         }
-        if asked.elapsed() > Duration::from_secs(2) && h.position.is_some() {
-            asked = Instant::now();
-            for id in [33.0, 330.0] {
+    }
+
+    /// Positions and PX4's obstacle map at 10 Hz on the pilot's link, `params`, then armed and
+    /// taken off to 30 m (MIS_TAKEOFF_ALT; PX4 holds there).
+    fn take_off(&mut self, params: &[(&str, Param)]) {
+        let pilot = &mut self.pilot;
+        let mut asked = Instant::now() - Duration::from_secs(10);
+        let armed = pilot.until(Duration::from_secs(90), 0, |p, h| {
+            if h.armed {
+                return true;
+            }
+            if asked.elapsed() > Duration::from_secs(2) && h.position.is_some() {
+                asked = Instant::now();
+                for id in [33.0, 330.0] {
+                    p.command(
+                        MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                        [id, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                    );
+                }
+                for &(name, value) in params
+                    .iter()
+                    .chain(&[("MIS_TAKEOFF_ALT", Param::Real(30.0))])
+                {
+                    p.param(name, value);
+                }
                 p.command(
-                    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-                    [id, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+                    [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
                 );
             }
-            p.param("CP_DIST", cp_dist, MavParamType::MAV_PARAM_TYPE_REAL32);
-            p.param("MIS_TAKEOFF_ALT", 30.0, MavParamType::MAV_PARAM_TYPE_REAL32);
-            p.command(
-                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-                [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            );
-        }
-        false
-    });
-    assert!(armed, "PX4 never armed: {:?}", pilot.heard().texts);
-    let nan = f32::NAN;
-    let mut asked = Instant::now() - Duration::from_secs(10);
-    let up = pilot.until(Duration::from_secs(60), 0, |p, h| {
-        if asked.elapsed() > Duration::from_secs(3) && h.position.is_some_and(|q| q.2 < 5.0) {
-            asked = Instant::now();
-            p.command(
-                MavCmd::MAV_CMD_NAV_TAKEOFF,
-                [nan, 0.0, 0.0, nan, nan, nan, nan],
-            );
-        }
-        h.position.is_some_and(|q| q.2 > 29.0)
-    });
-    assert!(up, "never reached 30 m: {:?}", pilot.heard());
+            false
+        });
+        assert!(armed, "PX4 never armed: {:?}", pilot.heard().texts);
+        let nan = f32::NAN;
+        let mut asked = Instant::now() - Duration::from_secs(10);
+        let up = pilot.until(Duration::from_secs(60), 0, |p, h| {
+            if asked.elapsed() > Duration::from_secs(3) && h.position.is_some_and(|q| q.2 < 5.0) {
+                asked = Instant::now();
+                p.command(
+                    MavCmd::MAV_CMD_NAV_TAKEOFF,
+                    [nan, 0.0, 0.0, nan, nan, nan, nan],
+                );
+            }
+            h.position.is_some_and(|q| q.2 > 29.0)
+        });
+        assert!(up, "never reached 30 m: {:?}", pilot.heard());
+    }
+
+    /// Stop savsim and PX4: what the pilot heard, savsim's run, the OBSTACLE_DISTANCE frames
+    /// it sent.
+    fn finish(self) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
+        let heard = self.pilot.heard();
+        self.shutdown.store(true, Ordering::Relaxed);
+        let mut run = self.savsim.join().unwrap();
+        run.session.finish().unwrap();
+        let sent = std::fs::read(&self.feed_out).map_or(Vec::new(), |b| sent_feed(&b).1);
+        (heard, run, sent)
+    }
+}
+
+/// Fly at the face with or without the feed: (PX4 heard, savsim's run, the feed it sent).
+fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
+    let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
+    let feed = with_feed.then_some("obstacle-distance");
+    let mut flight = Flight::start(bin, city, feed, START_NORTH_M);
+    // Collision prevention on with the feed; off without (on, with no data, PX4 will not move).
+    let cp_dist = if with_feed { 5.0 } else { -1.0 };
+    flight.take_off(&[("CP_DIST", Param::Real(cp_dist))]);
+    let pilot = &mut flight.pilot;
     // Hold there, nose west (DO_REPOSITION's yaw, radians from north).
     let (lat_e7, lon_e7) = (
         ((-35.363261 + START_NORTH_M / 111_320.0) * 1e7) as i32,
@@ -338,16 +389,7 @@ fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
     pilot.until(Duration::from_secs(35), 700, |_, h| {
         h.time_boot_ms.wrapping_sub(from_ms) > 25_000
     });
-    let heard = pilot.heard();
-    shutdown.store(true, Ordering::Relaxed);
-    let mut run = savsim.join().unwrap();
-    run.session.finish().unwrap();
-    let sent = if with_feed {
-        sent_feed(&std::fs::read(&feed_out).unwrap()).1
-    } else {
-        Vec::new()
-    };
-    (heard, run, sent)
+    flight.finish()
 }
 
 /// PX4's fused map is savsim's bins where both are in range: each map frame, turned by the
@@ -390,6 +432,7 @@ fn map_against_sent(heard: &Heard, sent: &[ObstacleFrame]) -> (usize, Vec<String
 fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_without() {
     let Some(bin) = px4() else { return };
     let test = "sitl_px4_feed::px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_without";
+    let _serial = px4_serial();
     if !inside_own_network_namespace(test) {
         return;
     }
@@ -437,5 +480,72 @@ fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_witho
     assert!(
         totals.collisions >= 1,
         "without the feed: ended at {end:?} and no collision"
+    );
+}
+
+/// PX4's traffic avoidance on savsim's ADS-B: the quadrotor holds at 30 m over the city's
+/// origin with NAV_TRAFF_AVOID 3 (land); an A320 track waits 2.4 km east at the same height
+/// until +100 s of savsim's run, then flies west through the origin at 40 m/s. With
+/// `--feed adsb`, PX4 must take the airliner for a conflict (its defaults: 500 m across, 500 m
+/// up or down, 60 s ahead) and land; savsim's closest approach tells what that bought. PX4
+/// re-streams the traffic it receives: savsim must not read it back (`adsb_echoes`).
+#[test]
+fn px4_lands_when_a_scripted_airliner_sent_as_adsb_closes() {
+    let Some(bin) = px4() else { return };
+    let test = "sitl_px4_feed::px4_lands_when_a_scripted_airliner_sent_as_adsb_closes";
+    let _serial = px4_serial();
+    if !inside_own_network_namespace(test) {
+        return;
+    }
+    let scene = crate::common::scene_at(
+        savsim::geo::Geodetic::new(-35.363261, 149.165230, 584.0),
+        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
+         { t_s = 0.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
+         { t_s = 100.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
+         { t_s = 220.0, position_enu_m = [-2400.0, 0.0, 30.0] }]\n",
+    );
+    let mut flight = Flight::start(&bin, scene, Some("adsb"), 0.0);
+    flight.take_off(&[("NAV_TRAFF_AVOID", Param::Int(3))]);
+    flight.pilot.recording.store(true, Ordering::Relaxed);
+    let started = Instant::now();
+    // Until PX4 lands for the airliner, then until the airliner has passed (+190 s of
+    // savsim's run, 30 s after it crossed the origin).
+    let landing = flight.pilot.until(Duration::from_secs(150), 0, |_, h| {
+        (h.custom_mode >> 16) & 0xff == AUTO && h.custom_mode >> 24 == AUTO_LAND
+    });
+    let landed_after = started.elapsed();
+    if landing {
+        let began = flight.began;
+        flight.pilot.until(Duration::from_secs(120), 0, |_, _| {
+            began.elapsed() > Duration::from_secs(190)
+        });
+    }
+    let (heard, run, _) = flight.finish();
+    let summary = run.session.summary("live", "sitl-px4");
+    let modes: Vec<String> = heard
+        .modes
+        .iter()
+        .map(|m| format!("{}.{}", (m >> 16) & 0xff, m >> 24))
+        .collect();
+    eprintln!(
+        "modes (main.sub) {modes:?}; LAND {:.1} s after the hover began; ended at {:?}; approaches {}; feed adsb_echoes {}; traffic {:?}",
+        landed_after.as_secs_f64(),
+        heard.position,
+        summary["approaches"],
+        summary["feed"]["adsb_echoes"],
+        run.session.world.traffic.keys().collect::<Vec<_>>()
+    );
+    assert!(
+        landing,
+        "PX4 did not land for the airliner: modes {modes:?}"
+    );
+    assert!(
+        run.session.world.traffic.is_empty(),
+        "the airliner PX4 re-streamed became traffic"
+    );
+    let vertical = summary["approaches"][0]["vertical_m"].as_f64().unwrap();
+    assert!(
+        vertical.abs() >= 15.0,
+        "the airliner passed {vertical:.1} m above or below the copter"
     );
 }
