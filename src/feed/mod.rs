@@ -509,8 +509,8 @@ fn body_velocity(d: &DynamicBody) -> DVec3 {
 }
 
 /// The ICAO addresses the feed gives the aircraft it sends: `0xF0xxxx` the scene's track
-/// `xxxx`, `0xF1SSCC` MAVLink vehicle SS/CC: the top of the address space, which ICAO has not
-/// allocated to any state.
+/// `xxxx`, `0xF1SSCC` MAVLink vehicle SS/CC. While `--feed adsb` is on, a real transponder
+/// with such an address would be taken for an echo (docs/closed-loop.md, limits).
 const TRACK_ICAO: u32 = 0xF0_0000;
 const VEHICLE_ICAO: u32 = 0xF1_0000;
 

@@ -13,6 +13,10 @@
 //! face, savsim report no collision, and PX4's own OBSTACLE_DISTANCE (its fused map, streamed
 //! on the onboard link) be savsim's bins; without the feed (CP_DIST off: with it on and no
 //! data PX4 refuses to move), savsim reports the collision.
+//!
+//! Traffic: with `--feed adsb` and NAV_TRAFF_AVOID 3, PX4 lands for a scripted airliner on a
+//! collision course, and the ADS-B it relays back is not read as traffic. The PX4 tests take
+//! turns (`sitl_px4::px4_serial`).
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -54,7 +58,7 @@ struct Heard {
     position: Option<(f64, f64, f64)>,
     time_boot_ms: u32,
     heading_cdeg: u16,
-    /// Every position while the stick was forward.
+    /// Every position once the test starts recording (the stick forward; the traffic hover).
     track: Vec<(f64, f64, f64)>,
     /// PX4's OBSTACLE_DISTANCE (its fused map): its clock (ms), distances, angle_offset.
     obstacle: Vec<(u32, [u16; 72], f32)>,
