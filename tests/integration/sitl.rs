@@ -85,21 +85,28 @@ pub(crate) fn inside_own_network_namespace(test: &str) -> bool {
     false
 }
 
-/// MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN for vehicle 1/1: `param1` 1 reboots, 2 shuts down.
-pub(crate) fn reboot_shutdown(param1: f32) -> MavMessage {
+/// COMMAND_LONG `command` with params `p` for vehicle 1/1.
+pub(crate) fn command_long(command: MavCmd, p: [f32; 7]) -> MavMessage {
     MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1,
-        param2: 0.0,
-        param3: 0.0,
-        param4: 0.0,
-        param5: 0.0,
-        param6: 0.0,
-        param7: 0.0,
-        command: MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
+        param1: p[0],
+        param2: p[1],
+        param3: p[2],
+        param4: p[3],
+        param5: p[4],
+        param6: p[5],
+        param7: p[6],
+        command,
         target_system: 1,
         target_component: 1,
         confirmation: 0,
     })
+}
+
+/// MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN for vehicle 1/1: `param1` 1 reboots, 2 shuts down.
+pub(crate) fn reboot_shutdown(param1: f32) -> MavMessage {
+    let mut p = [0.0; 7];
+    p[0] = param1;
+    command_long(MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, p)
 }
 
 /// Print what a SITL run saw (link, vehicles, ingest) and check that vehicles 1 and 2 both

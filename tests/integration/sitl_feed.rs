@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{
     MavCmd, MavFrame, MavMessage, MavModeFlag, MavSysStatusSensor, PositionTargetTypemask,
-    COMMAND_LONG_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
+    SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use savsim::app::live::{run_links, LiveOptions, LiveRun};
 use savsim::collision::pipeline::CollisionConfig;
@@ -161,19 +161,7 @@ impl Gcs {
     }
 
     fn command(&mut self, command: MavCmd, p: [f32; 7]) {
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        }));
+        self.send(&crate::sitl::command_long(command, p));
     }
 
     fn heard(&self) -> Heard {

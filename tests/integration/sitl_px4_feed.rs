@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavType,
-    COMMAND_INT_DATA, COMMAND_LONG_DATA, MANUAL_CONTROL_DATA, PARAM_SET_DATA,
+    COMMAND_INT_DATA, MANUAL_CONTROL_DATA, PARAM_SET_DATA,
 };
 use savsim::app::live::LiveRun;
 use savsim::ingest::address::ConnectAddress;
@@ -167,19 +167,7 @@ impl Pilot {
     }
 
     fn command(&mut self, command: MavCmd, p: [f32; 7]) {
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        }));
+        self.send(&crate::sitl::command_long(command, p));
     }
 
     fn param(&mut self, name: &str, value: Param) {
