@@ -271,7 +271,7 @@ impl Feed {
 
     /// True (and counted) for an ADS-B report of an aircraft this feed sends as ADS-B: the
     /// vehicle or its router handing savsim's own traffic back, under the vehicle's identity
-    /// (ArduPilot with ADSB_TYPE > 0 and PX4 both re-stream the traffic they receive). Applied,
+    /// (PX4 relays every ADS-B report it receives; ArduPilot with ADSB_TYPE > 0 can). Applied,
     /// it would become a second body at the aircraft's place.
     pub fn is_echo(&mut self, report: &Report) -> bool {
         let echo = matches!(report, Report::Adsb(a)

@@ -34,8 +34,9 @@ use crate::sitl::{arducopter, inside_own_network_namespace, Sitl};
 
 /// b1852's east face, scene E metres.
 const FACE_EAST_M: f64 = -57.0;
-const ORIGIN_LAT_DEG: f64 = -35.363261;
-const ORIGIN_LON_DEG: f64 = 149.165230;
+/// The city's origin (CMAC), where every SITL test's home is.
+pub(crate) const ORIGIN_LAT_DEG: f64 = -35.363261;
+pub(crate) const ORIGIN_LON_DEG: f64 = 149.165230;
 
 /// The copter at one GLOBAL_POSITION_INT: its clock (ms), east, north, up (m), its mode, the
 /// threat level of its last COLLISION report.
@@ -475,6 +476,18 @@ fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
 /// action, which in the ArduPilot tried steers towards the threat's altitude
 /// (docs/closed-loop.md): separation is then printed, not asserted. Speedup 1 only: a scripted
 /// track runs on the receive clock, which a vehicle clock at a speedup is held to.
+/// Open air at the city's origin; an A320 track waits 2.4 km east at 30 m until +100 s of
+/// savsim's run, then flies west through the origin at 40 m/s (overhead at +160 s).
+pub(crate) fn airliner_through_the_origin() -> Scene {
+    crate::common::scene_at(
+        savsim::geo::Geodetic::new(ORIGIN_LAT_DEG, ORIGIN_LON_DEG, 584.0),
+        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
+         { t_s = 0.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
+         { t_s = 100.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
+         { t_s = 220.0, position_enu_m = [-2400.0, 0.0, 30.0] }]\n",
+    )
+}
+
 #[test]
 fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
     let Some(bin) = arducopter() else { return };
@@ -483,15 +496,7 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
     ) {
         return;
     }
-    // Open air at the city's origin; the airliner waits 2.4 km east at 30 m until +100 s of
-    // the flight, then flies west through the origin (at +160 s).
-    let scene = crate::common::scene_at(
-        savsim::geo::Geodetic::new(ORIGIN_LAT_DEG, ORIGIN_LON_DEG, 584.0),
-        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
-         { t_s = 0.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
-         { t_s = 100.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
-         { t_s = 220.0, position_enu_m = [-2400.0, 0.0, 30.0] }]\n",
-    );
+    let scene = airliner_through_the_origin();
     let action: u8 = std::env::var("SAVSIM_AVD_F_ACTION")
         .ok()
         .and_then(|s| s.parse().ok())

@@ -25,8 +25,9 @@ use savsim::session::Session;
 
 use crate::common::{frame_v2, heartbeat};
 use crate::sitl::{inside_own_network_namespace, reboot_shutdown, two_vehicles_to_the_end, Sitl};
+use crate::sitl_feed::{ORIGIN_LAT_DEG, ORIGIN_LON_DEG};
 
-pub(crate) fn px4() -> Option<PathBuf> {
+fn px4() -> Option<PathBuf> {
     let path = std::env::var_os("SAVSIM_PX4").map(PathBuf::from);
     if path.is_none() {
         eprintln!("skipped: set SAVSIM_PX4 to PX4's build/px4_sitl_default/bin/px4 (docs/live.md)");
@@ -34,23 +35,38 @@ pub(crate) fn px4() -> Option<PathBuf> {
     path
 }
 
-/// Held while a test runs PX4, taken before it runs itself again in its namespace: PX4 SITL's
-/// instance N keeps a lock and a server socket in /tmp (`px4_lock-N`, `px4-sock-N`), which a
-/// network namespace does not separate, so two tests running PX4 at once (the test harness's
-/// threads) would share instance 0.
-pub(crate) fn px4_serial() -> std::sync::MutexGuard<'static, ()> {
+/// `test`'s PX4 binary, once it runs inside a network namespace of its own and no other PX4
+/// test runs: None when `SAVSIM_PX4` is not set (skipped) or when this is the process that
+/// ran `test` again in its namespace (the caller returns at once). The guard is held for the
+/// test: PX4 SITL's instance N keeps a lock and a server socket in /tmp (`px4_lock-N`,
+/// `px4-sock-N`), which a network namespace does not separate, so the test harness's threads
+/// would otherwise start their namespaces' PX4s as one instance 0. It is taken before the
+/// namespace, where the tests still share one process.
+pub(crate) fn px4_inside_own_namespace(
+    test: &str,
+) -> Option<(PathBuf, std::sync::MutexGuard<'static, ()>)> {
     static PX4: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    PX4.lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    let bin = px4()?;
+    let serial = PX4
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    inside_own_network_namespace(test).then_some((bin, serial))
+}
+
+/// `north_m` north and `east_m` east of the city's origin, in degrees (spherical metres: PX4's
+/// home need not be exact).
+pub(crate) fn near_origin_deg(north_m: f64, east_m: f64) -> (f64, f64) {
+    (
+        ORIGIN_LAT_DEG + north_m / 111_320.0,
+        ORIGIN_LON_DEG + east_m / (111_320.0 * ORIGIN_LAT_DEG.to_radians().cos()),
+    )
 }
 
 /// Start SIH quadrotor `instance` in `dir` (its own working directory), home `north_m`
-/// north and `east_m` east of the city's origin (spherical metres: PX4's home need not be
-/// exact).
+/// north and `east_m` east of the city's origin.
 pub(crate) fn start_px4(bin: &Path, instance: u8, dir: &Path, north_m: f64, east_m: f64) -> Sitl {
     let etc = bin.parent().and_then(Path::parent).unwrap().join("etc");
-    let lat_deg = -35.363261 + north_m / 111_320.0;
-    let lon_deg = 149.165230 + east_m / (111_320.0 * (-35.363261f64).to_radians().cos());
+    let (lat_deg, lon_deg) = near_origin_deg(north_m, east_m);
     std::fs::create_dir_all(dir).unwrap();
     let log = std::fs::OpenOptions::new()
         .create(true)
@@ -82,12 +98,10 @@ fn send(socket: &UdpSocket, to: SocketAddr, sequence: &mut u8, message: &MavMess
 
 #[test]
 fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
-    let Some(bin) = px4() else { return };
     let test = "sitl_px4::two_px4_sih_on_one_udp_link_one_restarted_with_a_companion";
-    let _serial = px4_serial();
-    if !inside_own_network_namespace(test) {
+    let Some((bin, _serial)) = px4_inside_own_namespace(test) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let runtime = crate::common::runtime();
     let gcs: SocketAddr = "127.0.0.1:14550".parse().unwrap();

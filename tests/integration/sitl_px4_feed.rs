@@ -16,7 +16,7 @@
 //!
 //! Traffic: with `--feed adsb` and NAV_TRAFF_AVOID 3, PX4 lands for a scripted airliner on a
 //! collision course, and the ADS-B it relays back is not read as traffic. The PX4 tests take
-//! turns (`sitl_px4::px4_serial`).
+//! turns (`sitl_px4::px4_inside_own_namespace`).
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -34,9 +34,11 @@ use savsim::ingest::live::Link;
 use savsim::scene::Scene;
 
 use crate::common::{frame_v2, heartbeat, root, runtime};
-use crate::sitl::{inside_own_network_namespace, Sitl};
-use crate::sitl_feed::{east_north, sent_feed, start_savsim, ObstacleFrame};
-use crate::sitl_px4::{px4, px4_serial, start_px4};
+use crate::sitl::Sitl;
+use crate::sitl_feed::{
+    airliner_through_the_origin, east_north, sent_feed, start_savsim, ObstacleFrame,
+};
+use crate::sitl_px4::{near_origin_deg, px4_inside_own_namespace, start_px4};
 
 /// b1852's east face, scene E metres; where the flight starts, scene N metres.
 const FACE_EAST_M: f64 = -57.0;
@@ -332,9 +334,10 @@ fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
     flight.take_off(&[("CP_DIST", Param::Real(cp_dist))]);
     let pilot = &mut flight.pilot;
     // Hold there, nose west (DO_REPOSITION's yaw, radians from north).
+    let (lat_deg, lon_deg) = near_origin_deg(START_NORTH_M, 0.0);
     let (lat_e7, lon_e7) = (
-        ((-35.363261 + START_NORTH_M / 111_320.0) * 1e7) as i32,
-        1_491_652_300,
+        (lat_deg * 1e7).round() as i32,
+        (lon_deg * 1e7).round() as i32,
     );
     let mut asked = Instant::now() - Duration::from_secs(10);
     let west = pilot.until(Duration::from_secs(40), 0, |p, h| {
@@ -422,12 +425,10 @@ fn map_against_sent(heard: &Heard, sent: &[ObstacleFrame]) -> (usize, Vec<String
 
 #[test]
 fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_without() {
-    let Some(bin) = px4() else { return };
     let test = "sitl_px4_feed::px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_without";
-    let _serial = px4_serial();
-    if !inside_own_network_namespace(test) {
+    let Some((bin, _serial)) = px4_inside_own_namespace(test) else {
         return;
-    }
+    };
     let (heard, run, sent) = fly(&bin, true);
     let closest_east = heard.track.iter().map(|p| p.0).fold(f64::MAX, f64::min);
     let end = heard.position.unwrap();
@@ -483,20 +484,11 @@ fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_witho
 /// re-streams the traffic it receives: savsim must not read it back (`adsb_echoes`).
 #[test]
 fn px4_lands_when_a_scripted_airliner_sent_as_adsb_closes() {
-    let Some(bin) = px4() else { return };
     let test = "sitl_px4_feed::px4_lands_when_a_scripted_airliner_sent_as_adsb_closes";
-    let _serial = px4_serial();
-    if !inside_own_network_namespace(test) {
+    let Some((bin, _serial)) = px4_inside_own_namespace(test) else {
         return;
-    }
-    let scene = crate::common::scene_at(
-        savsim::geo::Geodetic::new(-35.363261, 149.165230, 584.0),
-        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
-         { t_s = 0.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
-         { t_s = 100.0, position_enu_m = [2400.0, 0.0, 30.0] }, \
-         { t_s = 220.0, position_enu_m = [-2400.0, 0.0, 30.0] }]\n",
-    );
-    let mut flight = Flight::start(&bin, scene, Some("adsb"), 0.0);
+    };
+    let mut flight = Flight::start(&bin, airliner_through_the_origin(), Some("adsb"), 0.0);
     flight.take_off(&[("NAV_TRAFF_AVOID", Param::Int(3))]);
     flight.pilot.recording.store(true, Ordering::Relaxed);
     let started = Instant::now();
