@@ -10,6 +10,9 @@
 //!
 //! `cargo bench --bench core`; figures in docs/accuracy-vs-speed.md.
 
+// criterion_group! makes an undocumented function.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::DVec3;
 use parry3d::bounding_volume::Aabb;

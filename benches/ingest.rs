@@ -1,6 +1,9 @@
 //! Criterion: tlog decode throughput (bytes/s) on the bundled flight, and the framer alone.
 //! The comparison with pymavlink is `cargo run --release --example ingest_vs_pymavlink`.
 
+// criterion_group! makes an undocumented function.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use savsim::ingest::frame::{scan, Scan};
 use savsim::ingest::tlog::TlogReader;

@@ -5,15 +5,15 @@
 //! did hit, choosing per obstacle between a cheap box and an exact mesh collider (Li et al.
 //! 2019, see docs/ARCHITECTURE.md).
 
+pub use savsim_core::{collision, geo, world};
+
 pub mod app;
 pub mod batch;
 pub mod bench;
 pub mod bundled;
 pub mod cli;
-pub mod collision;
 pub mod error;
 pub mod feed;
-pub mod geo;
 pub mod ingest;
 pub mod replay;
 pub mod scene;
@@ -21,4 +21,3 @@ pub mod session;
 pub mod signals;
 #[cfg(feature = "viz")]
 pub mod viz;
-pub mod world;

@@ -16,7 +16,7 @@ fn scene_and_pipeline() -> &'static (Arc<Scene>, Pipeline) {
     static BUILT: OnceLock<(Arc<Scene>, Pipeline)> = OnceLock::new();
     BUILT.get_or_init(|| {
         let text = include_str!("../scene.toml");
-        let scene = savsim::scene::format::parse(text, "fuzz/scene.toml".as_ref(), "fuzz").unwrap();
+        let scene = savsim::scene::parse(text, "fuzz/scene.toml".as_ref(), "fuzz").unwrap();
         let mut pipeline = Pipeline::new(&scene, CollisionConfig::default());
         pipeline.build_every_mesh(&scene);
         (Arc::new(scene), pipeline)

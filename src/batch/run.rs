@@ -83,7 +83,7 @@ pub fn open_air() -> Scene {
         "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n",
         o.lat_deg, o.lon_deg, o.alt_m
     );
-    scene::format::parse(&text, Path::new("open-air.toml"), "open-air")
+    scene::parse(&text, Path::new("open-air.toml"), "open-air")
         .expect("the open-air scene is valid")
 }
 

@@ -66,7 +66,7 @@ pub struct FleetRow {
 /// 80 m tall (seeded by position),
 /// with the default vehicle and traffic models of a parsed empty scene.
 pub fn grid_scene(n: usize, seed: u64) -> Scene {
-    let mut scene = crate::scene::format::parse(
+    let mut scene = crate::scene::parse(
         "[origin]\nlat_deg = -35.363261\nlon_deg = 149.16523\nalt_m = 584.0\n",
         std::path::Path::new("<scale>"),
         &format!("grid-{n}"),

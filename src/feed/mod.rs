@@ -29,6 +29,7 @@ use crate::collision::pipeline::{
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::SenderId;
 use crate::scene::{DynamicSource, Scene};
+use crate::world::clock::{self, ClockStep};
 use crate::world::report::Report;
 use crate::world::TrackSample;
 use sectors::{Levelled, BINS, SECTORS};
@@ -298,7 +299,7 @@ impl Feed {
         let period_ms = 1000.0 / self.config.hz;
         let v = self.vehicles.entry(sender).or_default();
         if v.last_stamp_ms
-            .is_some_and(|last| time_boot_ms.saturating_add(1000) < last)
+            .is_some_and(|last| clock::step(last, time_boot_ms) == ClockStep::Restart)
         {
             // The clock went back: a reboot. Start pacing again.
             v.next_due_ms = None;

@@ -134,12 +134,22 @@ fn attitude_from(m: &ATTITUDE_DATA) -> Result<AttitudeReport, Rejection> {
 /// A HEARTBEAT payload, decoded field by field so that a vehicle type newer than the dialect
 /// still identifies a vehicle (the crate's `deser` rejects unknown enum values).
 pub fn heartbeat_from(payload: &[u8]) -> HeartbeatReport {
-    use num_traits::FromPrimitive;
     let byte = |i: usize| payload.get(i).copied().unwrap_or(0);
     HeartbeatReport {
-        vehicle_type: MavType::from_u8(byte(4)),
-        autopilot: MavAutopilot::from_u8(byte(5)),
+        mav_type: byte(4),
+        autopilot: byte(5),
     }
+}
+
+/// A HEARTBEAT's MAV_TYPE and MAV_AUTOPILOT by their dialect names (`MAV_TYPE_QUADROTOR`), or
+/// as numbers where the dialect has none.
+pub fn heartbeat_names(h: &HeartbeatReport) -> (String, String) {
+    use num_traits::FromPrimitive;
+    (
+        MavType::from_u8(h.mav_type).map_or_else(|| h.mav_type.to_string(), |v| format!("{v:?}")),
+        MavAutopilot::from_u8(h.autopilot)
+            .map_or_else(|| h.autopilot.to_string(), |v| format!("{v:?}")),
+    )
 }
 
 fn adsb_from(m: &ADSB_VEHICLE_DATA) -> Result<AdsbReport, Rejection> {

@@ -31,9 +31,13 @@ use mavlink::dialects::ardupilotmega::{MavDataStream, REQUEST_DATA_STREAM_DATA};
 use mavlink::MessageData;
 use serde::Serialize;
 
-use crate::ingest::decode::{heartbeat_from, ID_ATTITUDE, ID_GLOBAL_POSITION_INT, ID_HEARTBEAT};
+use crate::ingest::decode::{
+    heartbeat_from, heartbeat_names, ID_ATTITUDE, ID_GLOBAL_POSITION_INT, ID_HEARTBEAT,
+};
 use crate::ingest::frame::{message_info, FrameStatus, RawFrame};
 use crate::ingest::stats::SenderId;
+use crate::world::clock::{self, ClockStep};
+use crate::world::report::HeartbeatReport;
 
 /// Index of a link among those a run opened (the order of `--connect`).
 pub type LinkId = u16;
@@ -139,8 +143,7 @@ impl Stream {
 #[derive(Debug, Clone)]
 struct Autopilot {
     endpoint: Endpoint,
-    autopilot: Option<MavAutopilot>,
-    vehicle_type: Option<MavType>,
+    heartbeat: HeartbeatReport,
     last_heartbeat_t_s: f64,
     last_time_boot_ms: Option<u32>,
     streams: Vec<Stream>,
@@ -284,13 +287,13 @@ impl Supervisor {
         match frame.message_id {
             ID_GLOBAL_POSITION_INT | ID_ATTITUDE => {
                 let time_boot_ms = u32::from_le_bytes(field(frame.payload, 0));
-                let went_back = autopilot.last_time_boot_ms.is_some_and(|last| {
-                    last > time_boot_ms
-                        && last - time_boot_ms > 1_000
-                        && !(last > u32::MAX - 60_000 && time_boot_ms < 60_000)
-                });
-                autopilot.last_time_boot_ms = Some(time_boot_ms);
-                if went_back {
+                let step = autopilot
+                    .last_time_boot_ms
+                    .map(|last| clock::step(last, time_boot_ms));
+                if step != Some(ClockStep::Reordered) {
+                    autopilot.last_time_boot_ms = Some(time_boot_ms);
+                }
+                if step == Some(ClockStep::Restart) {
                     autopilot.reboots += 1;
                     self.counts.reboots += 1;
                     autopilot.ask_again(t_s);
@@ -329,15 +332,11 @@ impl Supervisor {
         let messages = &self.config.messages;
         let return_after_s = self.config.return_after_s;
         let autopilot = self.autopilots.entry(sender).or_insert_with(|| {
-            tracing::info!(
-                "vehicle {sender} ({:?}, {:?}) heard on {from}",
-                report.autopilot,
-                report.vehicle_type
-            );
+            let (mav_type, autopilot) = heartbeat_names(&report);
+            tracing::info!("vehicle {sender} ({autopilot}, {mav_type}) heard on {from}");
             Autopilot {
                 endpoint: from,
-                autopilot: report.autopilot,
-                vehicle_type: report.vehicle_type,
+                heartbeat: report,
                 last_heartbeat_t_s: t_s,
                 last_time_boot_ms: None,
                 streams: messages
@@ -366,8 +365,7 @@ impl Supervisor {
             );
         }
         autopilot.endpoint = from;
-        autopilot.autopilot = report.autopilot;
-        autopilot.vehicle_type = report.vehicle_type;
+        autopilot.heartbeat = report;
         autopilot.last_heartbeat_t_s = autopilot.last_heartbeat_t_s.max(t_s);
     }
 
@@ -428,7 +426,7 @@ impl Supervisor {
             if t_s - autopilot.last_heartbeat_t_s > config.alive_s {
                 continue;
             }
-            let ardupilot = autopilot.autopilot == Some(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA);
+            let ardupilot = autopilot.heartbeat.autopilot == HeartbeatReport::AUTOPILOT_ARDUPILOT;
             // An unanswered ArduPilot stream waits for the fallback before it can be stale.
             let fallback_pending = ardupilot && !autopilot.fallback_sent;
             for stream in &mut autopilot.streams {
@@ -502,10 +500,8 @@ impl Supervisor {
             .map(|(id, a)| VehicleLink {
                 vehicle: id.to_string(),
                 endpoint: a.endpoint.to_string(),
-                autopilot: a.autopilot.map_or("unknown".into(), |v| format!("{v:?}")),
-                vehicle_type: a
-                    .vehicle_type
-                    .map_or("unknown".into(), |v| format!("{v:?}")),
+                autopilot: heartbeat_names(&a.heartbeat).1,
+                vehicle_type: heartbeat_names(&a.heartbeat).0,
                 streams: a
                     .streams
                     .iter()

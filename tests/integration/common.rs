@@ -11,7 +11,7 @@ use mavlink::dialects::ardupilotmega::{
 use mavlink::{MavHeader, MavlinkVersion};
 use savsim::geo::{Geodetic, LocalTangentPlane};
 use savsim::ingest::frame::{scan, Scan};
-use savsim::scene::{format::parse, Scene};
+use savsim::scene::{parse, Scene};
 use savsim::session::Session;
 use savsim::world::{Attitude, TrackSample};
 

@@ -280,7 +280,10 @@ fn live_udp_mirrors_the_vehicle_and_requests_rates() {
     assert!((latest.position.lat_deg - want.lat_deg).abs() < 1e-12);
     assert!((latest.position.lon_deg - want.lon_deg).abs() < 1e-12);
     assert!((latest.position.alt_m - want.alt_m).abs() < 1e-9);
-    assert_eq!(track.vehicle_type, Some(MavType::MAV_TYPE_QUADROTOR));
+    assert_eq!(
+        track.heartbeat.map(|h| h.mav_type),
+        Some(MavType::MAV_TYPE_QUADROTOR as u8)
+    );
     // savsim spoke to the vehicle: heartbeats and both interval requests at 20 Hz.
     assert!(heard.gcs_heartbeats >= 2, "{heard:?}");
     assert_eq!(

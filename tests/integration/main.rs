@@ -31,6 +31,9 @@
 //! - `issue_11_layers`: identities across ticks, the vehicle's clock, `--near-miss-m 0`,
 //!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
 //!   the reference.
+//! - `issue_23_trust`: what outside checks found (rays against height fields, the feed's
+//!   rangefinder over terrain, clocks, reboots, bounded inputs, the feed's geometry, ingest),
+//!   each failing before its fix.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
@@ -51,6 +54,7 @@ mod feed;
 mod geo;
 mod ingest;
 mod issue_11_layers;
+mod issue_23_trust;
 mod live;
 mod properties;
 mod scenes;

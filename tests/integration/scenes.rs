@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use savsim::scene::{format::parse, Kind};
+use savsim::scene::{parse, Kind};
 
 const MINIMAL: &str = r#"
 [origin]

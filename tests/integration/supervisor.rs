@@ -252,7 +252,14 @@ fn a_reboot_is_reported_and_everything_is_asked_again() {
         1,
         &ack(MavResult::MAV_RESULT_ACCEPTED),
     );
-    assert!(!observe(&mut s, from, 0.4, 1, 1, &position(600_000)));
+    assert!(!observe(
+        &mut s,
+        from,
+        0.4,
+        1,
+        1,
+        &position(u32::MAX - 1_000)
+    ));
     // A wrap of the 32-bit clock is not a reboot; a step back is.
     assert!(!observe(&mut s, from, 0.5, 1, 1, &position(u32::MAX - 10)));
     assert!(!observe(&mut s, from, 0.6, 1, 1, &position(20)));

@@ -99,7 +99,7 @@ fn mount_washington_from_srtm() {
     };
     let tile = fixtures.join("terrain/srtm3_N44W072.hgt");
     let dir = tempfile::tempdir().unwrap();
-    let e = Elevation::load(&tile).unwrap();
+    let e = Elevation::read(&tile, &savsim::scene::Disk).unwrap();
     let summit = e.height_amsl_m(44.2706, -71.3033).unwrap();
     assert!((1850.0..1920.0).contains(&summit), "summit {summit} m");
     let scene = scene_file(
@@ -176,7 +176,7 @@ fn geotiff_dems_are_georeferenced_and_their_holes_filled() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("dem.tif");
     write_geotiff(&path, 75 * 200 + 100);
-    let e = Elevation::load(&path).unwrap();
+    let e = Elevation::read(&path, &savsim::scene::Disk).unwrap();
     assert_eq!(e.voids_filled(), 1);
     // Pixel (100, 75)'s centre: lon 20 + 100.5 * 0.001, lat 10.15 - 75.5 * 0.001; the hole is
     // filled from its neighbours (399 and 401 to the west and east, 400 above and below).

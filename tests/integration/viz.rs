@@ -172,13 +172,13 @@ fn a_far_scene_is_logged_near_zero() {
     let text = "[origin]\nlat_deg = 47.0\nlon_deg = 8.0\nalt_m = 400.0\n\
         [[obstacle]]\nid = \"far\"\nkind = \"building\"\nshape = { box = [10.0, 10.0, 10.0] }\n\
         position_enu_m = [1000400.0, -250300.0, 0.0]\n";
-    let scene = savsim::scene::format::parse(text, Path::new("far.toml"), "far").unwrap();
+    let scene = savsim::scene::parse(text, Path::new("far.toml"), "far").unwrap();
     let offset = savsim::viz::viz_offset(&scene);
     assert_eq!(offset.to_array(), [1_000_000.0, -250_000.0, 0.0]);
     // What is logged is within a kilometre of zero, where f32 keeps better than 0.1 mm.
     let logged = scene.obstacles[0].aabb_enu_m.centre() - offset;
     assert!(logged.length() < 1000.0);
-    let near = savsim::scene::format::parse(
+    let near = savsim::scene::parse(
         &text.replace("1000400.0, -250300.0", "400.0, -300.0"),
         Path::new("n.toml"),
         "n",

@@ -1,0 +1,422 @@
+//! Who is who across ticks, and where: stable identities of vehicles and moving obstacles, body
+//! poses, and the colliders placed for a query.
+//!
+//! Identities outlive a tick (rapier's generational handles): a moving obstacle is named by
+//! where it comes from (a scene track, a MAVLink (sysid, compid), an ICAO address) and by a
+//! generation that changes when its track restarts (reboot, expiry and return). A per-tick
+//! position in a `Vec` is never an identity. Imports no I/O, no tokio, no mavlink.
+
+use std::sync::Arc;
+
+use glam::{DQuat, DVec3, Vec3};
+use parry3d::shape::{Cuboid, Shape, SharedShape, TriMesh};
+
+use crate::collision::contact::Placed;
+use crate::collision::moving::MovingBodies;
+use crate::scene::geometry::Geometry;
+use crate::scene::{Aabb64, Kind, Scene};
+use crate::world::TrackSample;
+
+/// Where a moving body comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum BodySource {
+    /// A moving obstacle declared in the scene (index into `Scene::dynamic`), or a bench track.
+    Scripted(u32),
+    /// A vehicle: its MAVLink (sysid, compid), or a fleet number in the bench (as
+    /// [`VehicleKey`] numbers it).
+    Vehicle {
+        /// MAVLink system id (or fleet number).
+        vehicle: u16,
+        /// MAVLink component id.
+        component_id: u8,
+    },
+    /// ADS-B traffic by ICAO address.
+    Traffic(u32),
+}
+
+/// A moving body's identity: its source and the generation of its track. A key whose track
+/// restarted (a reboot, an expiry and return) is a different key, so state kept for the old
+/// one is detectably stale, never silently another body's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct BodyKey {
+    /// Where it comes from.
+    pub source: BodySource,
+    /// The track's generation (0 for tracks that never restart).
+    pub generation: u32,
+}
+
+/// The vehicle a tick is for: the MAVLink (sysid, compid) it is keyed by in the world store, and
+/// its track's generation. Collision state is kept per (vehicle, component) and reset when the
+/// generation changes (a reboot, or the track expired and came back).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct VehicleKey {
+    /// The vehicle's number: its MAVLink system id in a session, a fleet index in the bench.
+    pub vehicle: u16,
+    /// MAVLink component id (1 when not from MAVLink).
+    pub component_id: u8,
+    /// The track's generation.
+    pub generation: u32,
+}
+
+impl VehicleKey {
+    /// This vehicle as a moving body of other vehicles' ticks.
+    pub const fn source(&self) -> BodySource {
+        BodySource::Vehicle {
+            vehicle: self.vehicle,
+            component_id: self.component_id,
+        }
+    }
+
+    /// This vehicle's key as a moving body.
+    pub const fn as_body(&self) -> BodyKey {
+        BodyKey {
+            source: self.source(),
+            generation: self.generation,
+        }
+    }
+
+    /// Vehicle `vehicle`, component 1, generation 0.
+    ///
+    /// ```
+    /// use savsim_core::collision::bodies::VehicleKey;
+    /// let k = VehicleKey::new(7);
+    /// assert_eq!((k.vehicle, k.component_id, k.generation), (7, 1, 0));
+    /// ```
+    pub const fn new(vehicle: u16) -> Self {
+        Self {
+            vehicle,
+            component_id: 1,
+            generation: 0,
+        }
+    }
+}
+
+/// An obstacle: static (index into `Scene::obstacles`) or moving (by its key).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum ObstacleRef {
+    /// A static obstacle.
+    Static(u32),
+    /// A moving body.
+    Dynamic(BodyKey),
+}
+
+/// A rigid pose in the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyPose {
+    /// Reference point, scene ENU metres.
+    pub position_enu_m: DVec3,
+    /// Rotation from body FRD to ENU.
+    pub enu_from_body: DQuat,
+}
+
+impl BodyPose {
+    /// The pose of a track sample.
+    pub fn of(sample: &TrackSample) -> Self {
+        Self {
+            position_enu_m: sample.position_enu_m,
+            enu_from_body: sample.attitude.enu_from_frd,
+        }
+    }
+}
+
+/// Pose and velocity (ENU m/s; zero outside the track's time span) on a scripted track at `t`
+/// seconds after the flight's start: linear between waypoints, held at the ends, nose along
+/// the direction of travel. `w` is not empty (a scene's
+/// and a manifest's tracks are checked for that when read).
+pub fn waypoint_pose(w: &[crate::scene::Waypoint], t: f64) -> (BodyPose, DVec3) {
+    let i = w.partition_point(|p| p.t_s <= t);
+    let (a, b) = match i {
+        0 => (&w[0], w.get(1).unwrap_or(&w[0])),
+        i if i >= w.len() => (&w[w.len().saturating_sub(2)], &w[w.len() - 1]),
+        i => (&w[i - 1], &w[i]),
+    };
+    let (pa, pb) = (DVec3::from(a.position_enu_m), DVec3::from(b.position_enu_m));
+    let span = b.t_s - a.t_s;
+    let velocity = if span > 0.0 {
+        (pb - pa) / span
+    } else {
+        DVec3::ZERO
+    };
+    let u = if span > 0.0 {
+        ((t - a.t_s) / span).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let moving = t > w[0].t_s && t < w[w.len() - 1].t_s;
+    // FRD body: forward along the track, down towards -z (ENU).
+    let heading = velocity.y.atan2(velocity.x);
+    let enu_from_body =
+        DQuat::from_rotation_z(heading) * DQuat::from_rotation_x(std::f64::consts::PI);
+    (
+        BodyPose {
+            position_enu_m: pa.lerp(pb, u),
+            enu_from_body,
+        },
+        if moving { velocity } else { DVec3::ZERO },
+    )
+}
+
+/// A moving obstacle at this tick (another vehicle, ADS-B traffic, a scripted track).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynamicBody {
+    /// Its identity across ticks.
+    pub key: BodyKey,
+    /// Id for events (`vehicle:2`, `icao:4840D6`, or the scene's id); shared, so that filling
+    /// a tick's moving obstacles does not allocate.
+    pub id: Arc<str>,
+    /// Kind (threat class).
+    pub kind: Kind,
+    /// Threat T.
+    pub threat: f64,
+    /// Its model, an index into `Scene::geometries`.
+    pub geometry_index: usize,
+    /// Pose at the previous tick of the vehicle being checked.
+    pub previous: BodyPose,
+    /// Pose now.
+    pub current: BodyPose,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+}
+
+impl DynamicBody {
+    /// Scripted track number `index` (a scene's, or an encounter's intruder) over the interval
+    /// from `t_before_s` to `t_now_s`, seconds on the track's own clock.
+    pub fn on_track(
+        index: u32,
+        id: Arc<str>,
+        kind: Kind,
+        threat: f64,
+        geometry_index: usize,
+        track: &[crate::scene::Waypoint],
+        (t_before_s, t_now_s): (f64, f64),
+    ) -> DynamicBody {
+        let (previous, _) = waypoint_pose(track, t_before_s);
+        let (current, velocity) = waypoint_pose(track, t_now_s);
+        DynamicBody {
+            key: BodyKey {
+                source: BodySource::Scripted(index),
+                generation: 0,
+            },
+            id,
+            kind,
+            threat,
+            geometry_index,
+            previous,
+            current,
+            speed_mps: velocity.length(),
+        }
+    }
+}
+
+/// The world a stage looks at in one tick.
+pub(crate) struct World<'a> {
+    pub scene: &'a Scene,
+    /// The moving bodies; the ticking vehicle's own body, if listed, is skipped.
+    pub dynamic: &'a MovingBodies,
+    /// The ticking vehicle as a moving body.
+    pub own: BodySource,
+    pub octree: &'a crate::collision::octree::Octree,
+    /// The static broad phase (region queries and rays).
+    pub statics: &'a crate::collision::broad_phase::StaticBroadPhase,
+    pub shapes: &'a crate::collision::shapes::ExactShapes,
+}
+
+impl World<'_> {
+    /// Call `visit(index, body)` for every moving body but the ticking vehicle's own that may
+    /// come within `lead_s` seconds of its speed of `region` in this interval.
+    pub fn moving_near(
+        &self,
+        region: &Aabb64,
+        lead_s: f64,
+        mut visit: impl FnMut(usize, &DynamicBody),
+    ) {
+        let own = self.own;
+        self.dynamic.near(self.scene, region, lead_s, |i, d| {
+            if d.key.source != own {
+                visit(i, d)
+            }
+        });
+    }
+}
+
+/// Everything a stage needs to know about an obstacle at this tick.
+pub(crate) struct ObstacleView<'s> {
+    pub geometry: &'s Geometry,
+    pub geometry_index: usize,
+    pub kind: Kind,
+    pub threat: f64,
+    pub speed_mps: f64,
+    pub previous: BodyPose,
+    pub current: BodyPose,
+    pub aabb_enu_m: Aabb64,
+    pub id: &'s str,
+}
+
+/// The obstacle `o` at this tick; `None` for a moving body that is not in `dynamic` (its track
+/// ended): state that names it is stale.
+pub(crate) fn view<'s>(
+    scene: &'s Scene,
+    dynamic: &'s MovingBodies,
+    o: ObstacleRef,
+) -> Option<ObstacleView<'s>> {
+    match o {
+        ObstacleRef::Static(i) => {
+            let s = scene.obstacles.get(i as usize)?;
+            let pose = BodyPose {
+                position_enu_m: s.placement.position_enu_m,
+                enu_from_body: s.placement.enu_from_local,
+            };
+            Some(ObstacleView {
+                geometry: &s.geometry,
+                geometry_index: s.geometry_index,
+                kind: s.kind,
+                threat: s.threat,
+                speed_mps: 0.0,
+                previous: pose,
+                current: pose,
+                aabb_enu_m: s.aabb_enu_m,
+                id: &s.id,
+            })
+        }
+        ObstacleRef::Dynamic(key) => view_dynamic(scene, dynamic, dynamic.find(scene, key)?),
+    }
+}
+
+/// Moving body `i` of `dynamic` at this tick (`None` for a model the scene does not have).
+pub(crate) fn view_dynamic<'s>(
+    scene: &'s Scene,
+    dynamic: &'s MovingBodies,
+    i: usize,
+) -> Option<ObstacleView<'s>> {
+    let d = dynamic.get(i);
+    let g = scene.geometries.get(d.geometry_index)?;
+    Some(ObstacleView {
+        geometry: g,
+        geometry_index: d.geometry_index,
+        kind: d.kind,
+        threat: d.threat,
+        speed_mps: d.speed_mps,
+        previous: d.previous,
+        current: d.current,
+        aabb_enu_m: dynamic.aabb(scene, i),
+        id: &d.id,
+    })
+}
+
+/// A collider's shape, owned or shared.
+pub(crate) enum Holder {
+    /// The enclosing box (exact for a cuboid geometry).
+    Box(Cuboid),
+    /// A triangle mesh (surfaces only).
+    Mesh(Arc<TriMesh>),
+    /// An exact solid made of parts (a union of blocks as a parry `Compound`).
+    Solid(SharedShape),
+    /// Terrain as a parry `HeightField`: a surface, whose inside is what lies under it.
+    Field(SharedShape),
+}
+
+/// A shape with its placement.
+pub(crate) struct Body {
+    holder: Holder,
+    position_enu_m: DVec3,
+    rotation: DQuat,
+    pivot_local_m: Vec3,
+    /// The shape's frame in the body's frame (identity but for a height field, whose up is
+    /// its y axis).
+    local_rotation: DQuat,
+}
+
+impl Body {
+    /// A body whose shape's frame is the geometry's frame, placed at `pose`.
+    pub fn new(holder: Holder, pose: BodyPose) -> Body {
+        Body {
+            holder,
+            position_enu_m: pose.position_enu_m,
+            rotation: pose.enu_from_body,
+            pivot_local_m: Vec3::ZERO,
+            local_rotation: DQuat::IDENTITY,
+        }
+    }
+
+    /// A terrain patch's height field (centred on the patch, y up), placed at `pose`.
+    pub fn field(shape: SharedShape, geometry: &Geometry, pose: BodyPose) -> Body {
+        let local_rotation = field_rotation();
+        // The field's centre in the patch's frame: the middle of its footprint, at height 0.
+        let c = geometry.local_aabb.center();
+        let centre = Vec3::new(c.x, c.y, 0.0);
+        Body {
+            holder: Holder::Field(shape),
+            position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
+            rotation: pose.enu_from_body * local_rotation,
+            pivot_local_m: (local_rotation.inverse() * -centre.as_dvec3()).as_vec3(),
+            local_rotation,
+        }
+    }
+
+    /// The geometry's enclosing box, placed at `pose`.
+    pub fn boxed(geometry: &Geometry, pose: BodyPose) -> Body {
+        let (cuboid, centre) = geometry.box_collider();
+        Body {
+            holder: Holder::Box(cuboid),
+            position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
+            rotation: pose.enu_from_body,
+            pivot_local_m: -centre,
+            local_rotation: DQuat::IDENTITY,
+        }
+    }
+
+    /// True when the body is a surface mesh (it holds no inside).
+    pub fn is_surface(&self) -> bool {
+        matches!(self.holder, Holder::Mesh(_) | Holder::Field(_))
+    }
+
+    /// True when the body is a solid of several convex parts (a compound of blocks).
+    pub fn is_compound(&self) -> bool {
+        matches!(self.holder, Holder::Solid(_))
+    }
+
+    /// The body where it was placed.
+    pub fn placed(&self) -> Placed<'_> {
+        Placed {
+            shape: match &self.holder {
+                Holder::Box(c) => c as &dyn Shape,
+                Holder::Mesh(m) => m.as_ref() as &dyn Shape,
+                Holder::Solid(s) | Holder::Field(s) => s.as_ref(),
+            },
+            position_enu_m: self.position_enu_m,
+            enu_from_shape: self.rotation,
+            pivot_local_m: self.pivot_local_m,
+        }
+    }
+
+    /// The same body moved so that its reference point has pose `pose`.
+    pub fn at(&self, pose: BodyPose) -> Placed<'_> {
+        let rotation = pose.enu_from_body * self.local_rotation;
+        let offset = -(rotation * self.pivot_local_m.as_dvec3());
+        self.placed().moved(pose.position_enu_m + offset, rotation)
+    }
+}
+
+/// The rotation from a parry height field's frame (y up, rows along z) to a terrain patch's
+/// (z up): +90 degrees about x, so that the field's y is up and its z is south.
+pub(crate) fn field_rotation() -> DQuat {
+    DQuat::from_rotation_x(std::f64::consts::FRAC_PI_2)
+}
+
+/// True when `point` is inside the obstacle's solid (see [`Geometry::contains_local_point`]).
+pub(crate) fn inside_solid(geometry: &Geometry, pose: &BodyPose, point: DVec3) -> bool {
+    let local = pose.enu_from_body.inverse() * (point - pose.position_enu_m);
+    geometry.contains_local_point(local.as_vec3())
+}
+
+/// Radius of the sphere about a geometry's origin that holds it, metres.
+pub(crate) fn radius_m(geometry: &Geometry) -> f64 {
+    f64::from(
+        geometry
+            .local_aabb
+            .mins
+            .abs()
+            .max(geometry.local_aabb.maxs.abs())
+            .length(),
+    )
+}

@@ -1,0 +1,19 @@
+//! savsim's core: everything that decides what a vehicle perceives and what it hit, as pure,
+//! synchronous code that a program can embed without savsim's I/O.
+//!
+//! - [`geo`]: WGS84 geodetic <-> ECEF <-> local ENU tangent plane, f64.
+//! - [`scene`]: scene data, its loaders (bytes handed in through [`scene::Files`]) and the
+//!   generators.
+//! - [`world`]: vehicles and traffic keyed by identity, on their own clocks.
+//! - [`collision`]: the contact layer (the truth), the sensing layer (Li et al. 2019), the
+//!   exact ray fans a range sensor measures, and the reference truth, which shares no code with
+//!   the contact layer.
+//!
+//! The crate depends on geometry and parsing crates only (parry3d, glam, serde, the file
+//! format readers); the build keeps tokio, mavlink, clap, arrow, parquet, plotters and rerun
+//! out. The `savsim` crate wires it to sockets, logs, the viewer and batches.
+
+pub mod collision;
+pub mod geo;
+pub mod scene;
+pub mod world;

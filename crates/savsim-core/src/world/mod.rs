@@ -1,0 +1,547 @@
+//! The world-state store: every vehicle and traffic aircraft, in the scene's local ENU metres.
+//!
+//! Fed by decoded MAVLink reports (never by raw bytes), read by the collision pipeline as
+//! `Copy` samples. Per track it keeps the latest state with both clocks (the vehicle's
+//! `time_boot_ms` and the receive/tlog time), a short history for interpolation, and its age;
+//! stale tracks expire. Vehicles are keyed by (sysid, compid), traffic by ICAO address. No I/O,
+//! no tokio, no rerun.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use glam::{DMat3, DQuat, DVec3, EulerRot};
+
+use crate::geo::{Geodetic, LocalTangentPlane};
+pub mod clock;
+pub mod report;
+
+use report::{AdsbReport, AttitudeReport, PositionReport, Report, SenderId};
+
+/// How the store ages and remembers tracks. Defaults in the field docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldConfig {
+    /// A track not heard from for this long (seconds, receive/tlog clock) is dropped. Default 10.
+    pub stale_after_s: f64,
+    /// Samples of history kept per track for interpolation. Default 64.
+    pub history_len: usize,
+}
+
+impl Default for WorldConfig {
+    fn default() -> Self {
+        Self {
+            stale_after_s: 10.0,
+            history_len: 64,
+        }
+    }
+}
+
+/// Orientation of a body: the rotation from its Forward-Right-Down axes to the scene's ENU axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Attitude {
+    /// Vehicle clock of the ATTITUDE message, ms (0 when derived from a heading).
+    pub time_boot_ms: u32,
+    /// Rotation taking body FRD vectors into scene ENU.
+    pub enu_from_frd: DQuat,
+    /// Body rates (roll, pitch, yaw), rad/s.
+    pub body_rates_radps: DVec3,
+}
+
+impl Attitude {
+    /// The attitude of a body at `position` with MAVLink roll, pitch, yaw (relative to the local
+    /// NED frame there), expressed in `plane`'s ENU axes.
+    ///
+    /// ```
+    /// use savsim_core::{geo::{Geodetic, LocalTangentPlane}, world::Attitude};
+    /// use glam::DVec3;
+    /// let origin = Geodetic::new(47.0, 8.0, 500.0);
+    /// let plane = LocalTangentPlane::new(origin);
+    /// // Yaw 90 degrees: nose east.
+    /// let a = Attitude::from_euler_ned(&plane, &origin, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0);
+    /// let forward = a.forward_enu();
+    /// assert!((forward - DVec3::X).length() < 1e-9);
+    /// ```
+    pub fn from_euler_ned(
+        plane: &LocalTangentPlane,
+        position: &Geodetic,
+        roll_rad: f64,
+        pitch_rad: f64,
+        yaw_rad: f64,
+        time_boot_ms: u32,
+    ) -> Self {
+        let ned_from_frd = DQuat::from_euler(EulerRot::ZYX, yaw_rad, pitch_rad, roll_rad);
+        let enu_from_ned = DMat3::from_cols(DVec3::Y, DVec3::X, DVec3::NEG_Z);
+        let plane_from_local = plane.plane_enu_from_local_enu_at(position);
+        let enu_from_frd =
+            DQuat::from_mat3(&(plane_from_local * enu_from_ned * DMat3::from_quat(ned_from_frd)))
+                .normalize();
+        Self {
+            time_boot_ms,
+            enu_from_frd,
+            body_rates_radps: DVec3::ZERO,
+        }
+    }
+
+    /// The body's forward (x) axis in ENU.
+    pub fn forward_enu(&self) -> DVec3 {
+        self.enu_from_frd * DVec3::X
+    }
+}
+
+/// One state of a vehicle or aircraft at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackSample {
+    /// When, seconds on the receive/tlog clock (UNIX time for tlogs and live). For a MAVLink
+    /// vehicle this is its own clock (`time_boot_ms`) mapped onto the receive clock: intervals
+    /// between its samples are the vehicle's, even when several arrive in one read.
+    pub t_s: f64,
+    /// Vehicle clock of the position, ms since boot (0 for ADS-B).
+    pub time_boot_ms: u32,
+    /// WGS84 position (alt AMSL).
+    pub position: Geodetic,
+    /// Position in the scene's ENU frame, metres from the origin.
+    pub position_enu_m: DVec3,
+    /// Velocity in the scene's ENU axes, m/s.
+    pub velocity_enu_mps: DVec3,
+    /// Orientation (the latest ATTITUDE, or one derived from the course for traffic).
+    pub attitude: Attitude,
+}
+
+impl TrackSample {
+    /// Linear interpolation of position and velocity, spherical of attitude; `u` in [0, 1].
+    pub fn lerp(&self, next: &TrackSample, u: f64) -> TrackSample {
+        let u = u.clamp(0.0, 1.0);
+        TrackSample {
+            t_s: self.t_s + (next.t_s - self.t_s) * u,
+            time_boot_ms: if u < 0.5 {
+                self.time_boot_ms
+            } else {
+                next.time_boot_ms
+            },
+            position: if u < 0.5 {
+                self.position
+            } else {
+                next.position
+            },
+            position_enu_m: self.position_enu_m.lerp(next.position_enu_m, u),
+            velocity_enu_mps: self.velocity_enu_mps.lerp(next.velocity_enu_mps, u),
+            attitude: Attitude {
+                time_boot_ms: next.attitude.time_boot_ms,
+                enu_from_frd: self
+                    .attitude
+                    .enu_from_frd
+                    .slerp(next.attitude.enu_from_frd, u),
+                body_rates_radps: next.attitude.body_rates_radps,
+            },
+        }
+    }
+}
+
+/// A track's history: latest samples in time order.
+#[derive(Debug, Clone, Default)]
+pub struct History {
+    samples: VecDeque<TrackSample>,
+}
+
+impl History {
+    fn push(&mut self, sample: TrackSample, capacity: usize) {
+        if self.samples.len() == capacity.max(2) {
+            self.samples.pop_front();
+        }
+        self.samples.push_back(sample);
+    }
+
+    /// The newest sample.
+    pub fn latest(&self) -> Option<&TrackSample> {
+        self.samples.back()
+    }
+
+    /// The sample before the newest.
+    pub fn previous(&self) -> Option<&TrackSample> {
+        self.samples.len().checked_sub(2).map(|i| &self.samples[i])
+    }
+
+    /// The state at `t_s`: interpolated inside the history, held at its ends.
+    pub fn at(&self, t_s: f64) -> Option<TrackSample> {
+        let first = self.samples.front()?;
+        if t_s <= first.t_s {
+            return Some(*first);
+        }
+        let i = self.samples.partition_point(|s| s.t_s <= t_s);
+        if i >= self.samples.len() {
+            return self.samples.back().copied();
+        }
+        let (a, b) = (&self.samples[i - 1], &self.samples[i]);
+        let span = b.t_s - a.t_s;
+        Some(if span > 0.0 {
+            a.lerp(b, (t_s - a.t_s) / span)
+        } else {
+            *b
+        })
+    }
+
+    /// The state at `t_s`, extrapolated along the newest velocity (at most `max_ahead_s`) when
+    /// `t_s` is past the newest sample: traffic reports slower than the vehicle's ticks.
+    pub fn predict(&self, t_s: f64, max_ahead_s: f64) -> Option<TrackSample> {
+        let latest = self.samples.back()?;
+        if t_s <= latest.t_s {
+            return self.at(t_s);
+        }
+        let ahead_s = (t_s - latest.t_s).min(max_ahead_s);
+        Some(TrackSample {
+            t_s,
+            position_enu_m: latest.position_enu_m + latest.velocity_enu_mps * ahead_s,
+            ..*latest
+        })
+    }
+
+    /// Number of samples held.
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// True when no sample is held.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    fn clear(&mut self) {
+        self.samples.clear();
+    }
+}
+
+/// A MAVLink vehicle (a sender of GLOBAL_POSITION_INT).
+#[derive(Debug, Clone)]
+pub struct VehicleTrack {
+    /// Its id as a moving obstacle to other vehicles (`vehicle:7`).
+    pub label: std::sync::Arc<str>,
+    /// Generation of the track: new at creation and at every reboot, so collision state kept
+    /// for an earlier life of the same (sysid, compid) is detectably stale.
+    pub generation: u32,
+    /// Who it is.
+    pub id: SenderId,
+    /// MAV_TYPE and MAV_AUTOPILOT from its HEARTBEAT, if one came.
+    pub heartbeat: Option<report::HeartbeatReport>,
+    /// The latest ATTITUDE, converted; positions take it until the next one.
+    pub latest_attitude: Option<Attitude>,
+    /// Position history.
+    pub history: History,
+    /// Receive/tlog time of the last message of any kind, seconds.
+    pub last_heard_t_s: f64,
+    /// Times its `time_boot_ms` went back (reboots).
+    pub boot_resets: u64,
+    /// Its clock mapped onto the receive clock (this boot's).
+    pub clock: clock::ClockMap,
+    /// Positions accepted.
+    pub positions: u64,
+}
+
+/// An ADS-B aircraft.
+#[derive(Debug, Clone)]
+pub struct TrafficTrack {
+    /// Its id as a moving obstacle (`icao:4840D6`).
+    pub label: std::sync::Arc<str>,
+    /// Generation of the track: new each time it is created (after an expiry too).
+    pub generation: u32,
+    /// ICAO 24-bit address.
+    pub icao_address: u32,
+    /// Callsign as sent (trimmed ASCII).
+    pub callsign: String,
+    /// ADSB_EMITTER_TYPE number.
+    pub emitter_type: u8,
+    /// Position history.
+    pub history: History,
+    /// Receive/tlog time of its last report, seconds.
+    pub last_heard_t_s: f64,
+}
+
+/// What a report changed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WorldUpdate {
+    /// A vehicle has a new position sample.
+    VehicleMoved(SenderId),
+    /// A traffic aircraft has a new position sample.
+    TrafficMoved(u32),
+    /// Something else changed (attitude, identity).
+    Other,
+}
+
+/// All tracks, in the scene's frame.
+#[derive(Debug, Clone)]
+pub struct WorldStore {
+    plane: LocalTangentPlane,
+    config: WorldConfig,
+    /// MAVLink vehicles by (sysid, compid).
+    pub vehicles: BTreeMap<SenderId, VehicleTrack>,
+    /// ADS-B traffic by ICAO address.
+    pub traffic: BTreeMap<u32, TrafficTrack>,
+    /// Tracks dropped as stale so far.
+    pub expired: u64,
+    /// Every vehicle ever seen, kept after its track expires (for summaries).
+    pub seen: BTreeMap<SenderId, VehicleSeen>,
+    /// The next track generation handed out.
+    next_generation: u32,
+}
+
+/// What the store saw of one vehicle over a whole run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct VehicleSeen {
+    /// Positions accepted.
+    pub positions: u64,
+    /// Reboots detected from `time_boot_ms` going back.
+    pub boot_resets: u64,
+    /// Times its track expired and came back.
+    pub returns: u64,
+    /// Samples whose time on the vehicle's clock, mapped onto the receive clock, came out more
+    /// than 50 ms after they arrived and were pulled back to their arrival (the clock's rate
+    /// changed faster than the map followed).
+    pub clock_reanchors: u64,
+    /// Positions older than the newest (a reordered message), not applied.
+    pub reordered: u64,
+    /// Seconds of the vehicle's clock per receive second, as last fitted (its speedup).
+    pub clock_speedup: f64,
+}
+
+impl WorldStore {
+    /// An empty store whose ENU frame is the tangent plane at `origin`.
+    pub fn new(origin: Geodetic, config: WorldConfig) -> Self {
+        Self {
+            plane: LocalTangentPlane::new(origin),
+            config,
+            vehicles: BTreeMap::new(),
+            traffic: BTreeMap::new(),
+            expired: 0,
+            seen: BTreeMap::new(),
+            next_generation: 1,
+        }
+    }
+
+    /// The scene's tangent plane.
+    pub fn plane(&self) -> &LocalTangentPlane {
+        &self.plane
+    }
+
+    /// Apply one decoded report from `sender`, received at `t_s`.
+    ///
+    /// ```
+    /// use savsim_core::{geo::Geodetic, world::{WorldStore, WorldConfig, WorldUpdate}};
+    /// use savsim_core::world::report::{PositionReport, Report, SenderId};
+    /// let origin = Geodetic::new(-35.363261, 149.165230, 584.0);
+    /// let mut world = WorldStore::new(origin, WorldConfig::default());
+    /// let sender = SenderId { system_id: 1, component_id: 1 };
+    /// let report = Report::Position(PositionReport {
+    ///     time_boot_ms: 1000, position: Geodetic::new(-35.363261, 149.165230, 634.0),
+    ///     relative_alt_m: 50.0, velocity_ned_mps: glam::DVec3::ZERO, heading_deg: None });
+    /// assert_eq!(world.apply(10.0, sender, &report), WorldUpdate::VehicleMoved(sender));
+    /// let up_m = world.vehicles[&sender].history.latest().unwrap().position_enu_m.z;
+    /// assert!((up_m - 50.0).abs() < 1e-6);
+    /// ```
+    pub fn apply(&mut self, t_s: f64, sender: SenderId, report: &Report) -> WorldUpdate {
+        match report {
+            Report::Position(p) => {
+                if self.apply_position(t_s, sender, p) {
+                    WorldUpdate::VehicleMoved(sender)
+                } else {
+                    WorldUpdate::Other
+                }
+            }
+            Report::Attitude(a) => {
+                self.apply_attitude(t_s, sender, a);
+                WorldUpdate::Other
+            }
+            Report::Heartbeat(h) => {
+                if let Some(track) = self.vehicles.get_mut(&sender) {
+                    track.heartbeat = Some(*h);
+                    track.last_heard_t_s = t_s;
+                }
+                WorldUpdate::Other
+            }
+            Report::Adsb(a) => {
+                self.apply_adsb(t_s, a);
+                WorldUpdate::TrafficMoved(a.icao_address)
+            }
+        }
+    }
+
+    fn vehicle(&mut self, sender: SenderId, t_s: f64) -> &mut VehicleTrack {
+        let seen = &mut self.seen;
+        let next = &mut self.next_generation;
+        self.vehicles.entry(sender).or_insert_with(|| {
+            if let Some(before) = seen.get_mut(&sender) {
+                before.returns += 1;
+            }
+            let generation = *next;
+            *next = next.wrapping_add(1);
+            VehicleTrack {
+                id: sender,
+                generation,
+                label: format!("vehicle:{}", sender.system_id).into(),
+                heartbeat: None,
+                latest_attitude: None,
+                history: History::default(),
+                last_heard_t_s: t_s,
+                boot_resets: 0,
+                clock: clock::ClockMap::new(1.0),
+                positions: 0,
+            }
+        })
+    }
+
+    fn apply_attitude(&mut self, t_s: f64, sender: SenderId, a: &AttitudeReport) {
+        // Attitude is relative to the NED frame where the vehicle is: use its last position.
+        let Some(track) = self.vehicles.get(&sender) else {
+            // No position yet: remember the attitude at the origin's axes.
+            let plane = self.plane;
+            let origin = plane.origin();
+            let attitude = attitude_of(&plane, &origin, a);
+            let track = self.vehicle(sender, t_s);
+            track.latest_attitude = Some(attitude);
+            track.last_heard_t_s = t_s;
+            return;
+        };
+        let position = track
+            .history
+            .latest()
+            .map_or(self.plane.origin(), |s| s.position);
+        let attitude = attitude_of(&self.plane, &position, a);
+        let track = self.vehicle(sender, t_s);
+        track.latest_attitude = Some(attitude);
+        track.last_heard_t_s = t_s;
+    }
+
+    /// Take a position; false when it was not applied (older than the newest: reordered).
+    fn apply_position(&mut self, receive_t_s: f64, sender: SenderId, p: &PositionReport) -> bool {
+        let plane = self.plane;
+        let capacity = self.config.history_len;
+        let generation = self.next_generation;
+        let track = self.vehicle(sender, receive_t_s);
+        let step = track
+            .history
+            .latest()
+            .map(|last| clock::step(last.time_boot_ms, p.time_boot_ms));
+        track.last_heard_t_s = track.last_heard_t_s.max(receive_t_s);
+        if step == Some(clock::ClockStep::Reordered) {
+            self.seen.entry(sender).or_default().reordered += 1;
+            return false;
+        }
+        let rebooted = step == Some(clock::ClockStep::Restart);
+        if rebooted {
+            // A new life: its samples start a new track, swept from its second sample on.
+            track.boot_resets += 1;
+            track.history.clear();
+            track.generation = generation;
+            track.clock = clock::ClockMap::new(track.clock.rate());
+        }
+        let (t_s, reanchored) = track.clock.map(p.time_boot_ms, receive_t_s);
+        let velocity_enu_mps = plane.enu_vector_from_ned_at(&p.position, p.velocity_ned_mps);
+        let attitude = track.latest_attitude.unwrap_or_else(|| {
+            let yaw_rad = p
+                .heading_deg
+                .map_or_else(|| course_rad(p.velocity_ned_mps), f64::to_radians);
+            Attitude::from_euler_ned(&plane, &p.position, 0.0, 0.0, yaw_rad, 0)
+        });
+        let sample = TrackSample {
+            t_s,
+            time_boot_ms: p.time_boot_ms,
+            position: p.position,
+            position_enu_m: plane.enu_m_from_geodetic(&p.position),
+            velocity_enu_mps,
+            attitude,
+        };
+        track.history.push(sample, capacity);
+        track.positions += 1;
+        let speedup = track.clock.speedup();
+        if rebooted {
+            self.next_generation = self.next_generation.wrapping_add(1);
+        }
+        let seen = self.seen.entry(sender).or_default();
+        seen.positions += 1;
+        seen.boot_resets += u64::from(rebooted);
+        seen.clock_reanchors += u64::from(reanchored);
+        seen.clock_speedup = speedup;
+        true
+    }
+
+    fn apply_adsb(&mut self, t_s: f64, a: &AdsbReport) {
+        let plane = self.plane;
+        let capacity = self.config.history_len;
+        let (sin_h, cos_h) = a.heading_deg.to_radians().sin_cos();
+        let velocity_ned_mps = DVec3::new(
+            a.horizontal_speed_mps * cos_h,
+            a.horizontal_speed_mps * sin_h,
+            -a.vertical_speed_mps,
+        );
+        let sample = TrackSample {
+            t_s,
+            time_boot_ms: 0,
+            position: a.position,
+            position_enu_m: plane.enu_m_from_geodetic(&a.position),
+            velocity_enu_mps: plane.enu_vector_from_ned_at(&a.position, velocity_ned_mps),
+            attitude: Attitude::from_euler_ned(
+                &plane,
+                &a.position,
+                0.0,
+                0.0,
+                a.heading_deg.to_radians(),
+                0,
+            ),
+        };
+        let next = &mut self.next_generation;
+        let track = self.traffic.entry(a.icao_address).or_insert_with(|| {
+            let generation = *next;
+            *next = next.wrapping_add(1);
+            TrafficTrack {
+                generation,
+                icao_address: a.icao_address,
+                label: format!("icao:{:06X}", a.icao_address).into(),
+                callsign: String::from_utf8_lossy(&a.callsign)
+                    .trim_matches(|c: char| c == '\0' || c.is_whitespace())
+                    .to_owned(),
+                emitter_type: a.emitter_type,
+                history: History::default(),
+                last_heard_t_s: t_s,
+            }
+        });
+        track.history.push(sample, capacity);
+        track.last_heard_t_s = t_s;
+    }
+
+    /// Drop tracks not heard from since `now_t_s - stale_after_s`. Returns how many went.
+    pub fn expire(&mut self, now_t_s: f64) -> usize {
+        let horizon = now_t_s - self.config.stale_after_s;
+        let before = self.vehicles.len() + self.traffic.len();
+        self.vehicles.retain(|_, v| v.last_heard_t_s >= horizon);
+        self.traffic.retain(|_, t| t.last_heard_t_s >= horizon);
+        let gone = before - self.vehicles.len() - self.traffic.len();
+        self.expired += gone as u64;
+        gone
+    }
+
+    /// Seconds since a vehicle was last heard from, at `now_t_s`.
+    pub fn vehicle_age_s(&self, sender: SenderId, now_t_s: f64) -> Option<f64> {
+        self.vehicles
+            .get(&sender)
+            .map(|v| (now_t_s - v.last_heard_t_s).max(0.0))
+    }
+}
+
+fn attitude_of(plane: &LocalTangentPlane, position: &Geodetic, a: &AttitudeReport) -> Attitude {
+    Attitude {
+        body_rates_radps: a.body_rates_radps,
+        ..Attitude::from_euler_ned(
+            plane,
+            position,
+            a.roll_rad,
+            a.pitch_rad,
+            a.yaw_rad,
+            a.time_boot_ms,
+        )
+    }
+}
+
+/// Course over ground from a NED velocity, radians clockwise from north (0 when still).
+fn course_rad(velocity_ned_mps: DVec3) -> f64 {
+    if velocity_ned_mps.x == 0.0 && velocity_ned_mps.y == 0.0 {
+        0.0
+    } else {
+        velocity_ned_mps.y.atan2(velocity_ned_mps.x)
+    }
+}
