@@ -33,6 +33,9 @@ pub enum Error {
     /// A scene file that cannot be used.
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
+    /// A number outside the range its input allows.
+    #[error(transparent)]
+    OutOfRange(#[from] savsim_core::bounds::OutOfRange),
     /// A command-line value that parses but makes no sense.
     #[error("{0}")]
     Usage(String),

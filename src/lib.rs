@@ -12,6 +12,7 @@ pub mod batch;
 pub mod bench;
 pub mod bundled;
 pub mod cli;
+pub mod costs;
 pub mod error;
 pub mod feed;
 pub mod ingest;

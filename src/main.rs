@@ -27,6 +27,7 @@ fn main() -> ExitCode {
             let _ = shutdown.load(Ordering::Relaxed);
             match e {
                 savsim::error::Error::Usage(_)
+                | savsim::error::Error::OutOfRange(_)
                 | savsim::error::Error::Address { .. }
                 | savsim::error::Error::Scene(_) => ExitCode::from(2),
                 _ => ExitCode::FAILURE,

@@ -45,8 +45,8 @@ pub struct Session {
     events: Vec<Event>,
     /// Collisions and near misses (the first `NOTABLE_KEPT`, 1000), for the printed report.
     pub notable: Vec<Event>,
-    /// Per-tick collision cost, nanoseconds.
-    pub tick_cost_ns: Vec<u64>,
+    /// Per-tick collision cost.
+    pub tick_costs: crate::costs::TickCosts,
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     pub approaches: Approaches,
     dynamic: MovingBodies,
@@ -116,7 +116,7 @@ impl Session {
             events_out,
             events: Vec::new(),
             notable: Vec::new(),
-            tick_cost_ns: Vec::new(),
+            tick_costs: Default::default(),
             approaches: Approaches::default(),
             dynamic: MovingBodies::default(),
             flight_start_t_s: None,
@@ -290,7 +290,7 @@ impl Session {
             &mut self.events,
         );
         let cost_ns = started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64;
-        self.tick_cost_ns.push(cost_ns);
+        self.tick_costs.record(cost_ns);
         if let Some(feed) = &mut self.feed {
             let input = FrameInput {
                 scene: &scene,
@@ -423,7 +423,7 @@ impl Session {
         let collision = self.pipeline.as_ref().map(|p| {
             let totals = &p.totals;
             let ticks = totals.ticks.max(1) as f64;
-            let (median_us, p99_us) = percentiles_us(&self.tick_cost_ns);
+            let (median_us, p99_us) = self.tick_costs.percentiles_us();
             json!({
                 "mode": p.config.mode.name(),
                 "ticks": totals.ticks,
@@ -513,17 +513,6 @@ impl Session {
     fn rerun_summary(&self) -> Option<serde_json::Value> {
         None
     }
-}
-
-/// Median and 99th percentile of tick costs, microseconds.
-pub fn percentiles_us(costs_ns: &[u64]) -> (f64, f64) {
-    if costs_ns.is_empty() {
-        return (0.0, 0.0);
-    }
-    let mut sorted = costs_ns.to_vec();
-    sorted.sort_unstable();
-    let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize] as f64 / 1e3;
-    (at(0.5), at(0.99))
 }
 
 /// Write a JSON value to `path` atomically (a temporary file renamed into place), so a reader

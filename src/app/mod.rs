@@ -22,31 +22,15 @@ use crate::replay::{replay, Speed};
 use crate::scene::{self, gen, Scene};
 use crate::session::{write_json_atomic, Session};
 use live::{LiveOptions, LiveRun};
+use savsim_core::bounds::{positive, MAX_DURATION_S};
 
 fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
-    for (name, v) in [
-        ("--ray-length-m", args.ray_length_m),
-        ("--near-miss-m", args.near_miss_m),
-        ("--max-gap-s", args.max_gap_s),
-        ("--look-ahead-s", args.look_ahead_s),
-        ("--mesh-beta", args.mesh_beta),
-        ("--mesh-within-m", args.mesh_within_m),
-        ("--box-beyond-m", args.box_beyond_m),
-        ("--hold-s", args.hold_s),
-        ("--max-below-terrain-m", args.max_below_terrain_m),
-        ("--sensor-hz", args.sensor_hz),
-        ("--mesh-budget-mib", args.mesh_budget_mib),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(Error::Usage(format!("{name} {v}: give a number >= 0")));
-        }
-    }
     let defaults = CollisionConfig::default();
     let ahp = match &args.ahp_matrix {
         None => defaults.ahp,
         Some(text) => parse_ahp(text)?,
     };
-    Ok(CollisionConfig {
+    let config = CollisionConfig {
         mode: args.mode.into(),
         ray_length_m: args.ray_length_m,
         look_ahead_s: args.look_ahead_s,
@@ -63,7 +47,9 @@ fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
         mesh_budget_mib: args.mesh_budget_mib,
         ahp,
         ..defaults
-    })
+    };
+    config.validate()?;
+    Ok(config)
 }
 
 /// Parse nine comma-separated numbers (fractions like `7/3` allowed) into AHP weights.
@@ -188,10 +174,18 @@ fn decades(from: usize, max: usize) -> Vec<usize> {
 }
 
 fn bench_command(args: &BenchArgs) -> Result<()> {
-    if !(args.ray_length_m.is_finite() && args.ray_length_m >= 0.0) {
+    savsim_core::bounds::within("--ray-length-m", args.ray_length_m, 0.0, 100_000.0)?;
+    savsim_core::bounds::within(
+        "--residency-budget-mib",
+        args.residency_budget_mib,
+        0.0,
+        1048576.0,
+    )?;
+    // A scene of 10^7 obstacles is about 10 GB; a fleet of 10^5 vehicles as much again.
+    if args.scale_max > 10_000_000 || args.fleet_max > 100_000 {
         return Err(Error::Usage(format!(
-            "--ray-length-m {}: give a number >= 0",
-            args.ray_length_m
+            "--scale-max {} --fleet-max {}: at most 10000000 and 100000",
+            args.scale_max, args.fleet_max
         )));
     }
     let options = crate::bench::BenchOptions {
@@ -208,7 +202,7 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
         },
         scale_sizes: decades(100, args.scale_max),
         fleet_sizes: decades(1, args.fleet_max),
-        residency_budget_mib: args.residency_budget_mib.max(0.0),
+        residency_budget_mib: args.residency_budget_mib,
     };
     let report = match &args.from_json {
         Some(path) => {
@@ -326,7 +320,7 @@ pub fn print_report(session: &Session) {
         stats.rejected_total()
     );
     let Some(p) = &session.pipeline else { return };
-    let (median_us, p99_us) = crate::session::percentiles_us(&session.tick_cost_ns);
+    let (median_us, p99_us) = session.tick_costs.percentiles_us();
     println!(
         "{} ticks in {} mode: {} collisions, {} near misses, {} collider swaps, {} telemetry gaps",
         p.totals.ticks,
@@ -380,11 +374,7 @@ fn live_options(connect: &[String], rate_hz: f64, duration_s: Option<f64>) -> Re
         )));
     }
     if let Some(d) = duration_s {
-        if !(d.is_finite() && d > 0.0) {
-            return Err(Error::Usage(format!(
-                "--duration-s {d}: give a positive number"
-            )));
-        }
+        positive("--duration-s", d, MAX_DURATION_S)?;
     }
     if connect.is_empty() {
         return Err(Error::Usage("give at least one --connect".into()));

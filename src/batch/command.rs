@@ -51,8 +51,8 @@ pub fn run(args: &BatchArgs) -> Result<()> {
     let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };
-    if args.jobs == Some(0) {
-        return Err(Error::Usage("--jobs 0: give at least 1".into()));
+    if let Some(jobs) = args.jobs.filter(|j| !(1..=1024).contains(j)) {
+        return Err(Error::Usage(format!("--jobs {jobs}: give 1 to 1024")));
     }
     let runs = manifest::load(manifest_path)?;
     let shard = Shard::from_args(args.shard.as_deref(), |v| std::env::var(v).ok())?;

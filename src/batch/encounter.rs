@@ -18,6 +18,7 @@ use crate::ingest::tlog::TlogReader;
 use crate::ingest::Ingestor;
 use crate::scene::{DynamicSource, Kind, Scene, Waypoint};
 use crate::world::{Attitude, TrackSample, WorldConfig, WorldStore, WorldUpdate};
+use savsim_core::bounds::MAX_ENU_M;
 
 /// The ownship's MAVLink system id in an encounter's results.
 pub const OWNSHIP: u8 = 1;
@@ -46,8 +47,8 @@ pub struct Flown {
     pub events: Vec<Event>,
     /// Closest approaches, on the encounter's clock (0 at the start).
     pub approaches: Approaches,
-    /// Each tick's cost, nanoseconds.
-    pub tick_cost_ns: Vec<u64>,
+    /// What the ticks cost.
+    pub tick_costs: crate::costs::TickCosts,
 }
 
 /// Parse a waypoint track: `"t_s e_m n_m u_m; t_s e_m n_m u_m; ..."` (numbers separated by
@@ -67,9 +68,14 @@ pub fn parse_waypoints(text: &str) -> Result<Vec<Waypoint>, String> {
         let numbers: Vec<f64> = point
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|s| !s.is_empty())
-            .map(|s| s.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .map(|s| s.parse::<f64>().ok().filter(|v| v.abs() <= MAX_ENU_M))
             .collect::<Option<_>>()
-            .ok_or_else(|| format!("waypoint {} {point:?}: not finite numbers", i + 1))?;
+            .ok_or_else(|| {
+                format!(
+                    "waypoint {} {point:?}: give numbers within {MAX_ENU_M:e} (seconds, metres)",
+                    i + 1
+                )
+            })?;
         let [t_s, e, n, u] = numbers[..] else {
             return Err(format!(
                 "waypoint {} {point:?}: give four numbers, `t_s e_m n_m u_m`",
@@ -138,7 +144,7 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
     let mut approaches = Approaches::default();
     let intruder_id: Arc<str> = Arc::from("intruder");
     let n = (encounter.duration_s * encounter.rate_hz).round().max(0.0) as usize;
-    let mut tick_cost_ns = Vec::with_capacity(n + 1);
+    let mut tick_costs = crate::costs::TickCosts::default();
     let mut bodies = MovingBodies::default();
     let mut previous: Option<TrackSample> = None;
     for i in 0..=n {
@@ -179,7 +185,7 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
             &bodies,
             &mut events,
         );
-        tick_cost_ns.push(started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64);
+        tick_costs.record(started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64);
         previous = Some(current);
     }
     pipeline.finish(&mut events);
@@ -187,7 +193,7 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
         pipeline,
         events,
         approaches,
-        tick_cost_ns,
+        tick_costs,
     }
 }
 

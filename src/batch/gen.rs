@@ -49,6 +49,9 @@ pub struct GenOptions {
     pub intruder_kind: String,
 }
 
+/// The most encounters one `gen-encounters` writes (about 5 GB of CSV).
+pub const MAX_GENERATED: usize = 10_000_000;
+
 /// A two-point waypoint track: at `start` at 0 s, flying `velocity` for `duration_s`.
 fn straight(start: DVec3, velocity: DVec3, duration_s: f64) -> String {
     let end = start + velocity * duration_s;
@@ -69,13 +72,14 @@ fn straight(start: DVec3, velocity: DVec3, duration_s: f64) -> String {
 /// assert_eq!(a[2].id.as_deref(), Some("enc-000002"));
 /// ```
 pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
-    for (name, v) in [
-        ("duration_s", options.duration_s),
-        ("rate_hz", options.rate_hz),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(Error::Usage(format!("{name} {v}: give a positive number")));
-        }
+    use savsim_core::bounds::{positive, MAX_DURATION_S, MAX_RATE_HZ};
+    positive("--duration-s", options.duration_s, MAX_DURATION_S)?;
+    positive("--rate-hz", options.rate_hz, MAX_RATE_HZ)?;
+    if options.n > MAX_GENERATED {
+        return Err(Error::Usage(format!(
+            "--n {}: at most {MAX_GENERATED} encounters a file (shard a larger study)",
+            options.n
+        )));
     }
     if Mode::from_name(&options.mode).is_none() {
         return Err(Error::Usage(format!("mode {:?}: not a mode", options.mode)));

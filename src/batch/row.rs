@@ -129,7 +129,7 @@ impl RunRow {
         totals: &PipelineTotals,
         events: &[Event],
         approaches: &Approaches,
-        tick_cost_ns: &[u64],
+        tick_costs: &crate::costs::TickCosts,
         t0_s: f64,
     ) {
         self.ticks = totals.ticks;
@@ -137,7 +137,7 @@ impl RunRow {
         self.near_misses = totals.near_misses;
         self.record_events(events, t0_s);
         self.record_approaches(approaches, t0_s);
-        let (median_us, p99_us) = crate::session::percentiles_us(tick_cost_ns);
+        let (median_us, p99_us) = tick_costs.percentiles_us();
         self.tick_cost_us_median = median_us;
         self.tick_cost_us_p99 = p99_us;
     }

@@ -16,6 +16,7 @@ use crate::ingest::stats::IngestStats;
 use crate::replay::{replay, Speed};
 use crate::scene::{self, Kind, Scene, Waypoint};
 use crate::session::Session;
+use savsim_core::bounds::{positive, MAX_DURATION_S, MAX_RATE_HZ, MAX_SAMPLES};
 
 /// Default ownship sample rate of an encounter, Hz.
 pub const DEFAULT_RATE_HZ: f64 = 10.0;
@@ -142,9 +143,20 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
             let mut stats = IngestStats::default();
             let own = track(own, &scene, &mut stats).map_err(|e| format!("own: {e}"))?;
             let duration_s = match run.duration_s {
-                Some(d) => positive("duration_s", d)?,
+                Some(d) => positive("duration_s", d, MAX_DURATION_S).map_err(|e| e.to_string())?,
                 None => own.last().map_or(0.0, |w| w.t_s),
             };
+            let rate_hz = positive(
+                "rate_hz",
+                run.rate_hz.unwrap_or(DEFAULT_RATE_HZ),
+                MAX_RATE_HZ,
+            )
+            .map_err(|e| e.to_string())?;
+            if duration_s * rate_hz > MAX_SAMPLES {
+                return Err(format!(
+                    "duration_s {duration_s} x rate_hz {rate_hz}: at most {MAX_SAMPLES} samples a row"
+                ));
+            }
             let encounter = Encounter {
                 own,
                 intruder: track(intruder, &scene, &mut stats)
@@ -154,7 +166,7 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
                     Some(k) => Kind::from_name(k)
                         .ok_or_else(|| format!("intruder_kind {k:?}: not a kind"))?,
                 },
-                rate_hz: positive("rate_hz", run.rate_hz.unwrap_or(DEFAULT_RATE_HZ))?,
+                rate_hz,
                 duration_s,
             };
             let flown = encounter::fly(&scene, pipeline, &encounter);
@@ -163,20 +175,12 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
                 &flown.pipeline.totals,
                 &flown.events,
                 &flown.approaches,
-                &flown.tick_cost_ns,
+                &flown.tick_costs,
                 0.0,
             );
             Ok(())
         }
         _ => Err("give either `tlog`, or both `own` and `intruder`".into()),
-    }
-}
-
-fn positive(name: &str, v: f64) -> Result<f64, String> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(format!("{name} {v}: give a positive number"))
     }
 }
 
@@ -216,7 +220,7 @@ fn replay_tlog(
             &p.totals,
             &session.notable,
             &session.approaches,
-            &session.tick_cost_ns,
+            &session.tick_costs,
             t0_s,
         );
     }

@@ -8,8 +8,8 @@ use crate::bench::report::{FlightResult, FlightRow, ModeRow, SceneReport};
 use crate::bench::BenchOptions;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{CollisionConfig, Mode, MovingBodies, Pipeline, VehicleKey};
+use crate::costs::percentiles_us;
 use crate::scene::Scene;
-use crate::session::percentiles_us;
 use crate::world::TrackSample;
 
 /// What a flight cost, nanoseconds: each tick whole, its contact layer, and each sensing

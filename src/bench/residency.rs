@@ -11,9 +11,9 @@ use crate::bench::compare::{collisions, compare};
 use crate::bench::flights::Flight;
 use crate::bench::fly::run_samples;
 use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
+use crate::costs::percentiles_us;
 use crate::scene::geometry::{Geometry, GeometrySource};
 use crate::scene::Scene;
-use crate::session::percentiles_us;
 
 /// What the residency run measured.
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -12,10 +12,10 @@ use serde::{Deserialize, Serialize};
 use crate::collision::pipeline::{
     BodyPose, CollisionConfig, DynamicBody, Mode, MovingBodies, Pipeline, VehicleKey,
 };
+use crate::costs::percentiles_us;
 use crate::geo::LocalTangentPlane;
 use crate::scene::geometry::Geometry;
 use crate::scene::{Kind, Placement, Scene, StaticObstacle};
-use crate::session::percentiles_us;
 use crate::world::TrackSample;
 
 /// Distance between neighbouring obstacles of a scale scene, metres.

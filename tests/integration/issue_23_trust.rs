@@ -314,3 +314,239 @@ fn sensing_rays_agree(session: &Session, tris: &[[DVec3; 3]], what: &str) -> usi
     }
     exact
 }
+
+/// A wall 1 m thick across the east axis at E 50 m: a vehicle flying east at `speed` crosses it
+/// between two samples (no sample inside it at 10 Hz above 10 m/s).
+const WALL: &str = "[[obstacle]]\nid = \"wall\"\nkind = \"building\"\nshape = { box = [1.0, 200.0, 60.0] }\nposition_enu_m = [50.0, 0.0, 0.0]\n";
+
+/// A session over the wall with one vehicle's heartbeat taken.
+fn wall_session() -> Session {
+    let scene = Arc::new(scene_at(ORIGIN, WALL));
+    let mut session = Session::new(Some(scene), CollisionConfig::default(), None).unwrap();
+    let hb = heartbeat(
+        MavType::MAV_TYPE_QUADROTOR,
+        MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+    );
+    feed(&mut session, 0.0, &frame_v2(1, 1, 0, &hb));
+    session
+}
+
+/// The collisions with the wall the session reported: (`t`, `time_of_impact`, swept).
+fn wall_collisions(session: &Session) -> Vec<(f64, f64, bool)> {
+    session
+        .notable
+        .iter()
+        .filter_map(|e| match &e.kind {
+            savsim::collision::events::EventKind::Collision {
+                time_of_impact,
+                swept,
+                ..
+            } => Some((e.t, *time_of_impact, *swept)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_quick_reboot_is_a_new_track_whose_first_interval_is_swept() {
+    let plane = LocalTangentPlane::new(ORIGIN);
+    let mut session = wall_session();
+    let mut seq = 0u8;
+    // Up to 6.5 s of its clock, hovering west of the wall.
+    for i in 0..=65u32 {
+        let bytes = crate::common::position_frames(
+            &plane,
+            1,
+            &mut seq,
+            i * 100,
+            DVec3::new(0.0, 0.0, 30.0),
+            DVec3::ZERO,
+        );
+        feed(&mut session, 100.0 + f64::from(i) * 0.1, &bytes);
+    }
+    // Silent 2 s, then streaming again from 1.5 s of a new clock (PX4 SITL restarts in
+    // 0.49 s), flying east at 20 m/s through the wall between its first two samples.
+    for (k, east_m) in [40.0, 60.0, 80.0].into_iter().enumerate() {
+        let bytes = crate::common::position_frames(
+            &plane,
+            1,
+            &mut seq,
+            1_500 + 100 * k as u32,
+            DVec3::new(east_m, 0.0, 30.0),
+            DVec3::new(20.0, 0.0, 0.0),
+        );
+        feed(&mut session, 108.5 + 0.1 * k as f64, &bytes);
+    }
+    let seen = session.world.seen.values().next().unwrap();
+    assert_eq!(seen.boot_resets, 1, "{seen:?}");
+    let hits = wall_collisions(&session);
+    assert_eq!(hits.len(), 1, "{hits:?}");
+    let (t, toi, swept) = hits[0];
+    assert!(swept, "{hits:?}");
+    // Half way between the samples that arrived at 108.5 and 108.6 s.
+    assert!(
+        (toi - 108.55).abs() < 0.03 && (t - 108.6).abs() < 0.03,
+        "{hits:?}"
+    );
+}
+
+/// Flies east at 10 m/s of the vehicle's clock, sampled every 100 ms of it, through the wall
+/// at E 50 m, with the vehicle's clock running `speedup` times the arrival clock; returns the
+/// collision and the arrival time of the first sample east of the wall's face.
+fn fly_through_wall(speedup: f64, latency: impl Fn(u32) -> f64) -> ((f64, f64, bool), f64) {
+    let plane = LocalTangentPlane::new(ORIGIN);
+    let mut session = wall_session();
+    let mut seq = 0u8;
+    let mut crossed_at = None;
+    for i in 0..120u32 {
+        let east_m = f64::from(i) - 0.25;
+        let arrival_s = 1000.0 + f64::from(i) * 0.1 / speedup + latency(i);
+        let bytes = crate::common::position_frames(
+            &plane,
+            1,
+            &mut seq,
+            30_000 + i * 100,
+            DVec3::new(east_m, 0.0, 30.0),
+            DVec3::new(10.0, 0.0, 0.0),
+        );
+        feed(&mut session, arrival_s, &bytes);
+        if east_m >= 49.5 && crossed_at.is_none() {
+            crossed_at = Some(arrival_s);
+        }
+    }
+    let hits = wall_collisions(&session);
+    assert_eq!(hits.len(), 1, "{hits:?}");
+    (hits[0], crossed_at.unwrap())
+}
+
+#[test]
+fn event_times_are_the_arrival_clock_at_any_speedup_and_drift() {
+    // SITL at speedups 1, 5 and 30 with jittered latency; PX4 SIH running slow (0.9).
+    for speedup in [1.0, 5.0, 30.0, 0.9] {
+        let ((t, toi, _), crossed_at) =
+            fly_through_wall(speedup, |i| 0.002 + f64::from(i * 37 % 11) * 0.001);
+        assert!(
+            (t - crossed_at).abs() < 0.3 && toi <= t && t - toi < 0.1 / speedup + 0.02,
+            "speedup {speedup}: collision at t {t}, impact {toi}; the track crossed at {crossed_at}"
+        );
+    }
+}
+
+/// `savsim` with `args`, killed if it runs longer than `limit` (a hang is a failure).
+fn savsim_within(args: &[&str], limit: std::time::Duration) -> std::process::Output {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if started.elapsed() > limit {
+            let _ = child.kill();
+            panic!("savsim {args:?} still running after {limit:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn absurd_numbers_in_a_row_are_that_rows_error_and_the_rest_run() {
+    use arrow_array::{cast::AsArray, types::UInt64Type, Array};
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    let own = "0 0 0 100; 20 200 0 100";
+    std::fs::write(
+        &manifest,
+        format!(
+            "id,own,intruder,duration_s,rate_hz\n\
+             long,{own},{own},1e14,\n\
+             fast,{own},{own},,1e300\n\
+             many,{own},{own},1e6,1000\n\
+             far,0 0 0 1e300; 1 0 0 0,{own},,\n\
+             nan,{own},{own},NaN,\n\
+             good,{own},{own},,\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = savsim_within(
+        &[
+            "batch",
+            manifest.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        std::time::Duration::from_secs(60),
+    );
+    crate::common::assert_ran(&run);
+    let file = std::fs::File::open(out.join("part-00000-of-00001.parquet")).unwrap();
+    let batch = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap();
+    let errors = batch.column_by_name("error").unwrap().as_string::<i32>();
+    for (i, want) in [
+        "duration_s 1e14",
+        "rate_hz 1e300",
+        "samples a row",
+        "waypoint 1",
+        "duration_s NaN",
+    ]
+    .iter()
+    .enumerate()
+    {
+        assert!(
+            errors.value(i).contains(want),
+            "row {i}: {:?}",
+            errors.value(i)
+        );
+    }
+    assert!(errors.is_null(5), "{}", errors.value(5));
+    let collisions = batch
+        .column_by_name("collisions")
+        .unwrap()
+        .as_primitive::<UInt64Type>();
+    assert_eq!(collisions.value(5), 1);
+}
+
+#[test]
+fn absurd_flags_are_usage_errors_not_panics() {
+    for args in [
+        &[
+            "live",
+            "--connect",
+            "udpin:127.0.0.1:0",
+            "--duration-s",
+            "1e20",
+        ][..],
+        &[
+            "live",
+            "--connect",
+            "udpin:127.0.0.1:0",
+            "--rate-hz",
+            "1e300",
+        ],
+        &["replay", "x.tlog", "--ray-length-m", "1e300"],
+        &["replay", "x.tlog", "--sensor-hz", "1e300"],
+        &["batch", "gen-encounters", "--n", "1000000000000"],
+        &[
+            "batch",
+            "gen-encounters",
+            "--n",
+            "1",
+            "--duration-s",
+            "1e300",
+        ],
+        &["bench", "--scale-max", "1000000000000"],
+    ] {
+        let run = savsim_within(args, std::time::Duration::from_secs(20));
+        let said = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {said}");
+        assert!(!said.contains("panicked"), "{args:?}: {said}");
+    }
+}

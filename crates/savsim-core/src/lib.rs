@@ -1,6 +1,7 @@
 //! savsim's core: everything that decides what a vehicle perceives and what it hit, as pure,
 //! synchronous code that a program can embed without savsim's I/O.
 //!
+//! - [`bounds`]: the ranges every number from outside is checked against.
 //! - [`geo`]: WGS84 geodetic <-> ECEF <-> local ENU tangent plane, f64.
 //! - [`scene`]: scene data, its loaders (bytes handed in through [`scene::Files`]) and the
 //!   generators.
@@ -13,6 +14,7 @@
 //! format readers); the build keeps tokio, mavlink, clap, arrow, parquet, plotters and rerun
 //! out. The `savsim` crate wires it to sockets, logs, the viewer and batches.
 
+pub mod bounds;
 pub mod collision;
 pub mod geo;
 pub mod scene;

@@ -218,3 +218,37 @@ impl Default for CollisionConfig {
         }
     }
 }
+
+impl CollisionConfig {
+    /// Check every threshold against its range (each named by its command-line flag):
+    /// lengths up to 100 km, times up to a day, rates up to 1000 Hz, the mesh budget up to
+    /// 1 TiB.
+    ///
+    /// ```
+    /// use savsim_core::collision::config::CollisionConfig;
+    /// assert!(CollisionConfig::default().validate().is_ok());
+    /// let huge = CollisionConfig { ray_length_m: 1e300, ..CollisionConfig::default() };
+    /// assert!(huge.validate().unwrap_err().to_string().starts_with("--ray-length-m"));
+    /// ```
+    pub fn validate(&self) -> Result<(), crate::bounds::OutOfRange> {
+        use crate::bounds::within;
+        const LENGTH_M: f64 = 100_000.0;
+        const TIME_S: f64 = 86_400.0;
+        for (name, v, max) in [
+            ("--ray-length-m", self.ray_length_m, LENGTH_M),
+            ("--near-miss-m", self.near_miss_m, LENGTH_M),
+            ("--max-gap-s", self.max_gap_s, TIME_S),
+            ("--look-ahead-s", self.look_ahead_s, TIME_S),
+            ("--mesh-beta", self.mesh_beta, 1e6),
+            ("--mesh-within-m", self.mesh_within_m, LENGTH_M),
+            ("--box-beyond-m", self.box_beyond_m, LENGTH_M),
+            ("--hold-s", self.hold_s, TIME_S),
+            ("--max-below-terrain-m", self.max_below_terrain_m, LENGTH_M),
+            ("--sensor-hz", self.sensor_hz, crate::bounds::MAX_RATE_HZ),
+            ("--mesh-budget-mib", self.mesh_budget_mib, 1024.0 * 1024.0),
+        ] {
+            within(name, v, 0.0, max)?;
+        }
+        Ok(())
+    }
+}
