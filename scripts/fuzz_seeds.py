@@ -43,5 +43,8 @@ chunks = bytearray()
 for i, f in enumerate(frames(TLOG, 120)):
     chunks += bytes([(i % 2) << 7 | (i % 4), 5, len(f)]) + f
 write("live_links", "seed0", bytes(chunks))
+# feed: a byte choosing the kinds and rate, then 4 KiB of the tlog (the flight, not its start).
+for k, i in enumerate(range(4096 * 40, min(len(TLOG), 4096 * 56), 4096)):
+    write("feed", f"seed{k:03d}", bytes([k % 16]) + TLOG[i:i + 4096])
 write("scene_parser", "seed0", (FUZZ / "scene.toml").read_bytes().split(b"[[terrain]]")[0])
 print("seeds written under", FUZZ / "corpus")

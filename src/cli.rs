@@ -233,6 +233,10 @@ pub struct FeedArgs {
     /// MAV_DISTANCE_SENSOR type of the readings (0 laser, 1 ultrasound, 2 infrared, 3 radar).
     #[arg(long, default_value_t = 0)]
     pub feed_sensor_type: u8,
+    /// Aircraft farther than this are not sent as ADS-B, metres (ArduCopter's
+    /// ADSB_LIST_RADIUS default; ArduPlane's is 10000).
+    #[arg(long, default_value_t = 2000.0)]
+    pub feed_adsb_radius_m: f64,
 }
 
 /// `savsim demo`.

@@ -99,6 +99,7 @@ fn start_feed(session: &mut Session, args: &FeedArgs) -> Result<Option<f64>> {
         },
         orientations: args.feed_orientations.clone(),
         sensor_type: args.feed_sensor_type,
+        adsb_radius_m: args.feed_adsb_radius_m,
         ..Default::default()
     })?;
     Ok(Some(args.feed_hz))

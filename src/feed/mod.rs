@@ -118,6 +118,9 @@ pub struct FeedConfig {
     pub sensor_type: u8,
     /// ADSB_VEHICLE reports per aircraft per second (vehicle's clock).
     pub adsb_hz: f64,
+    /// Aircraft farther than this from the vehicle are not reported as ADS-B, metres. Default
+    /// 2000, ArduCopter's ADSB_LIST_RADIUS (ArduPlane's is 10000).
+    pub adsb_radius_m: f64,
     /// COLLISION: report aircraft whose closest approach comes within this horizontally,
     /// metres...
     pub collision_horizontal_m: f64,
@@ -139,6 +142,7 @@ impl Default for FeedConfig {
             orientations: (0..SECTORS as u8).chain([ORIENTATION_UP]).collect(),
             sensor_type: 0,
             adsb_hz: 2.0,
+            adsb_radius_m: 2000.0,
             collision_horizontal_m: 150.0,
             collision_vertical_m: 30.0,
             collision_horizon_s: 30.0,
@@ -152,10 +156,16 @@ impl FeedConfig {
         if !(self.hz.is_finite() && self.hz > 0.0 && self.hz <= 1000.0) {
             return Err(format!("--feed-hz must be in (0, 1000], not {}", self.hz));
         }
-        if !(self.adsb_hz.is_finite() && self.adsb_hz > 0.0) {
+        if !(self.adsb_hz.is_finite() && self.adsb_hz > 0.0 && self.adsb_hz <= 100.0) {
             return Err(format!(
-                "the ADS-B rate must be positive, not {}",
+                "the ADS-B rate must be in (0, 100], not {}",
                 self.adsb_hz
+            ));
+        }
+        if !(self.adsb_radius_m.is_finite() && (0.0..=1e6).contains(&self.adsb_radius_m)) {
+            return Err(format!(
+                "--feed-adsb-radius-m must be in [0, 1000000], not {}",
+                self.adsb_radius_m
             ));
         }
         let Range { min_m, max_m } = self.range;
@@ -294,37 +304,59 @@ impl Feed {
 
     /// True when a frame is due for `sender` at its sample stamped `time_boot_ms`: one per
     /// period of the vehicle's clock (a quarter period early at most, for jitter), never two
-    /// to catch up.
+    /// to catch up. Wrap-safe; a restart of the vehicle's clock ([`clock::step`]) starts the
+    /// pacing again.
     fn due(&mut self, sender: SenderId, time_boot_ms: u32) -> bool {
-        let period_ms = 1000.0 / self.config.hz;
+        let period_ms = (1000.0 / self.config.hz).round().max(1.0) as u32;
         let v = self.vehicles.entry(sender).or_default();
         if v.last_stamp_ms
             .is_some_and(|last| clock::step(last, time_boot_ms) == ClockStep::Restart)
         {
-            // The clock went back: a reboot. Start pacing again.
             v.next_due_ms = None;
             v.last_stamp_ms = None;
             v.next_adsb_ms = None;
             v.counts.restarts += 1;
         }
-        let early_ms = (period_ms * 0.25) as u32;
+        let early_ms = period_ms / 4;
         match v.next_due_ms {
-            Some(next) if time_boot_ms.saturating_add(early_ms) < next => false,
+            Some(next) if !at_or_after(time_boot_ms.wrapping_add(early_ms), next) => false,
             Some(next) => {
-                let after = next.saturating_add(period_ms.round() as u32);
-                v.next_due_ms = Some(if after <= time_boot_ms {
-                    // Behind (a telemetry gap): one frame now, the next a period later.
-                    time_boot_ms.saturating_add(period_ms.round() as u32)
+                let after = next.wrapping_add(period_ms);
+                // Behind (a telemetry gap): one frame now, the next a period later.
+                v.next_due_ms = Some(if at_or_after(time_boot_ms, after) {
+                    time_boot_ms.wrapping_add(period_ms)
                 } else {
                     after
                 });
                 true
             }
             None => {
-                v.next_due_ms = Some(time_boot_ms.saturating_add(period_ms.round() as u32));
+                v.next_due_ms = Some(time_boot_ms.wrapping_add(period_ms));
                 true
             }
         }
+    }
+
+    /// The frame's stamp: the sample's, always advancing (ArduPilot groups readings by it);
+    /// counts the interval since the last frame.
+    fn stamp(&mut self, sender: SenderId, time_boot_ms: u32) -> u32 {
+        let gap_ms = 2000.0 / self.config.hz;
+        let v = self.vehicles.entry(sender).or_default();
+        let stamp = match v.last_stamp_ms {
+            Some(last) if !at_or_after(time_boot_ms, last.wrapping_add(1)) => last.wrapping_add(1),
+            _ => time_boot_ms,
+        };
+        if let Some(last) = v.last_stamp_ms {
+            let interval = stamp.wrapping_sub(last);
+            v.counts.max_interval_ms = v.counts.max_interval_ms.max(interval);
+            v.counts.span_ms += u64::from(interval);
+            if f64::from(interval) > gap_ms {
+                v.counts.gaps += 1;
+            }
+        }
+        v.last_stamp_ms = Some(stamp);
+        v.counts.frames += 1;
+        stamp
     }
 
     /// After a collision tick: if a frame is due for this vehicle, cast it and push its
@@ -340,61 +372,52 @@ impl Feed {
             return;
         }
         let first = out.len();
+        let stamp = self.stamp(input.sender, input.current.time_boot_ms);
+        let mut frame = Frame {
+            input,
+            stamp,
+            up_enu: input.plane.up_at(&input.current.position),
+            out,
+        };
+        let kinds = self.config.kinds;
+        if kinds.needs_bins() || kinds.rangefinder {
+            self.range_readings(pipeline, &mut frame);
+        }
+        if kinds.adsb {
+            self.adsb(&mut frame);
+        }
+        if kinds.collision {
+            self.collisions(&mut frame);
+        }
+        let made = (frame.out.len() - first) as u64;
+        self.vehicles
+            .entry(input.sender)
+            .or_default()
+            .counts
+            .messages += made;
+    }
+
+    /// The range sensors: proximity sectors and up, OBSTACLE_DISTANCE, the rangefinder.
+    fn range_readings(&mut self, pipeline: &mut Pipeline, f: &mut Frame<'_, '_>) {
         let cfg = &self.config;
         let kinds = cfg.kinds;
-        let current = input.current;
-        let v = self.vehicles.entry(input.sender).or_default();
-        // One frame, one stamp, always advancing (ArduPilot groups readings by it).
-        let stamp = match v.last_stamp_ms {
-            Some(last) if current.time_boot_ms <= last => last.wrapping_add(1),
-            _ => current.time_boot_ms,
+        let attitude = &f.input.current.attitude;
+        let down_enu = (attitude.enu_from_frd * DVec3::Z).normalize_or(-f.up_enu);
+        let levelled = Levelled::new(attitude.forward_enu(), down_enu, f.up_enu);
+        let mut caster = Caster {
+            pipeline,
+            input: f.input,
+            max_m: cfg.range.max_m,
         };
-        if let Some(last) = v.last_stamp_ms {
-            let interval = stamp.wrapping_sub(last);
-            v.counts.max_interval_ms = v.counts.max_interval_ms.max(interval);
-            v.counts.span_ms += u64::from(interval);
-            if f64::from(interval) > 2000.0 / cfg.hz {
-                v.counts.gaps += 1;
-            }
-        }
-        v.last_stamp_ms = Some(stamp);
-        v.counts.frames += 1;
-        let own = input.key.source();
-        let origin = current.position_enu_m;
-        let push = |out: &mut Vec<FeedMessage>, message| {
-            out.push(FeedMessage {
-                to: input.sender,
-                t_s: current.t_s,
-                message,
-            })
-        };
-        let attitude = &current.attitude;
-        let levelled = Levelled::new(attitude.forward_enu(), attitude.enu_from_frd * DVec3::Z);
         if let (true, Some(levelled)) = (kinds.needs_bins(), levelled) {
             levelled.bin_directions(&mut self.dirs);
-            let rays = Rays {
-                origin_enu_m: origin,
-                dirs_enu: &self.dirs,
-                max_m: cfg.range.max_m,
-            };
-            pipeline.cast_exact_rays(input.scene, own, input.dynamic, rays, &mut self.bins);
+            caster.cast(&self.dirs, &mut self.bins);
         }
-        let pipeline_has_terrain = pipeline.has_terrain();
-        let mut one_ray = |dir: DVec3| {
-            let mut hit = [None];
-            let rays = Rays {
-                origin_enu_m: origin,
-                dirs_enu: &[dir],
-                max_m: cfg.range.max_m,
-            };
-            pipeline.cast_exact_rays(input.scene, own, input.dynamic, rays, &mut hit);
-            hit[0]
-        };
         let readings = &mut self.readings;
         if let (true, Some(levelled)) = (kinds.proximity, levelled) {
             for (id, &o) in cfg.orientations.iter().enumerate() {
                 let (dir_enu, distance_m) = if o == ORIENTATION_UP {
-                    (DVec3::Z, one_ray(DVec3::Z))
+                    (f.up_enu, caster.one(f.up_enu))
                 } else {
                     let centre = levelled.direction(f64::from(o) * 45.0);
                     (
@@ -406,17 +429,15 @@ impl Feed {
                     dir_enu,
                     distance_m,
                 });
-                push(
-                    out,
-                    wire::distance_sensor(
-                        stamp,
-                        cfg.range,
-                        distance_m,
-                        o,
-                        cfg.sensor_type,
-                        id as u8,
-                    ),
+                let m = wire::distance_sensor(
+                    f.stamp,
+                    cfg.range,
+                    distance_m,
+                    o,
+                    cfg.sensor_type,
+                    id as u8,
                 );
+                f.push(m);
             }
         }
         if let (true, Some(_)) = (kinds.obstacle_distance, levelled) {
@@ -429,56 +450,131 @@ impl Feed {
                         distance_m,
                     }),
             );
-            push(
-                out,
-                wire::obstacle_distance(stamp, cfg.range, &self.bins, cfg.sensor_type),
-            );
+            f.push(wire::obstacle_distance(
+                f.stamp,
+                cfg.range,
+                &self.bins,
+                cfg.sensor_type,
+            ));
         }
         if kinds.rangefinder {
-            let down = (attitude.enu_from_frd * DVec3::Z).normalize_or(DVec3::NEG_Z);
-            let mut distance_m = one_ray(down);
-            if !pipeline_has_terrain {
-                // No terrain: the ground is the plane through the scene's origin.
-                distance_m = nearest(distance_m, ground_plane_m(origin, down, cfg.range.max_m));
+            let mut distance_m = caster.one(down_enu);
+            if !caster.pipeline.has_terrain() {
+                // No terrain: the ground is the ellipsoid's surface at the origin's height.
+                let ground = f.input.plane.distance_to_height_m(
+                    f.input.current.position_enu_m,
+                    down_enu,
+                    cfg.range.max_m,
+                    f.input.plane.origin().alt_m,
+                );
+                distance_m = nearest(distance_m, ground);
             }
             readings.push(Reading {
-                dir_enu: down,
+                dir_enu: down_enu,
                 distance_m,
             });
-            push(
-                out,
-                wire::distance_sensor(
-                    stamp,
-                    cfg.range,
-                    distance_m,
-                    ORIENTATION_DOWN,
-                    cfg.sensor_type,
-                    cfg.orientations.len() as u8,
-                ),
+            let id = cfg.orientations.len() as u8;
+            f.push(wire::distance_sensor(
+                f.stamp,
+                cfg.range,
+                distance_m,
+                ORIENTATION_DOWN,
+                cfg.sensor_type,
+                id,
+            ));
+        }
+    }
+
+    /// ADSB_VEHICLE for each aircraft within the ADS-B radius, at the ADS-B rate.
+    fn adsb(&mut self, f: &mut Frame<'_, '_>) {
+        let cfg = &self.config;
+        let v = self.vehicles.entry(f.input.sender).or_default();
+        if v.next_adsb_ms
+            .is_some_and(|next| !at_or_after(f.stamp, next))
+        {
+            return;
+        }
+        let period_ms = (1000.0 / cfg.adsb_hz).round().max(1.0) as u32;
+        v.next_adsb_ms = Some(f.stamp.wrapping_add(period_ms));
+        let own = f.input.current.position_enu_m;
+        for (aircraft, body) in aircraft(f.input) {
+            if (body.current.position_enu_m - own).length() <= cfg.adsb_radius_m {
+                f.push(wire::adsb_vehicle(&aircraft, 0.0));
+            }
+        }
+    }
+
+    /// COLLISION for each aircraft whose straight-on course enters the threat volume.
+    fn collisions(&mut self, f: &mut Frame<'_, '_>) {
+        let current = f.input.current;
+        let to_local = f
+            .input
+            .plane
+            .plane_enu_from_local_enu_at(&current.position)
+            .transpose();
+        for (aircraft, body) in aircraft(f.input) {
+            // In the local ENU axes at the vehicle: "horizontal" and "vertical" are its own.
+            let threat = threats::threat(
+                DVec3::ZERO,
+                to_local * current.velocity_enu_mps,
+                to_local * (body.current.position_enu_m - current.position_enu_m),
+                to_local * body_velocity(body),
+                &self.config,
             );
-        }
-        let adsb_due = kinds.adsb && v.next_adsb_ms.is_none_or(|next| stamp >= next);
-        if adsb_due {
-            v.next_adsb_ms = Some(stamp.saturating_add((1000.0 / cfg.adsb_hz).round() as u32));
-            for (aircraft, _) in aircraft(input) {
-                push(out, wire::adsb_vehicle(&aircraft, 0.0));
+            if let Some(threat) = threat {
+                f.push(threats::collision(aircraft.icao_address, &threat));
             }
         }
-        if kinds.collision {
-            for (aircraft, body) in aircraft(input) {
-                let velocity = body_velocity(body);
-                if let Some(threat) = threats::threat(
-                    current.position_enu_m,
-                    current.velocity_enu_mps,
-                    body.current.position_enu_m,
-                    velocity,
-                    cfg,
-                ) {
-                    push(out, threats::collision(aircraft.icao_address, &threat));
-                }
-            }
-        }
-        v.counts.messages += (out.len() - first) as u64;
+    }
+}
+
+/// True when the stamp `a` is at or after `b` on a wrapping u32 clock (within 24.8 days).
+fn at_or_after(a: u32, b: u32) -> bool {
+    (a.wrapping_sub(b) as i32) >= 0
+}
+
+/// One frame being made: its inputs, stamp, the local vertical and where its messages go.
+struct Frame<'i, 'o> {
+    input: &'i FrameInput<'i>,
+    stamp: u32,
+    /// The local vertical at the vehicle, scene ENU.
+    up_enu: DVec3,
+    out: &'o mut Vec<FeedMessage>,
+}
+
+impl Frame<'_, '_> {
+    fn push(&mut self, message: MavMessage) {
+        self.out.push(FeedMessage {
+            to: self.input.sender,
+            t_s: self.input.current.t_s,
+            message,
+        });
+    }
+}
+
+/// Exact rays from the vehicle into the scene and the other moving bodies.
+struct Caster<'p, 'i> {
+    pipeline: &'p mut Pipeline,
+    input: &'i FrameInput<'i>,
+    max_m: f64,
+}
+
+impl Caster<'_, '_> {
+    fn cast(&mut self, dirs: &[DVec3], out: &mut [Option<f64>]) {
+        let rays = Rays {
+            origin_enu_m: self.input.current.position_enu_m,
+            dirs_enu: dirs,
+            max_m: self.max_m,
+        };
+        let own = self.input.key.source();
+        self.pipeline
+            .cast_exact_rays(self.input.scene, own, self.input.dynamic, rays, out);
+    }
+
+    fn one(&mut self, dir: DVec3) -> Option<f64> {
+        let mut hit = [None];
+        self.cast(&[dir], &mut hit);
+        hit[0]
     }
 }
 
@@ -487,16 +583,6 @@ fn nearest(a: Option<f64>, b: Option<f64>) -> Option<f64> {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
     }
-}
-
-/// Distance along `dir` (unit) from `origin_enu_m` to the plane U = 0, within `max_m`.
-fn ground_plane_m(origin_enu_m: DVec3, dir: DVec3, max_m: f64) -> Option<f64> {
-    if origin_enu_m.z < 0.0 {
-        return Some(0.0);
-    }
-    (dir.z < 0.0)
-        .then(|| origin_enu_m.z / -dir.z)
-        .filter(|&d| d <= max_m)
 }
 
 /// A moving body's velocity, ENU m/s: its speed along its motion in this interval (along its
@@ -545,12 +631,13 @@ fn aircraft<'a>(
             }
             BodySource::Traffic(_) => return None,
         };
+        let position = input.plane.geodetic_from_enu_m(d.current.position_enu_m);
         Some((
             wire::Aircraft {
                 icao_address,
                 callsign: &d.id,
-                position: input.plane.geodetic_from_enu_m(d.current.position_enu_m),
-                velocity_enu_mps: body_velocity(d),
+                position,
+                velocity_ned_mps: input.plane.ned_vector_at(&position, body_velocity(d)),
                 kind: d.kind,
             },
             d,

@@ -30,7 +30,7 @@ pub const SECTORS: usize = 8;
 pub const BINS_PER_SECTOR: usize = 9;
 
 /// The vehicle's levelled frame: its nose and right-hand side projected on the horizontal
-/// plane, ENU unit vectors. `forward_enu` is the body's x axis; a nose pointing straight up or
+/// plane at the vehicle (perpendicular to its local vertical), ENU unit vectors. `forward_enu` is the body's x axis; a nose pointing straight up or
 /// down (no heading) falls back to the body's `down_enu` axis projected, which then points
 /// where the nose would level out.
 ///
@@ -39,7 +39,7 @@ pub const BINS_PER_SECTOR: usize = 9;
 /// use savsim::feed::sectors::Levelled;
 /// // Nose north-east and pitched 30 degrees up: the levelled nose is north-east, level.
 /// let f = DVec3::new(1.0, 1.0, 2f64.sqrt() * 30f64.to_radians().tan()).normalize();
-/// let l = Levelled::new(f, DVec3::NEG_Z).unwrap();
+/// let l = Levelled::new(f, DVec3::NEG_Z, DVec3::Z).unwrap();
 /// assert!((l.forward_enu - DVec3::new(1.0, 1.0, 0.0).normalize()).length() < 1e-12);
 /// // Clockwise from above: the right-hand side of a north-east nose is south-east.
 /// assert!((l.right_enu - DVec3::new(1.0, -1.0, 0.0).normalize()).length() < 1e-12);
@@ -53,17 +53,18 @@ pub struct Levelled {
 }
 
 impl Levelled {
-    /// From the body's forward (x) and down (z) axes in ENU; `None` if neither gives a heading
-    /// (not finite).
-    pub fn new(forward_enu: DVec3, down_enu: DVec3) -> Option<Self> {
-        let flat = |v: DVec3| DVec3::new(v.x, v.y, 0.0).try_normalize();
+    /// From the body's forward (x) and down (z) axes and the local vertical `up_enu` at the
+    /// vehicle (all ENU); `None` if neither axis gives a heading (not finite).
+    pub fn new(forward_enu: DVec3, down_enu: DVec3, up_enu: DVec3) -> Option<Self> {
+        let up = up_enu.try_normalize()?;
+        let flat = |v: DVec3| (v - up * v.dot(up)).try_normalize();
         // Nose vertical: the body's down axis, levelled, points along the heading when the
         // nose is up (pitched up 90 degrees, the belly faces ahead), back when it is down.
         let forward = flat(forward_enu)
-            .or_else(|| flat(down_enu).map(|d| if forward_enu.z > 0.0 { d } else { -d }))?;
+            .or_else(|| flat(down_enu).map(|d| if forward_enu.dot(up) > 0.0 { d } else { -d }))?;
         Some(Self {
             forward_enu: forward,
-            right_enu: DVec3::new(forward.y, -forward.x, 0.0),
+            right_enu: forward.cross(up),
         })
     }
 

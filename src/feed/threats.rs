@@ -19,12 +19,14 @@ pub struct Threat {
     pub horizontal_m: f64,
     /// Vertical distance then, metres.
     pub vertical_m: f64,
-    /// Within half the configured distances: high; otherwise low.
+    /// Comes within half the configured distances in the horizon: high; otherwise low.
     pub high: bool,
 }
 
-/// The closest approach of `other` (position, velocity; ENU m, m/s) to `own`, if it comes
-/// within the configured horizontal and vertical distances within the horizon.
+/// The closest approach of `other` (position, velocity; ENU m, m/s, in the vehicle's local
+/// axes) to `own`, if at some moment within the horizon the two are within the configured
+/// horizontal and vertical distances (already within them now counts, wherever the closest
+/// approach is); the threat is high if they come within half of each.
 ///
 /// ```
 /// use glam::DVec3;
@@ -37,6 +39,10 @@ pub struct Threat {
 /// // Moving apart: no threat.
 /// assert!(threat(DVec3::ZERO, DVec3::X * -10.0, DVec3::new(200.0, 0.0, 5.0),
 ///                DVec3::X * 10.0, &FeedConfig::default()).is_none());
+/// // 100 m away, closing at 1 m/s: the closest approach is 100 s off, but it is inside now.
+/// let slow = threat(DVec3::ZERO, DVec3::ZERO, DVec3::new(100.0, 0.0, 0.0),
+///                   DVec3::X * -1.0, &FeedConfig::default()).unwrap();
+/// assert!((slow.time_to_cpa_s - 30.0).abs() < 1e-9 && !slow.high);
 /// ```
 pub fn threat(
     own_enu_m: DVec3,
@@ -47,30 +53,59 @@ pub fn threat(
 ) -> Option<Threat> {
     let r = other_enu_m - own_enu_m;
     let v = other_velocity_enu_mps - own_velocity_enu_mps;
+    let horizon_s = cfg.collision_horizon_s;
+    let (h_m, z_m) = (cfg.collision_horizontal_m, cfg.collision_vertical_m);
+    inside_within(r, v, h_m, z_m, horizon_s)?;
     let speed2 = v.length_squared();
     let t = if speed2 > 1e-12 {
-        (-r.dot(v) / speed2).clamp(0.0, cfg.collision_horizon_s)
+        (-r.dot(v) / speed2).clamp(0.0, horizon_s)
     } else {
         0.0
     };
     let at = r + v * t;
-    let horizontal_m = at.truncate().length();
-    let vertical_m = at.z.abs();
-    let within = |h: f64, z: f64| horizontal_m <= h && vertical_m <= z;
-    if !(t < cfg.collision_horizon_s
-        && within(cfg.collision_horizontal_m, cfg.collision_vertical_m))
-    {
-        return None;
-    }
     Some(Threat {
         time_to_cpa_s: t,
-        horizontal_m,
-        vertical_m,
-        high: within(
-            cfg.collision_horizontal_m * 0.5,
-            cfg.collision_vertical_m * 0.5,
-        ),
+        horizontal_m: at.truncate().length(),
+        vertical_m: at.z.abs(),
+        high: inside_within(r, v, h_m * 0.5, z_m * 0.5, horizon_s).is_some(),
     })
+}
+
+/// The times in `[0, horizon_s]` when `r + v t` is within `h_m` horizontally and `z_m`
+/// vertically, as an interval, if there are any.
+fn inside_within(r: DVec3, v: DVec3, h_m: f64, z_m: f64, horizon_s: f64) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (0.0f64, horizon_s);
+    // Vertical: |r.z + v.z t| <= z_m.
+    if v.z.abs() < 1e-12 {
+        if r.z.abs() > z_m {
+            return None;
+        }
+    } else {
+        let (a, b) = ((-z_m - r.z) / v.z, (z_m - r.z) / v.z);
+        lo = lo.max(a.min(b));
+        hi = hi.min(a.max(b));
+    }
+    // Horizontal: |r_h + v_h t|^2 <= h_m^2, a quadratic in t.
+    let (rh, vh) = (r.truncate(), v.truncate());
+    let (a, b, c) = (
+        vh.length_squared(),
+        2.0 * rh.dot(vh),
+        rh.length_squared() - h_m * h_m,
+    );
+    if a < 1e-12 {
+        if c > 0.0 {
+            return None;
+        }
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        lo = lo.max((-b - root) / (2.0 * a));
+        hi = hi.min((-b + root) / (2.0 * a));
+    }
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// The COLLISION message for aircraft `id` (its ICAO address).

@@ -117,8 +117,8 @@ pub struct Aircraft<'a> {
     pub callsign: &'a str,
     /// Where, WGS84; the height is taken as above mean sea level, as MAVLink's positions are.
     pub position: Geodetic,
-    /// Velocity, ENU m/s.
-    pub velocity_enu_mps: glam::DVec3,
+    /// Velocity in the local North-East-Down frame at its position, m/s.
+    pub velocity_ned_mps: glam::DVec3,
     /// What it is.
     pub kind: Kind,
 }
@@ -126,10 +126,10 @@ pub struct Aircraft<'a> {
 /// ADSB_VEHICLE for `a`, reported `tslc_s` seconds after its last fix: every validity flag set
 /// (as ArduPilot's own ADS-B simulator sends), marked simulated.
 pub fn adsb_vehicle(a: &Aircraft<'_>, tslc_s: f64) -> MavMessage {
-    let v = a.velocity_enu_mps;
+    let v = a.velocity_ned_mps;
     let horizontal = v.truncate().length();
     // Heading clockwise from north, [0, 360).
-    let heading_deg = v.x.atan2(v.y).to_degrees().rem_euclid(360.0);
+    let heading_deg = v.y.atan2(v.x).to_degrees().rem_euclid(360.0);
     let mut callsign = [0u8; 9];
     for (out, c) in callsign.iter_mut().zip(a.callsign.bytes().take(8)) {
         *out = c;
@@ -142,7 +142,8 @@ pub fn adsb_vehicle(a: &Aircraft<'_>, tslc_s: f64) -> MavMessage {
         altitude: (a.position.alt_m * 1e3).round() as i32,
         heading: ((heading_deg * 100.0).round() as u32 % 36_000) as u16,
         hor_velocity: (horizontal * 100.0).round().clamp(0.0, 65_535.0) as u16,
-        ver_velocity: (v.z * 100.0).round().clamp(-32_768.0, 32_767.0) as i16,
+        // Up positive.
+        ver_velocity: (-v.z * 100.0).round().clamp(-32_768.0, 32_767.0) as i16,
         callsign: callsign.into(),
         emitter_type: emitter_type(a.kind),
         tslc: tslc_s.round().clamp(0.0, 255.0) as u8,

@@ -183,4 +183,80 @@ impl LocalTangentPlane {
         let local = LocalTangentPlane::new(*position);
         self.enu_from_ecef * local.enu_from_ecef.transpose()
     }
+
+    /// The local vertical (up) at `position`, in this plane's ENU axes.
+    pub fn up_at(&self, position: &Geodetic) -> DVec3 {
+        self.plane_enu_from_local_enu_at(position) * DVec3::Z
+    }
+
+    /// A vector given in this plane's ENU axes, in the local North-East-Down frame at
+    /// `position` (the inverse of [`Self::enu_vector_from_ned_at`]).
+    ///
+    /// ```
+    /// use glam::DVec3;
+    /// use savsim_core::geo::{Geodetic, LocalTangentPlane};
+    /// let plane = LocalTangentPlane::new(Geodetic::new(47.0, 8.0, 500.0));
+    /// let far = Geodetic::new(47.0, 8.2, 500.0); // 15 km east: north there is turned
+    /// let ned = DVec3::new(3.0, -4.0, 1.5);
+    /// let back = plane.ned_vector_at(&far, plane.enu_vector_from_ned_at(&far, ned));
+    /// assert!((back - ned).length() < 1e-12);
+    /// ```
+    pub fn ned_vector_at(&self, position: &Geodetic, vector_enu: DVec3) -> DVec3 {
+        let local = self.plane_enu_from_local_enu_at(position).transpose() * vector_enu;
+        DVec3::new(local.y, local.x, -local.z)
+    }
+
+    /// How far along the ray from `origin_enu_m` in direction `dir_enu` (unit), up to `max_m`,
+    /// the surface `height_m` above the WGS84 ellipsoid lies: 0 when the origin is below it,
+    /// `None` when the ray does not reach it. The height along a straight ray of up to a few
+    /// kilometres is convex (the earth curves away under it), so its lowest point decides.
+    ///
+    /// ```
+    /// use glam::DVec3;
+    /// use savsim_core::geo::{Geodetic, LocalTangentPlane};
+    /// let plane = LocalTangentPlane::new(Geodetic::new(-35.0, 149.0, 584.0));
+    /// // 10 km east of the origin, 30 m above the ellipsoidal surface at the origin's height:
+    /// let up = plane.up_at(&Geodetic::new(-35.0, 149.0 + 10_000.0 / 91_300.0, 614.0));
+    /// let p = plane.enu_m_from_geodetic(&Geodetic::new(-35.0, 149.0 + 10_000.0 / 91_300.0, 614.0));
+    /// let d = plane.distance_to_height_m(p, -up, 40.0, 584.0).unwrap();
+    /// assert!((d - 30.0).abs() < 1e-6, "{d}");
+    /// ```
+    pub fn distance_to_height_m(
+        &self,
+        origin_enu_m: DVec3,
+        dir_enu: DVec3,
+        max_m: f64,
+        height_m: f64,
+    ) -> Option<f64> {
+        let above = |t: f64| self.geodetic_from_enu_m(origin_enu_m + dir_enu * t).alt_m - height_m;
+        if above(0.0) <= 0.0 {
+            return Some(0.0);
+        }
+        // The lowest point within reach (golden-section search on a convex function).
+        let (mut lo, mut hi) = (0.0, max_m);
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        for _ in 0..80 {
+            let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+            if above(a) < above(b) {
+                hi = b;
+            } else {
+                lo = a;
+            }
+        }
+        let lowest = 0.5 * (lo + hi);
+        if above(lowest) > 0.0 {
+            return None;
+        }
+        // The first crossing, between the origin and the lowest point.
+        let (mut clear, mut under) = (0.0, lowest);
+        for _ in 0..80 {
+            let mid = 0.5 * (clear + under);
+            if above(mid) > 0.0 {
+                clear = mid;
+            } else {
+                under = mid;
+            }
+        }
+        Some(under)
+    }
 }
