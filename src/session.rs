@@ -467,6 +467,7 @@ impl Session {
             "ingest": stats.to_summary(),
             "vehicles": vehicles,
             "traffic_aircraft": self.world.traffic.len(),
+            "traffic_pressure_altitude": self.world.traffic.values().filter(|t| t.pressure_altitude).count(),
             "approaches": self
                 .approaches
                 .by_pair

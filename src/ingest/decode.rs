@@ -39,6 +39,8 @@ pub enum Rejection {
     NonFiniteAttitude,
     /// A field the dialect constrains (an enum) holds a value it does not define.
     InvalidField,
+    /// An ADS-B report whose flags do not say its coordinates and altitude are valid.
+    AdsbNoPosition,
 }
 
 impl Rejection {
@@ -49,6 +51,7 @@ impl Rejection {
             Rejection::LatLonOutOfRange => "lat_lon_out_of_range",
             Rejection::NonFiniteAttitude => "non_finite_attitude",
             Rejection::InvalidField => "invalid_field",
+            Rejection::AdsbNoPosition => "adsb_no_position",
         }
     }
 }
@@ -152,13 +155,39 @@ pub fn heartbeat_names(h: &HeartbeatReport) -> (String, String) {
     )
 }
 
+/// An ADS-B report, by its flags: no valid coordinates or altitude, no report (a receiver
+/// relays Mode S replies with neither); heading and speed only when flagged valid (else the
+/// aircraft is not extrapolated), the climb only with VERTICAL_VELOCITY_VALID. The altitude
+/// type is kept: QNH barometric altitude is mean-sea-level altitude by its reference, with the
+/// atmosphere's error in it, and is counted apart (`AdsbReport::pressure_altitude`).
 fn adsb_from(m: &ADSB_VEHICLE_DATA) -> Result<AdsbReport, Rejection> {
+    use mavlink::dialects::ardupilotmega::{AdsbAltitudeType, AdsbFlags};
+    let flags = m.flags;
+    if !flags.contains(AdsbFlags::ADSB_FLAGS_VALID_COORDS | AdsbFlags::ADSB_FLAGS_VALID_ALTITUDE) {
+        return Err(Rejection::AdsbNoPosition);
+    }
+    let moving =
+        flags.contains(AdsbFlags::ADSB_FLAGS_VALID_HEADING | AdsbFlags::ADSB_FLAGS_VALID_VELOCITY);
+    let climbing = flags.contains(AdsbFlags::ADSB_FLAGS_VERTICAL_VELOCITY_VALID);
     Ok(AdsbReport {
         icao_address: m.ICAO_address,
         position: geodetic_from_e7(m.lat, m.lon, f64::from(m.altitude) * 1e-3)?,
-        heading_deg: f64::from(m.heading) * 0.01,
-        horizontal_speed_mps: f64::from(m.hor_velocity) * 0.01,
-        vertical_speed_mps: f64::from(m.ver_velocity) * 0.01,
+        heading_deg: if moving {
+            f64::from(m.heading) * 0.01
+        } else {
+            0.0
+        },
+        horizontal_speed_mps: if moving {
+            f64::from(m.hor_velocity) * 0.01
+        } else {
+            0.0
+        },
+        vertical_speed_mps: if climbing {
+            f64::from(m.ver_velocity) * 0.01
+        } else {
+            0.0
+        },
+        pressure_altitude: m.altitude_type == AdsbAltitudeType::ADSB_ALTITUDE_TYPE_PRESSURE_QNH,
         emitter_type: m.emitter_type as u8,
         callsign: m.callsign.into(),
     })

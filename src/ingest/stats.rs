@@ -52,6 +52,14 @@ pub struct IngestStats {
     pub truncated_at: Option<(u64, u64)>,
     /// Times the receive or tlog clock stepped backwards.
     pub clock_backwards: u64,
+    /// Times the clock jumped more than an hour ahead for one record alone (a timestamp
+    /// outside the CRC gone bad): held at the time before it, not followed.
+    pub clock_outliers: u64,
+    /// Times the clock jumped more than an hour ahead and stayed there (two recordings
+    /// joined): followed.
+    pub clock_jumps: u64,
+    /// A jump ahead not yet confirmed by the next time (seconds).
+    pending_jump_s: Option<f64>,
     /// The last raw time seen, seconds.
     last_raw_t_s: f64,
     /// First and last receive/tlog time seen, seconds (UNIX time for tlogs and live).
@@ -80,6 +88,9 @@ impl Default for IngestStats {
             tlog_records: 0,
             truncated_at: None,
             clock_backwards: 0,
+            clock_outliers: 0,
+            clock_jumps: 0,
+            pending_jump_s: None,
             last_raw_t_s: f64::NEG_INFINITY,
             time_span_s: None,
             dropped_chunks: 0,
@@ -146,12 +157,43 @@ impl IngestStats {
     }
 
     /// Note a receive/tlog time; returns the time to use, never earlier than the last one.
-    /// Each step back of the raw clock counts once in `clock_backwards`.
+    /// Each step back of the raw clock counts once in `clock_backwards`. A time more than an
+    /// hour ahead is held until the next one confirms it (within an hour after it): alone, it
+    /// is an outlier (`clock_outliers`) and never moves the clock; confirmed, a jump
+    /// (`clock_jumps`).
+    ///
+    /// ```
+    /// let mut stats = savsim::ingest::stats::IngestStats::default();
+    /// assert_eq!(stats.observe_time(100.0), 100.0);
+    /// assert_eq!(stats.observe_time(9e9), 100.0); // one bad timestamp...
+    /// assert_eq!(stats.observe_time(100.1), 100.1); // ...is not followed
+    /// assert_eq!(stats.observe_time(200_000.0), 100.1);
+    /// assert_eq!(stats.observe_time(200_000.1), 200_000.1); // two recordings joined
+    /// assert_eq!((stats.clock_outliers, stats.clock_jumps), (1, 1));
+    /// ```
     pub fn observe_time(&mut self, t_s: f64) -> f64 {
+        const JUMP_S: f64 = 3600.0;
         if t_s < self.last_raw_t_s {
             self.clock_backwards += 1;
         }
         self.last_raw_t_s = t_s;
+        let confirmed = match self.pending_jump_s.take() {
+            Some(pending) if (pending..=pending + JUMP_S).contains(&t_s) => {
+                self.clock_jumps += 1;
+                true
+            }
+            Some(_) => {
+                self.clock_outliers += 1;
+                false
+            }
+            None => false,
+        };
+        if let Some((_, last)) = self.time_span_s {
+            if t_s > last + JUMP_S && !confirmed {
+                self.pending_jump_s = Some(t_s);
+                return last;
+            }
+        }
         match &mut self.time_span_s {
             None => {
                 self.time_span_s = Some((t_s, t_s));
@@ -240,6 +282,8 @@ impl IngestStats {
         self.tlog_records += other.tlog_records;
         self.truncated_at = self.truncated_at.or(other.truncated_at);
         self.clock_backwards += other.clock_backwards;
+        self.clock_outliers += other.clock_outliers;
+        self.clock_jumps += other.clock_jumps;
         self.dropped_chunks += other.dropped_chunks;
         self.dropped_bytes += other.dropped_bytes;
         self.autopilots.extend(other.autopilots.iter().copied());
@@ -298,6 +342,8 @@ impl IngestStats {
                 .map(|(k, v)| (k.as_str(), *v))
                 .collect(),
             clock_backwards: self.clock_backwards,
+            clock_outliers: self.clock_outliers,
+            clock_jumps: self.clock_jumps,
             live: Live {
                 dropped_chunks: self.dropped_chunks,
                 dropped_bytes: self.dropped_bytes,
@@ -337,6 +383,10 @@ pub struct IngestSummary {
     pub rejected: BTreeMap<&'static str, u64>,
     /// Receive/tlog timestamps that went backwards (clamped to the last one).
     pub clock_backwards: u64,
+    /// Single timestamps more than an hour ahead, not followed.
+    pub clock_outliers: u64,
+    /// Jumps of more than an hour ahead that the next timestamp confirmed, followed.
+    pub clock_jumps: u64,
     /// Live link counters (zero for replays).
     pub live: Live,
     /// Frames lost, repeated or late by the autopilots' sequence numbers (the link's own

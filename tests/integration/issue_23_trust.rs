@@ -728,3 +728,118 @@ fn collision_reports_traffic_already_inside_its_volume_whatever_the_time_to_clos
         "no COLLISION for a balloon 99 m away: {sent:?}"
     );
 }
+
+fn adsb_frame(icao: u32, flags: u16, altitude_type: u8) -> Vec<u8> {
+    use mavlink::dialects::ardupilotmega::{
+        AdsbAltitudeType, AdsbEmitterType, AdsbFlags, ADSB_VEHICLE_DATA,
+    };
+    use num_traits::FromPrimitive;
+    let m = MavMessage::ADSB_VEHICLE(ADSB_VEHICLE_DATA {
+        ICAO_address: icao,
+        lat: -353_600_000,
+        lon: 1_491_600_000,
+        altitude_type: AdsbAltitudeType::from_u8(altitude_type).unwrap(),
+        altitude: 900_000,
+        heading: 9_000,
+        hor_velocity: 5_000,
+        ver_velocity: 300,
+        callsign: (*b"TEST1234\0").into(),
+        emitter_type: AdsbEmitterType::ADSB_EMITTER_TYPE_LARGE,
+        tslc: 1,
+        flags: AdsbFlags::from_bits_truncate(flags),
+        squawk: 1200,
+    });
+    frame_v2(50, 1, 0, &m)
+}
+
+#[test]
+fn adsb_reports_are_read_by_their_flags_and_altitude_type() {
+    let mut session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    // Coordinates and altitude valid, heading and speeds too: a moving aircraft.
+    feed(&mut session, 1.0, &adsb_frame(0x10, 0x1FF, 1));
+    // No valid coordinates: not a position (Mode S relays).
+    feed(&mut session, 1.0, &adsb_frame(0x11, 0x1FE, 1));
+    // Coordinates but no altitude: not placed.
+    feed(&mut session, 1.0, &adsb_frame(0x12, 0x1FD, 1));
+    // Valid position, heading and velocity not: held still, not extrapolated.
+    feed(&mut session, 1.0, &adsb_frame(0x13, 0x03, 1));
+    // QNH barometric altitude: kept, and counted apart.
+    feed(&mut session, 1.0, &adsb_frame(0x14, 0x1FF, 0));
+    let traffic = &session.world.traffic;
+    assert_eq!(
+        traffic.keys().copied().collect::<Vec<_>>(),
+        [0x10, 0x13, 0x14]
+    );
+    let v = |icao: u32| traffic[&icao].history.latest().unwrap().velocity_enu_mps;
+    assert!(
+        (v(0x10).truncate().length() - 50.0).abs() < 0.01 && v(0x10).z > 2.9,
+        "{}",
+        v(0x10)
+    );
+    assert_eq!(v(0x13), DVec3::ZERO);
+    assert!(traffic[&0x14].pressure_altitude && !traffic[&0x10].pressure_altitude);
+    let rejected = &session.ingestor.stats.rejected;
+    assert_eq!(
+        rejected.get(&savsim::ingest::decode::Rejection::AdsbNoPosition),
+        Some(&2)
+    );
+}
+
+#[test]
+fn one_far_future_tlog_timestamp_does_not_freeze_the_clock() {
+    let dir = tempfile::tempdir().unwrap();
+    let flight = dir.path().join("f.tlog");
+    let plane = LocalTangentPlane::new(ORIGIN);
+    let mut w = savsim::ingest::tlog::TlogWriter::new(std::fs::File::create(&flight).unwrap());
+    let mut seq = 0u8;
+    for i in 0..100u32 {
+        let t_us = 1_700_000_000_000_000 + u64::from(i) * 100_000;
+        // One record's timestamp (outside the CRC) is 300 years on.
+        let first_us = if i == 10 {
+            10_000_000_000_000_000
+        } else {
+            t_us
+        };
+        let messages = pose_messages(
+            &plane,
+            1000 + 100 * i,
+            DVec3::new(f64::from(i), 0.0, 30.0),
+            DVec3::new(10.0, 0.0, 0.0),
+            [0.0, 0.0, 0.0],
+        );
+        for (k, m) in messages.iter().enumerate() {
+            let at = if k == 0 { first_us } else { t_us };
+            w.write_record(at, &frame_v2(1, 1, seq, m)).unwrap();
+            seq = seq.wrapping_add(1);
+        }
+    }
+    w.flush().unwrap();
+    drop(w);
+    let session = crate::common::replay_into_session(&flight, None);
+    let stats = &session.ingestor.stats;
+    eprintln!(
+        "records {} outliers {} jumps {} back {} span {:?}",
+        stats.tlog_records,
+        stats.clock_outliers,
+        stats.clock_jumps,
+        stats.clock_backwards,
+        stats.time_span_s
+    );
+    assert_eq!(stats.clock_outliers, 1);
+    let (first, last) = stats.time_span_s.unwrap();
+    assert!((last - first - 9.9).abs() < 1e-6, "{first} {last}");
+    let latest = session
+        .world
+        .vehicles
+        .values()
+        .next()
+        .unwrap()
+        .history
+        .latest()
+        .unwrap()
+        .t_s;
+    assert!(
+        (latest - last).abs() < 0.05,
+        "the last sample at {latest}, the clock at {last}"
+    );
+}

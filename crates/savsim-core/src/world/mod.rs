@@ -251,6 +251,8 @@ pub struct TrafficTrack {
     pub history: History,
     /// Receive/tlog time of its last report, seconds.
     pub last_heard_t_s: f64,
+    /// Its last report's altitude was barometric (QNH), not geometric.
+    pub pressure_altitude: bool,
 }
 
 /// What a report changed.
@@ -498,10 +500,12 @@ impl WorldStore {
                 emitter_type: a.emitter_type,
                 history: History::default(),
                 last_heard_t_s: t_s,
+                pressure_altitude: a.pressure_altitude,
             }
         });
         track.history.push(sample, capacity);
         track.last_heard_t_s = t_s;
+        track.pressure_altitude = a.pressure_altitude;
     }
 
     /// Drop tracks not heard from since `now_t_s - stale_after_s`. Returns how many went.

@@ -101,7 +101,8 @@ impl HeartbeatReport {
 pub struct AdsbReport {
     /// ICAO 24-bit address.
     pub icao_address: u32,
-    /// WGS84 position; `alt_m` as reported (ADS-B altitude, metres).
+    /// WGS84 position; `alt_m` as reported, metres above mean sea level (geometric, or
+    /// barometric with QNH: see `pressure_altitude`).
     pub position: Geodetic,
     /// Course over ground, degrees clockwise from north.
     pub heading_deg: f64,
@@ -109,6 +110,8 @@ pub struct AdsbReport {
     pub horizontal_speed_mps: f64,
     /// Vertical speed, m/s, positive up.
     pub vertical_speed_mps: f64,
+    /// True when the altitude is barometric (QNH), false when geometric (GNSS).
+    pub pressure_altitude: bool,
     /// ADSB_EMITTER_TYPE as its raw number (0 = no info).
     pub emitter_type: u8,
     /// Callsign, ASCII, NUL padded.
