@@ -47,4 +47,13 @@ write("live_links", "seed0", bytes(chunks))
 for k, i in enumerate(range(4096 * 40, min(len(TLOG), 4096 * 56), 4096)):
     write("feed", f"seed{k:03d}", bytes([k % 16]) + TLOG[i:i + 4096])
 write("scene_parser", "seed0", (FUZZ / "scene.toml").read_bytes().split(b"[[terrain]]")[0])
+# daa_files: a small configuration, a NUL, the first 60 lines of each of savsim's scenarios.
+CONF = (b"lookahead_time = 180 [s]\nalerting_m = 2\nalerting_n = 4\nhysteresis_time = 5 [s]\n"
+        b"persistence_time = 4 [s]\nalerters = A\nA_alert_1_detector = d\n"
+        b"A_alert_1_alerting_time = 55 [s]\nA_alert_1_early_alerting_time = 75 [s]\n"
+        b"A_d_WCV_DTHR = 0.66 [nmi]\nA_d_WCV_ZTHR = 450 [ft]\nA_d_WCV_TTHR = 35 [s]\n"
+        b"A_d_WCV_TCOA = 0 [s]\nA_load_core_detection_d = gov.nasa.larcfm.ACCoRD.WCV_TAUMOD\n")
+for k, daa in enumerate(sorted((ROOT / "tests" / "fixtures" / "daa").glob("*.daa"))):
+    head = b"\n".join(daa.read_bytes().split(b"\n")[:60])
+    write("daa_files", f"seed{k:03d}", CONF + b"\0" + head)
 print("seeds written under", FUZZ / "corpus")

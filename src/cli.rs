@@ -35,6 +35,26 @@ pub enum Command {
     /// Run a manifest of tlogs and encounters on every core, one Parquet row per run; or
     /// generate encounters (`batch gen-encounters`).
     Batch(BatchArgs),
+    /// Alerting on a DAIDALUS state file (.daa) with a DAIDALUS configuration (.conf): one CSV
+    /// row per time step and intruder, in the columns, order and units of DAIDALUS's
+    /// DaidalusAlerting (docs/daa.md).
+    Daa(DaaArgs),
+}
+
+/// `savsim daa`.
+#[derive(Debug, Args)]
+pub struct DaaArgs {
+    /// The state file (.daa).
+    pub scenario: PathBuf,
+    /// The configuration (.conf), in DAIDALUS's format.
+    #[arg(long)]
+    pub conf: PathBuf,
+    /// Where to write the CSV (default: standard output).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Decimal places (DAIDALUS's default, 6).
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(0..=16))]
+    pub precision: u8,
 }
 
 /// `savsim batch`.
@@ -95,6 +115,19 @@ pub enum BatchCommand {
         /// Write the manifest here (.csv; default: stdout).
         #[arg(long)]
         out: Option<PathBuf>,
+    },
+    /// Weighted NMAC and loss-of-well-clear rates per `variant`, and each variant's risk
+    /// ratios against the nominal one over the `pair`s flown under both, with 95% bootstrap
+    /// intervals, from a results directory's shards (docs/batch.md).
+    Summarize {
+        /// The results directory (its *.parquet shard files).
+        dir: PathBuf,
+        /// The variant the others are compared with.
+        #[arg(long, default_value = "nominal")]
+        nominal: String,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -173,6 +206,10 @@ pub struct CollisionArgs {
     /// Near-miss distance, metres.
     #[arg(long, default_value_t = 10.0)]
     pub near_miss_m: f64,
+    /// The well-clear volume losses of well clear are judged with: `small-uas` (2000 ft,
+    /// 250 ft), `phase-1`, `phase-2`, `non-coop` (DO-365), or `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`.
+    #[arg(long, default_value = "small-uas")]
+    pub well_clear: String,
     /// Telemetry gaps longer than this are reported and not swept, seconds.
     #[arg(long, default_value_t = 1.0)]
     pub max_gap_s: f64,

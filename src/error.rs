@@ -36,6 +36,14 @@ pub enum Error {
     /// A number outside the range its input allows.
     #[error(transparent)]
     OutOfRange(#[from] savsim_core::bounds::OutOfRange),
+    /// A DAIDALUS configuration or state file that cannot be read.
+    #[error("{path}: {message}")]
+    Daa {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
     /// A command-line value that parses but makes no sense.
     #[error("{0}")]
     Usage(String),

@@ -5,7 +5,7 @@
 //! did hit, choosing per obstacle between a cheap box and an exact mesh collider (Li et al.
 //! 2019, see docs/ARCHITECTURE.md).
 
-pub use savsim_core::{collision, geo, world};
+pub use savsim_core::{collision, daa, geo, world};
 
 pub mod app;
 pub mod batch;
@@ -13,6 +13,7 @@ pub mod bench;
 pub mod bundled;
 pub mod cli;
 pub mod costs;
+pub mod daa_csv;
 pub mod error;
 pub mod feed;
 pub mod ingest;

@@ -29,7 +29,8 @@ fn main() -> ExitCode {
                 savsim::error::Error::Usage(_)
                 | savsim::error::Error::OutOfRange(_)
                 | savsim::error::Error::Address { .. }
-                | savsim::error::Error::Scene(_) => ExitCode::from(2),
+                | savsim::error::Error::Scene(_)
+                | savsim::error::Error::Daa { .. } => ExitCode::from(2),
                 _ => ExitCode::FAILURE,
             }
         }

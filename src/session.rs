@@ -10,11 +10,12 @@ use std::time::Instant;
 use serde::Serialize;
 use serde_json::json;
 
-use crate::collision::approach::Approaches;
+use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{
     BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies, Pipeline, VehicleKey,
 };
+use crate::daa::episodes::Change;
 use crate::error::{Error, Result};
 use crate::feed::{Feed, FeedConfig, FeedMessage, FrameInput};
 use crate::ingest::frame::{FrameStatus, RawFrame};
@@ -50,6 +51,8 @@ pub struct Session {
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     pub approaches: Approaches,
     dynamic: MovingBodies,
+    /// Scratch: the well-clear changes of the tick.
+    well_clear_changes: Vec<WellClearChange>,
     flight_start_t_s: Option<f64>,
     last_expire_t_s: f64,
     started: Instant,
@@ -118,6 +121,7 @@ impl Session {
             notable: Vec::new(),
             tick_costs: Default::default(),
             approaches: Approaches::default(),
+            well_clear_changes: Vec::new(),
             dynamic: MovingBodies::default(),
             flight_start_t_s: None,
             last_expire_t_s: f64::NEG_INFINITY,
@@ -268,13 +272,24 @@ impl Session {
             t_before,
             current.t_s,
         );
+        let first = self.events.len();
         self.approaches.observe(
             sender.system_id,
             previous.as_ref(),
             &current,
             self.dynamic.as_slice(),
+            &mut self.well_clear_changes,
         );
-        let first = self.events.len();
+        for c in &self.well_clear_changes {
+            let kind = well_clear_event(&self.approaches, sender.system_id, c);
+            self.events.push(Event {
+                t: current.t_s,
+                time_boot_ms: current.time_boot_ms,
+                vehicle: u16::from(sender.system_id),
+                compid: sender.component_id,
+                kind,
+            });
+        }
         let started = Instant::now();
         let key = VehicleKey {
             vehicle: u16::from(sender.system_id),
@@ -349,7 +364,9 @@ impl Session {
                     .filter(|e| {
                         matches!(
                             e.kind,
-                            EventKind::Collision { .. } | EventKind::NearMiss { .. }
+                            EventKind::Collision { .. }
+                                | EventKind::NearMiss { .. }
+                                | EventKind::WellClearLost { .. }
                         )
                     })
                     .cloned()
@@ -366,7 +383,9 @@ impl Session {
         for e in self.events.drain(..) {
             if matches!(
                 e.kind,
-                EventKind::Collision { .. } | EventKind::NearMiss { .. }
+                EventKind::Collision { .. }
+                    | EventKind::NearMiss { .. }
+                    | EventKind::WellClearLost { .. }
             ) && self.notable.len() < NOTABLE_KEPT
             {
                 self.notable.push(e.clone());
@@ -435,6 +454,7 @@ impl Session {
                 "telemetry_gaps": totals.telemetry_gaps,
                 "terrain_clearance_min_m": totals.terrain_clearance_min_m,
                 "implausible_samples": totals.implausible_samples,
+                "reference_capped": totals.reference_capped,
                 "per_tick": {
                     "active_box_mean": totals.active_box_sum as f64 / ticks,
                     "active_box_max": totals.active_box_max,
@@ -450,6 +470,7 @@ impl Session {
                 "meshes_built_on_contact": p.meshes.built_on_contact,
                 "meshes_evicted": p.meshes.evicted,
                 "meshes_prefetch_refused": p.meshes.prefetch_refused,
+                "meshes_worker_failures": p.meshes.worker_failures,
                 "mesh_budget_bytes": p.meshes.budget(),
                 "mesh_bytes_peak": p.meshes.peak_bytes,
                 "mesh_triangles_built": p.meshes.triangles,
@@ -482,6 +503,30 @@ impl Session {
                     "nmac": a.nmac,
                 }))
                 .collect::<Vec<_>>(),
+            "well_clear": {
+                "volume": {
+                    "dthr_m": self.approaches.volume.dthr_m,
+                    "zthr_m": self.approaches.volume.zthr_m,
+                    "tthr_s": self.approaches.volume.tthr_s,
+                    "tcoa_s": self.approaches.volume.tcoa_s,
+                },
+                "pairs": self
+                    .approaches
+                    .well_clear
+                    .iter()
+                    .filter(|(_, log)| !log.episodes.is_empty())
+                    .map(|((vehicle, track), log)| json!({
+                        "vehicle": vehicle,
+                        "track": &**track,
+                        "lowc_first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
+                        "lowc_duration_s": log.duration_s(),
+                        "episodes": log.episodes.len(),
+                        "min_tau_mod_s": log.min_tau_mod_s,
+                        "min_horizontal_m": log.episodes.iter().map(|e| e.min_horizontal_m).reduce(f64::min),
+                        "min_vertical_m": log.episodes.iter().map(|e| e.min_vertical_m).reduce(f64::min),
+                    }))
+                    .collect::<Vec<_>>(),
+            },
             "tracks_expired": self.world.expired,
             "collision": collision,
             "feed": self.feed.as_ref().map(|f| json!({
@@ -660,4 +705,28 @@ fn fill_dynamic(
 
 fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {
     (body_from(sample), sample.velocity_enu_mps.length())
+}
+
+/// The event of a well-clear change of vehicle `own`: a loss with the separations then (the
+/// episode's first), or a regain with its length.
+fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
+    match c.change {
+        Change::Lost { t_s } => {
+            let episode = approaches
+                .well_clear
+                .get(&(own, c.body.clone()))
+                .and_then(|log| log.episodes.iter().rev().find(|e| e.start_t_s == t_s));
+            EventKind::WellClearLost {
+                track: c.body.to_string(),
+                lost_t: t_s,
+                horizontal_m: episode.map_or(f64::NAN, |e| e.min_horizontal_m),
+                vertical_m: episode.map_or(f64::NAN, |e| e.min_vertical_m),
+            }
+        }
+        Change::Regained { t_s, duration_s } => EventKind::WellClearRegained {
+            track: c.body.to_string(),
+            regained_t: t_s,
+            duration_s,
+        },
+    }
 }

@@ -77,6 +77,14 @@ fn parse_ahp(text: &str) -> Result<AhpWeights> {
 fn session_for(args: &CollisionArgs) -> Result<Session> {
     let scene = load_scene(args.scene.as_deref())?;
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
+    let volume = crate::daa::well_clear::Volume::parse(&args.well_clear).ok_or_else(|| {
+        Error::Usage(format!(
+            "--well-clear {}: give small-uas, phase-1, phase-2, non-coop or \
+             DTHR_M,ZTHR_M,TTHR_S,TCOA_S (non-negative)",
+            args.well_clear
+        ))
+    })?;
+    session.approaches = crate::collision::approach::Approaches::with_volume(volume);
     if let Some(target) = &args.rerun {
         start_viz(&mut session, target, args.rerun_octree)?;
     }
@@ -139,6 +147,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Record(args) => record_command(&args, shutdown),
         Command::Bench(args) => bench_command(&args),
         Command::Batch(args) => crate::batch::command::run(&args),
+        Command::Daa(args) => crate::daa_csv::command(&args),
         Command::Scene(SceneCommand::Gen { kind, seed, out }) => {
             let text = match kind {
                 SceneKind::City => gen::city(seed, gen::DEFAULT_ORIGIN),
@@ -362,6 +371,17 @@ pub fn print_report(session: &Session) {
                 "  near miss  vehicle {} passed {obstacle} at {closest_m:.2} m (+{:.2} s)",
                 e.vehicle,
                 closest_t - t0
+            ),
+            EventKind::WellClearLost {
+                track,
+                lost_t,
+                horizontal_m,
+                vertical_m,
+            } => println!(
+                "  lost well clear  vehicle {} of {track} at +{:.2} s ({horizontal_m:.0} m \
+                 horizontally, {vertical_m:.0} m vertically)",
+                e.vehicle,
+                lost_t - t0
             ),
             _ => {}
         }

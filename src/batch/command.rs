@@ -48,6 +48,19 @@ pub fn run(args: &BatchArgs) -> Result<()> {
                 .map_err(|e| csv_error(Path::new("stdout"), e)),
         };
     }
+    if let Some(BatchCommand::Summarize { dir, nominal, json }) = &args.command {
+        let all = crate::batch::summarize::read_dir(dir)?;
+        if *json {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&crate::batch::summarize::summary_json(&all, nominal))
+                    .unwrap_or_default()
+            );
+        } else {
+            print!("{}", crate::batch::summarize::summary_text(&all, nominal));
+        }
+        return Ok(());
+    }
     let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };

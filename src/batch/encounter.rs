@@ -36,6 +36,8 @@ pub struct Encounter {
     pub rate_hz: f64,
     /// Length, seconds.
     pub duration_s: f64,
+    /// The well-clear volume losses are judged with.
+    pub well_clear: crate::daa::well_clear::Volume,
 }
 
 /// What an encounter produced.
@@ -141,7 +143,8 @@ pub fn track_from_tlog(path: &Path, scene: &Scene) -> Result<(Vec<Waypoint>, Ing
 pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flown {
     let plane = LocalTangentPlane::new(scene.origin);
     let mut events = Vec::new();
-    let mut approaches = Approaches::default();
+    let mut approaches = Approaches::with_volume(encounter.well_clear);
+    let mut well_clear_changes = Vec::new();
     let intruder_id: Arc<str> = Arc::from("intruder");
     let n = (encounter.duration_s * encounter.rate_hz).round().max(0.0) as usize;
     let mut tick_costs = crate::costs::TickCosts::default();
@@ -175,7 +178,13 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
             &encounter.intruder,
             (t_before, t_s),
         ));
-        approaches.observe(OWNSHIP, previous.as_ref(), &current, bodies.as_slice());
+        approaches.observe(
+            OWNSHIP,
+            previous.as_ref(),
+            &current,
+            bodies.as_slice(),
+            &mut well_clear_changes,
+        );
         let started = Instant::now();
         pipeline.step(
             scene,

@@ -53,6 +53,16 @@ pub struct Run {
     pub expect_cpa_t_s: Option<f64>,
     /// Whether the encounter was built to be an NMAC.
     pub expect_nmac: Option<bool>,
+    /// The well-clear volume losses are judged with: `small-uas` (default: 2000 ft, 250 ft),
+    /// `phase-1`, `phase-2`, `non-coop` (DO-365), or `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`.
+    pub well_clear: Option<String>,
+    /// The variant the row flies (`nominal`, `mitigated`...): `batch summarize` compares
+    /// variants over the rows of one `pair`.
+    pub variant: Option<String>,
+    /// The encounter the row is one variant of.
+    pub pair: Option<String>,
+    /// The encounter's importance weight (default 1).
+    pub w: Option<f64>,
 }
 
 impl Run {

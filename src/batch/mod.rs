@@ -21,6 +21,7 @@ pub mod manifest;
 pub mod row;
 pub mod run;
 pub mod shard;
+pub mod summarize;
 pub mod table;
 
 use rayon::prelude::*;

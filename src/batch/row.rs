@@ -70,6 +70,19 @@ pub struct RunRow {
     pub cpa_track: Option<String>,
     /// The closest approach to each moving body.
     pub approaches: Vec<ApproachRow>,
+    /// Any loss of well clear with any moving body (the volume the run judged with; small UAS,
+    /// 2000 ft / 250 ft, by default).
+    pub lowc: bool,
+    /// When the first began, seconds after the start.
+    pub lowc_first_t_s: Option<f64>,
+    /// Total time without well clear, over every moving body, seconds.
+    pub lowc_duration_s: f64,
+    /// Least modified tau seen while closing with any moving body, seconds.
+    pub min_taumod_s: Option<f64>,
+    /// Least horizontal separation within a loss of well clear, metres.
+    pub lowc_min_horizontal_m: Option<f64>,
+    /// Least vertical separation within a loss of well clear, metres.
+    pub lowc_min_vertical_m: Option<f64>,
     /// MAVLink messages read (tlog inputs).
     pub messages: u64,
     /// Frames rejected by CRC, unknown id or flags.
@@ -112,6 +125,12 @@ impl RunRow {
             cpa_t_s: None,
             cpa_track: None,
             approaches: Vec::new(),
+            lowc: false,
+            lowc_first_t_s: None,
+            lowc_duration_s: 0.0,
+            min_taumod_s: None,
+            lowc_min_horizontal_m: None,
+            lowc_min_vertical_m: None,
             messages: 0,
             bad_frames: 0,
             rejected: 0,
@@ -137,6 +156,7 @@ impl RunRow {
         self.near_misses = totals.near_misses;
         self.record_events(events, t0_s);
         self.record_approaches(approaches, t0_s);
+        self.record_well_clear(approaches, t0_s);
         let (median_us, p99_us) = tick_costs.percentiles_us();
         self.tick_cost_us_median = median_us;
         self.tick_cost_us_p99 = p99_us;
@@ -193,6 +213,19 @@ impl RunRow {
             self.cpa_t_s = Some(c.t_s);
             self.cpa_track = Some(c.track.clone());
         }
+    }
+
+    /// Losses of well clear over every pair: whether any, the first, their total length, and
+    /// the least modified tau and separations.
+    fn record_well_clear(&mut self, approaches: &Approaches, t0_s: f64) {
+        let logs = || approaches.well_clear.values();
+        let episodes = || logs().flat_map(|l| l.episodes.iter());
+        self.lowc = episodes().next().is_some();
+        self.lowc_first_t_s = episodes().map(|e| e.start_t_s - t0_s).reduce(f64::min);
+        self.lowc_duration_s = logs().map(|l| l.duration_s()).sum();
+        self.min_taumod_s = logs().filter_map(|l| l.min_tau_mod_s).reduce(f64::min);
+        self.lowc_min_horizontal_m = episodes().map(|e| e.min_horizontal_m).reduce(f64::min);
+        self.lowc_min_vertical_m = episodes().map(|e| e.min_vertical_m).reduce(f64::min);
     }
 
     /// Add an input's ingest counters.

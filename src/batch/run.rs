@@ -11,7 +11,9 @@ use std::time::Instant;
 use crate::batch::encounter::{self, Encounter};
 use crate::batch::manifest::{is_tlog_path, Run};
 use crate::batch::row::RunRow;
+use crate::collision::approach::Approaches;
 use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
+use crate::daa::well_clear::Volume;
 use crate::ingest::stats::IngestStats;
 use crate::replay::{replay, Speed};
 use crate::scene::{self, Kind, Scene, Waypoint};
@@ -131,6 +133,9 @@ pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
 }
 
 fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(), String> {
+    if let Some(w) = run.w {
+        savsim_core::bounds::within("w", w, 0.0, 1e300).map_err(|e| e.to_string())?;
+    }
     let scene = scenes.get(run.scene.as_deref())?;
     let config = CollisionConfig {
         mode,
@@ -138,7 +143,9 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
     };
     let pipeline = scenes.pipeline(run.scene.as_deref(), &scene, config);
     match (&run.tlog, &run.own, &run.intruder) {
-        (Some(tlog), None, None) => replay_tlog(Path::new(tlog), scene, pipeline, row),
+        (Some(tlog), None, None) => {
+            replay_tlog(Path::new(tlog), scene, pipeline, well_clear(run)?, row)
+        }
         (None, Some(own), Some(intruder)) => {
             let mut stats = IngestStats::default();
             let own = track(own, &scene, &mut stats).map_err(|e| format!("own: {e}"))?;
@@ -168,6 +175,7 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
                 },
                 rate_hz,
                 duration_s,
+                well_clear: well_clear(run)?,
             };
             let flown = encounter::fly(&scene, pipeline, &encounter);
             row.record_ingest(&stats);
@@ -199,13 +207,33 @@ fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypo
     Ok(track)
 }
 
+/// The row's well-clear volume (small UAS when it names none).
+fn well_clear(run: &Run) -> Result<Volume, String> {
+    match run
+        .well_clear
+        .as_deref()
+        .map(str::trim)
+        .filter(|w| !w.is_empty())
+    {
+        None => Ok(Volume::SMALL_UAS),
+        Some(w) => Volume::parse(w).ok_or_else(|| {
+            format!(
+                "well_clear {w:?}: give small-uas, phase-1, phase-2, non-coop or \
+                 DTHR_M,ZTHR_M,TTHR_S,TCOA_S (non-negative)"
+            )
+        }),
+    }
+}
+
 fn replay_tlog(
     path: &Path,
     scene: Arc<Scene>,
     pipeline: Pipeline,
+    volume: Volume,
     row: &mut RunRow,
 ) -> Result<(), String> {
     let mut session = Session::with_pipeline(scene, pipeline, None).map_err(|e| e.to_string())?;
+    session.approaches = Approaches::with_volume(volume);
     let never = AtomicBool::new(false);
     replay(path, Speed::Max, false, None, &mut session, &never).map_err(|e| e.to_string())?;
     session.finish().map_err(|e| e.to_string())?;

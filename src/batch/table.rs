@@ -100,6 +100,13 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
         ),
         ("expect_cpa_t_s", floats(rows, |r| r.inputs.expect_cpa_t_s)),
         (
+            "well_clear",
+            strings(rows, |r| r.inputs.well_clear.as_deref()),
+        ),
+        ("variant", strings(rows, |r| r.inputs.variant.as_deref())),
+        ("pair", strings(rows, |r| r.inputs.pair.as_deref())),
+        ("w", floats(rows, |r| r.inputs.w)),
+        (
             "expect_nmac",
             Arc::new(
                 rows.iter()
@@ -133,6 +140,21 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
         ("cpa_t_s", floats(rows, |r| r.cpa_t_s)),
         ("cpa_track", strings(rows, |r| r.cpa_track.as_deref())),
         ("approaches", approaches(rows)),
+        (
+            "lowc",
+            Arc::new(rows.iter().map(|r| Some(r.lowc)).collect::<BooleanArray>()),
+        ),
+        ("lowc_first_t_s", floats(rows, |r| r.lowc_first_t_s)),
+        ("lowc_duration_s", floats(rows, |r| Some(r.lowc_duration_s))),
+        ("min_taumod_s", floats(rows, |r| r.min_taumod_s)),
+        (
+            "lowc_min_horizontal_m",
+            floats(rows, |r| r.lowc_min_horizontal_m),
+        ),
+        (
+            "lowc_min_vertical_m",
+            floats(rows, |r| r.lowc_min_vertical_m),
+        ),
         ("messages", counts(rows, |r| r.messages)),
         ("bad_frames", counts(rows, |r| r.bad_frames)),
         ("rejected", counts(rows, |r| r.rejected)),
@@ -170,6 +192,8 @@ fn nullable(name: &str) -> bool {
             | "near_misses"
             | "nmac"
             | "approaches"
+            | "lowc"
+            | "lowc_duration_s"
             | "messages"
             | "bad_frames"
             | "rejected"

@@ -39,10 +39,16 @@ pub struct Threat {
 /// // Moving apart: no threat.
 /// assert!(threat(DVec3::ZERO, DVec3::X * -10.0, DVec3::new(200.0, 0.0, 5.0),
 ///                DVec3::X * 10.0, &FeedConfig::default()).is_none());
-/// // 100 m away, closing at 1 m/s: the closest approach is 100 s off, but it is inside now.
+/// // 100 m away, closing at 1 m/s: the closest approach is 100 s off, but it is inside
+/// // (150 m) now; the closest within the 30 s horizon is at its end, and it is within half
+/// // the distance (75 m) from 25 s: high.
 /// let slow = threat(DVec3::ZERO, DVec3::ZERO, DVec3::new(100.0, 0.0, 0.0),
 ///                   DVec3::X * -1.0, &FeedConfig::default()).unwrap();
-/// assert!((slow.time_to_cpa_s - 30.0).abs() < 1e-9 && !slow.high);
+/// assert!((slow.time_to_cpa_s - 30.0).abs() < 1e-9 && slow.high);
+/// // 140 m away, closing at 1 m/s: inside, never within 75 m in the horizon: low.
+/// let far = threat(DVec3::ZERO, DVec3::ZERO, DVec3::new(140.0, 0.0, 0.0),
+///                  DVec3::X * -1.0, &FeedConfig::default()).unwrap();
+/// assert!(!far.high);
 /// ```
 pub fn threat(
     own_enu_m: DVec3,

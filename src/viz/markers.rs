@@ -25,6 +25,7 @@ struct Marker {
 pub struct Markers {
     collisions: Vec<Marker>,
     near_misses: Vec<Marker>,
+    well_clear: Vec<Marker>,
 }
 
 impl Markers {
@@ -104,6 +105,34 @@ impl Markers {
                     6.0,
                     [255, 160, 0],
                     false,
+                )?;
+                Ok(None)
+            }
+            EventKind::WellClearLost {
+                track,
+                lost_t,
+                horizontal_m,
+                vertical_m,
+            } => {
+                let at = recent
+                    .iter()
+                    .min_by(|a, b| (a.0 - lost_t).abs().total_cmp(&(b.0 - lost_t).abs()))
+                    .map_or(now, |r| r.1);
+                self.well_clear.push(Marker {
+                    at,
+                    label: format!(
+                        "LoWC v{id} {track} {horizontal_m:.0} m / {vertical_m:.0} m +{:.1} s",
+                        lost_t - f.t0_s
+                    ),
+                    normal: Vec3::ZERO,
+                });
+                log_points(
+                    rec,
+                    paths::WELL_CLEAR,
+                    &self.well_clear,
+                    8.0,
+                    [255, 220, 0],
+                    true,
                 )?;
                 Ok(None)
             }

@@ -12,6 +12,8 @@ pub const COLLISIONS: &str = "world/events/collisions";
 pub const COLLISION_NORMALS: &str = "world/events/collision_normals";
 /// Near-miss markers (all so far).
 pub const NEAR_MISSES: &str = "world/events/near_misses";
+/// Loss-of-well-clear markers (all so far): where the vehicle was when it lost well clear.
+pub const WELL_CLEAR: &str = "world/events/well_clear";
 /// Metrics root.
 pub const METRICS: &str = "metrics";
 

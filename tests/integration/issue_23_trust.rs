@@ -96,10 +96,9 @@ fn analytic_cast(tris: &[[DVec3; 3]], origin: DVec3, dir: DVec3, max_m: f64) -> 
         let q = s.cross(e1);
         let v = dir.dot(q) / det;
         let t = e2.dot(q) / det;
-        if (-1e-9..=1.0 + 1e-9).contains(&u) && v >= -1e-9 && u + v <= 1.0 + 1e-9 && t >= 0.0 {
-            if t <= max_m && best.is_none_or(|b| t < b) {
-                best = Some(t);
-            }
+        let inside = (-1e-9..=1.0 + 1e-9).contains(&u) && v >= -1e-9 && u + v <= 1.0 + 1e-9;
+        if inside && (0.0..=max_m).contains(&t) && best.is_none_or(|b| t < b) {
+            best = Some(t);
         }
     }
     best

@@ -34,6 +34,8 @@
 //! - `issue_23_trust`: what outside checks found (rays against height fields, the feed's
 //!   rangefinder over terrain, clocks, reboots, bounded inputs, the feed's geometry, ingest),
 //!   each failing before its fix.
+//! - `issue_24_daa`: well clear and alerting against values worked by hand, `savsim daa`'s
+//!   CSV, and parity with DAIDALUS's DaidalusAlerting (needs `SAVSIM_DAIDALUS`).
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
@@ -55,6 +57,7 @@ mod geo;
 mod ingest;
 mod issue_11_layers;
 mod issue_23_trust;
+mod issue_24_daa;
 mod live;
 mod properties;
 mod scenes;

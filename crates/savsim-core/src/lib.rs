@@ -5,10 +5,12 @@
 //! - [`geo`]: WGS84 geodetic <-> ECEF <-> local ENU tangent plane, f64.
 //! - [`scene`]: scene data, its loaders (bytes handed in through [`scene::Files`]) and the
 //!   generators.
+//! - [`reference`](mod@reference): the independent ground truth (dense sub-stepping), sharing
+//!   no code with the contact layer.
+//! - [`daa`]: detect-and-avoid metrics: well clear, alerting, DAIDALUS's files.
 //! - [`world`]: vehicles and traffic keyed by identity, on their own clocks.
 //! - [`collision`]: the contact layer (the truth), the sensing layer (Li et al. 2019), the
-//!   exact ray fans a range sensor measures, and the reference truth, which shares no code with
-//!   the contact layer.
+//!   exact ray fans a range sensor measures.
 //!
 //! The crate depends on geometry and parsing crates only (parry3d, glam, serde, the file
 //! format readers); the build keeps tokio, mavlink, clap, arrow, parquet, plotters and rerun
@@ -16,6 +18,8 @@
 
 pub mod bounds;
 pub mod collision;
+pub mod daa;
 pub mod geo;
+pub mod reference;
 pub mod scene;
 pub mod world;

@@ -9,7 +9,8 @@
 //! contact layer's.
 //!
 //! Pure: one [`Approach::over`] per interval, folded with [`Approach::merge`]; [`Approaches`]
-//! keeps one per pair of tracks.
+//! keeps one per pair of tracks, and each pair's losses of well clear
+//! ([`crate::daa::episodes`]).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -17,6 +18,8 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use crate::collision::bodies::DynamicBody;
+use crate::daa::episodes::{Change, PairLog};
+use crate::daa::well_clear::Volume;
 use crate::world::TrackSample;
 
 /// NMAC horizontal threshold: 500 ft, metres.
@@ -79,36 +82,74 @@ impl Approach {
 }
 
 /// The closest approach of each vehicle (MAVLink system id) to each moving body (by id) over a
-/// run.
-#[derive(Debug, Clone, Default)]
+/// run, and its losses of well clear.
+#[derive(Debug, Clone)]
 pub struct Approaches {
     /// By (vehicle, body id).
     pub by_pair: BTreeMap<(u8, Arc<str>), Approach>,
+    /// Well clear by (vehicle, body id): its episodes.
+    pub well_clear: BTreeMap<(u8, Arc<str>), PairLog>,
+    /// The well-clear volume judged.
+    pub volume: Volume,
+}
+
+impl Default for Approaches {
+    fn default() -> Self {
+        Self::with_volume(Volume::SMALL_UAS)
+    }
+}
+
+/// A loss or a regain of well clear between a vehicle and a moving body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WellClearChange {
+    /// The moving body's id.
+    pub body: Arc<str>,
+    /// What changed, and when.
+    pub change: Change,
 }
 
 impl Approaches {
+    /// No approaches yet; well clear judged with `volume`.
+    pub fn with_volume(volume: Volume) -> Self {
+        Self {
+            by_pair: BTreeMap::new(),
+            well_clear: BTreeMap::new(),
+            volume,
+        }
+    }
+
     /// Fold in one tick of vehicle `own` (from its `previous` sample, if any, to `current`)
-    /// against every moving body of that interval, as the pipeline sees them. Allocates only
-    /// the first time a pair is seen.
+    /// against every moving body of that interval, as the pipeline sees them; the losses and
+    /// regains of well clear within it, in `changes` (cleared first). Allocates only the first
+    /// time a pair is seen.
     pub fn observe(
         &mut self,
         own: u8,
         previous: Option<&TrackSample>,
         current: &TrackSample,
         bodies: &[DynamicBody],
+        changes: &mut Vec<WellClearChange>,
     ) {
+        changes.clear();
         let before = previous.unwrap_or(current);
         for body in bodies {
-            let a = Approach::over(
-                before.t_s,
-                current.t_s,
+            let (rel0, rel1) = (
                 body.previous.position_enu_m - before.position_enu_m,
                 body.current.position_enu_m - current.position_enu_m,
             );
+            let a = Approach::over(before.t_s, current.t_s, rel0, rel1);
+            let key = (own, body.id.clone());
             self.by_pair
-                .entry((own, body.id.clone()))
+                .entry(key.clone())
                 .and_modify(|m| *m = m.merge(a))
                 .or_insert(a);
+            let log = self.well_clear.entry(key).or_default();
+            for change in log.observe(&self.volume, before.t_s, current.t_s, rel0, rel1) {
+                changes.push(WellClearChange {
+                    body: body.id.clone(),
+                    change,
+                });
+            }
         }
     }
 }

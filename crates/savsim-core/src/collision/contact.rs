@@ -133,7 +133,8 @@ pub const CONTACT_TOLERANCE_M: f64 = 1e-4;
 
 /// Casts restarted after a hit that an exact distance query does not confirm (parry's
 /// conservative advancement can stop short of a contact on a near-grazing pass, and lose
-/// precision on very large triangles).
+/// precision on very large triangles); past them, [`advance_on_distance`] takes the rest of
+/// the interval.
 const MAX_RECASTS: usize = 64;
 
 /// The contact tolerance for two shapes: [`CONTACT_TOLERANCE_M`], grown with the shapes' size
@@ -220,7 +221,16 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
     };
     // `start` is always a time known to be clear.
     let mut start = 0.0f32;
-    for _ in 0..MAX_RECASTS {
+    let mut casts = 0;
+    while start < 1.0 {
+        if casts == MAX_RECASTS {
+            // A long grazing pass: the rest by conservative advancement on exact distances.
+            if let Some(toi) = advance_on_distance(start, closing, tolerance, &gap_at) {
+                return Some(f64::from(toi));
+            }
+            break;
+        }
+        casts += 1;
         let cast = if linear {
             let pa = ma.position_at_time(start);
             let pb = mb.position_at_time(start);
@@ -261,10 +271,7 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
         }
         // Not touching there: no contact can come sooner than the gap closes.
         let advance = if closing > 0.0 { gap / closing } else { 1.0 };
-        start = toi + advance.max(1e-5);
-        if start >= 1.0 {
-            break;
-        }
+        start = toi + advance.max(MIN_ADVANCE);
     }
     // The cast found nothing (or gave up): a contact that holds at the end of the interval
     // still began in it. Its start is bisected on the exact overlap test (distances lose
@@ -286,6 +293,35 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
         1.0
     };
     Some(f64::from(toi))
+}
+
+/// The smallest step (a fraction of the interval) an advancement takes: at most 10^5 steps an
+/// interval; a touch closer than this step times the closing distance is within the tolerance
+/// of any body the size of a vehicle.
+const MIN_ADVANCE: f32 = 1e-5;
+
+/// Conservative advancement from `start` (known clear): each step as long as the gap cannot
+/// close in it (gap over the closing bound), with exact distances; the first time the gap is
+/// within `tolerance`, bisected, or `None` if none comes before the end.
+fn advance_on_distance(
+    start: f32,
+    closing: f32,
+    tolerance: f32,
+    gap_at: &impl Fn(f32) -> f32,
+) -> Option<f32> {
+    let (mut clear, mut t) = (start, start);
+    loop {
+        let gap = gap_at(t);
+        if gap <= tolerance {
+            return Some(bisect_first(clear, t, 24, |u| gap_at(u) <= tolerance));
+        }
+        if t >= 1.0 {
+            return None;
+        }
+        clear = t;
+        let step = if closing > 0.0 { gap / closing } else { 1.0 };
+        t = (t + step.max(MIN_ADVANCE)).min(1.0);
+    }
 }
 
 /// The first instant at which `holds` becomes true, between `clear` (false there) and `hit`

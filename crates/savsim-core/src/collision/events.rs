@@ -65,6 +65,27 @@ pub enum EventKind {
         /// When it was closest, seconds.
         closest_t: f64,
     },
+    /// The vehicle lost well clear of a moving body (the well-clear volume, `--well-clear`,
+    /// violated between their reference points).
+    WellClearLost {
+        /// The moving body's id.
+        track: String,
+        /// When it was lost, seconds on the same clock as `t` (within the tick's interval).
+        lost_t: f64,
+        /// Horizontal separation then, metres.
+        horizontal_m: f64,
+        /// Vertical separation then (absolute), metres.
+        vertical_m: f64,
+    },
+    /// The vehicle regained well clear of a moving body.
+    WellClearRegained {
+        /// The moving body's id.
+        track: String,
+        /// When it was regained, seconds on the same clock as `t`.
+        regained_t: f64,
+        /// How long well clear was lost, seconds.
+        duration_s: f64,
+    },
     /// Telemetry stopped for longer than the gap limit: no sweep across the gap.
     TelemetryGap {
         /// Length of the gap, seconds.

@@ -7,8 +7,11 @@
 //!
 //! One named thread (`savsim-meshes`) per cache that asks, started on the first request; it
 //! ends when every handle to it is dropped. Jobs go over a bounded channel (a full one makes
-//! the asker wait: the worker never waits on the asker, so neither can deadlock).
+//! the asker wait: the worker never waits on the asker, so neither can deadlock). A build that
+//! panics, or a job the worker never reaches (its thread gone), fills its slot with a failure:
+//! a waiter is always woken, and builds the mesh itself.
 
+use std::panic::AssertUnwindSafe;
 use std::sync::mpsc::{sync_channel, SyncSender};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
@@ -20,16 +23,20 @@ use crate::scene::geometry::Geometry;
 /// Jobs that may wait in the channel.
 const QUEUE: usize = 256;
 
+/// A finished build: the mesh and how long it took, or `None` when the worker failed.
+type Built = Option<(Arc<TriMesh>, Duration)>;
+
 /// Where one build's result appears.
 #[derive(Debug, Default)]
 pub(crate) struct Slot {
-    result: Mutex<Option<(Arc<TriMesh>, Duration)>>,
+    result: Mutex<Option<Built>>,
     done: Condvar,
 }
 
 impl Slot {
-    /// The mesh and how long it took to build, waiting for it if it is still being built.
-    pub fn wait(&self) -> (Arc<TriMesh>, Duration) {
+    /// The mesh and how long it took to build, waiting for it if it is still being built;
+    /// `None` when the worker failed on it (the caller builds it).
+    pub fn wait(&self) -> Built {
         let mut result = self.result.lock().unwrap_or_else(|e| e.into_inner());
         loop {
             if let Some(done) = result.as_ref() {
@@ -38,28 +45,49 @@ impl Slot {
             result = self.done.wait(result).unwrap_or_else(|e| e.into_inner());
         }
     }
+
+    fn fill(&self, built: Built) {
+        let mut result = self.result.lock().unwrap_or_else(|e| e.into_inner());
+        if result.is_none() {
+            *result = Some(built);
+        }
+        self.done.notify_all();
+    }
+}
+
+/// A job's hold on its slot: filled with a failure when dropped unfilled (a job dropped in the
+/// channel, or by a worker that panicked), so that no waiter waits for ever.
+struct Job {
+    geometry: Geometry,
+    slot: Arc<Slot>,
+}
+
+impl Drop for Job {
+    fn drop(&mut self) {
+        self.slot.fill(None);
+    }
 }
 
 /// A handle to the worker (cheap to clone: clones share the thread).
 #[derive(Debug, Clone)]
 pub(crate) struct MeshWorker {
-    jobs: SyncSender<(Geometry, Arc<Slot>)>,
+    jobs: SyncSender<Job>,
 }
 
 impl MeshWorker {
     /// Start the worker thread, or `None` if the system will not start one (the caller then
     /// builds on its own thread).
     pub fn start() -> Option<Self> {
-        let (jobs, queue) = sync_channel::<(Geometry, Arc<Slot>)>(QUEUE);
+        let (jobs, queue) = sync_channel::<Job>(QUEUE);
         std::thread::Builder::new()
             .name("savsim-meshes".into())
             .spawn(move || {
-                for (geometry, slot) in queue {
+                for job in queue {
                     let started = std::time::Instant::now();
-                    let mesh = Arc::new(geometry.build_trimesh());
-                    let mut result = slot.result.lock().unwrap_or_else(|e| e.into_inner());
-                    *result = Some((mesh, started.elapsed()));
-                    slot.done.notify_all();
+                    let built =
+                        std::panic::catch_unwind(AssertUnwindSafe(|| job.geometry.build_trimesh()));
+                    job.slot
+                        .fill(built.ok().map(|mesh| (Arc::new(mesh), started.elapsed())));
                 }
             })
             .ok()?;
@@ -69,7 +97,11 @@ impl MeshWorker {
     /// Ask for `geometry`'s mesh; `None` if the worker is gone (build it yourself).
     pub fn request(&self, geometry: &Geometry) -> Option<Arc<Slot>> {
         let slot = Arc::new(Slot::default());
-        self.jobs.send((geometry.clone(), slot.clone())).ok()?;
+        let job = Job {
+            geometry: geometry.clone(),
+            slot: slot.clone(),
+        };
+        self.jobs.send(job).ok()?;
         Some(slot)
     }
 }

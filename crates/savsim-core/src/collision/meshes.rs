@@ -38,6 +38,9 @@ pub struct MeshCache {
     pub build_time: Duration,
     /// Meshes a residency decision wanted but the budget had no room for.
     pub prefetch_refused: usize,
+    /// Meshes the worker failed to build (a panic in the build): built on the caller's thread
+    /// instead, counted.
+    pub worker_failures: usize,
     /// Most bytes the meshes may hold (`usize::MAX`: no budget).
     budget_bytes: usize,
     /// Meshes asked of the worker and not installed yet: geometry index, where the result
@@ -97,9 +100,14 @@ impl MeshCache {
     pub fn install_requested(&mut self) {
         for (index, slot, reserved) in std::mem::take(&mut self.requested) {
             self.reserved_bytes -= reserved;
-            let (mesh, took) = slot.wait();
-            self.build_time += took;
-            self.install(index, mesh);
+            match slot.wait() {
+                Some((mesh, took)) => {
+                    self.build_time += took;
+                    self.install(index, mesh);
+                }
+                // Left unbuilt: the next `get` builds it on this thread.
+                None => self.worker_failures += 1,
+            }
         }
     }
 
@@ -209,10 +217,12 @@ impl MeshCache {
         if let Some(k) = self.requested.iter().position(|r| r.0 == index) {
             let (_, slot, reserved) = self.requested.remove(k);
             self.reserved_bytes -= reserved;
-            let (mesh, took) = slot.wait();
-            self.build_time += took;
-            self.install(index, mesh.clone());
-            return mesh;
+            if let Some((mesh, took)) = slot.wait() {
+                self.build_time += took;
+                self.install(index, mesh.clone());
+                return mesh;
+            }
+            self.worker_failures += 1;
         }
         let started = Instant::now();
         let mesh = Arc::new(geometry.build_trimesh());

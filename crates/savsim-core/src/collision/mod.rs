@@ -28,7 +28,6 @@
 //!   [`swaps`]: its threat, collider swaps and residency.
 //! - [`threat`]: AHP weights and beta.
 //! - [`episodes`]: contacts and near misses into events.
-//! - [`reference`](mod@reference): the independent ground truth (dense sub-stepping).
 //! - [`pipeline`]: the per-tick orchestrator.
 //! - [`events`]: what is reported.
 //! - [`fan`]: exact ray fans (what a range sensor measures; the closed-loop feed).
@@ -50,7 +49,6 @@ pub mod moving;
 pub mod octree;
 pub mod pipeline;
 pub mod ray_height_field;
-pub mod reference;
 pub mod sensing;
 pub mod shapes;
 pub mod spans;

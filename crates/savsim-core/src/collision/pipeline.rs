@@ -25,9 +25,9 @@ use crate::collision::episodes::{sweepable_from, Episodes};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::octree::Octree;
-use crate::collision::reference::Reference;
 use crate::collision::sensing::{Frame, Rules, Sensing};
 use crate::collision::shapes::ExactShapes;
+use crate::reference::{Interval, Reference};
 use crate::scene::{Aabb64, Scene};
 use crate::world::TrackSample;
 
@@ -118,6 +118,9 @@ pub struct PipelineTotals {
     pub terrain_clearance_min_m: Option<f64>,
     /// Samples skipped as implausible (far below the terrain).
     pub implausible_samples: u64,
+    /// `reference` mode: intervals that needed more sub-steps than it takes, stepped coarser
+    /// (their answer is not the reference's).
+    pub reference_capped: u64,
 }
 
 /// The collision pipeline for a scene.
@@ -251,15 +254,17 @@ impl Pipeline {
             Mode::None => TickReport::default(),
             Mode::Reference => {
                 let started = Instant::now();
-                self.reference.get_or_insert_with(Reference::default).step(
+                let interval = Interval {
                     scene,
-                    &self.config,
-                    vehicle,
+                    cfg: &self.config,
+                    key: vehicle,
                     previous,
                     current,
-                    dynamic.as_slice(),
-                    events,
-                );
+                    dynamic: dynamic.as_slice(),
+                };
+                let reference = self.reference.get_or_insert_with(Reference::default);
+                reference.step(&interval, events);
+                self.totals.reference_capped = reference.capped;
                 TickReport {
                     swept: previous.is_some(),
                     contact_ns: elapsed_ns(started),
@@ -284,6 +289,8 @@ impl Pipeline {
                 EventKind::ColliderSwap { .. } => t.swaps += 1,
                 EventKind::NearMiss { .. } => t.near_misses += 1,
                 EventKind::TelemetryGap { .. } => t.telemetry_gaps += 1,
+                // Well clear is judged by the session (daa::episodes), not by the pipeline.
+                EventKind::WellClearLost { .. } | EventKind::WellClearRegained { .. } => {}
             }
         }
         t.active_box_sum += report.active_box as u64;

@@ -26,14 +26,11 @@ fn convex_parts<'a>(p: &Placed<'a>) -> smallvec::SmallVec<[Placed<'a>; 8]> {
     }
 }
 
-/// Most triangles of a mesh tested for the spans of one interval (those nearest the path's
-/// bounds come first in the mesh's BVH order; a path that meets more is rare and slow).
-const MAX_SPAN_TRIANGLES: usize = 512;
-
 /// Every contact of the interval, not only the first: the times (fractions) during which body
 /// `a` (from `a0` to `a1`) touches body `b` (from `b0` to `b1`), as disjoint spans (entry,
 /// exit) in order. Compounds are split into their convex parts, a triangle mesh or height
-/// field into the triangles near the path; a pair of convex parts touches over one span, found
+/// field into every triangle near the path (all of them: slow for a long path over a fine
+/// mesh, never a guess); a pair of convex parts touches over one span, found
 /// by a sweep forwards (entry) and one backwards (exit). `solid` are spans known otherwise
 /// (terrain: the vehicle's reference point under the surface), joined in. Costly (two sweeps a
 /// pair of parts): for intervals in which a first sweep already found contact, so that leaving
@@ -63,18 +60,9 @@ pub fn contact_spans(
         let query = near(b0).merged(&near(b1));
         let mut triangles: Vec<parry3d::shape::Triangle> = Vec::new();
         if let Some(mesh) = b0.shape.as_trimesh() {
-            triangles.extend(
-                mesh.bvh()
-                    .intersect_aabb(&query)
-                    .take(MAX_SPAN_TRIANGLES)
-                    .map(|i| mesh.triangle(i)),
-            );
+            triangles.extend(mesh.bvh().intersect_aabb(&query).map(|i| mesh.triangle(i)));
         } else if let Some(field) = b0.shape.as_heightfield() {
-            field.map_elements_in_local_aabb(&query, &mut |_, t| {
-                if triangles.len() < MAX_SPAN_TRIANGLES {
-                    triangles.push(*t)
-                }
-            });
+            field.map_elements_in_local_aabb(&query, &mut |_, t| triangles.push(*t));
         }
         let as_parts = |b: &Placed<'_>| -> Vec<Placed<'_>> {
             triangles

@@ -9,6 +9,10 @@ use smallvec::SmallVec;
 
 use crate::scene::geometry::{Geometry, GeometrySource, TerrainPatch};
 
+/// Most grid-line and diagonal crossings [`Geometry::terrain_under_runs`] walks for one
+/// segment (its list of crossings is bounded by this).
+pub const MAX_UNDER_CROSSINGS: usize = 1 << 16;
+
 impl Geometry {
     /// The highest terrain sample of the cells that the local rectangle [x0, x1] x [y0, y1]
     /// touches: an upper bound of the surface there (None: not terrain, or outside it).
@@ -172,7 +176,9 @@ impl Geometry {
     /// The parts of the segment from `a` to `b` (local metres) that lie over a terrain patch
     /// and under its surface, as fractions of the segment, in order: exactly (the surface is
     /// linear between the points where the segment crosses the grid's lines and the cells'
-    /// diagonals). `None` when this is not terrain or the segment crosses too many cells.
+    /// diagonals). `None` when this is not terrain or the segment crosses more than
+    /// [`MAX_UNDER_CROSSINGS`] grid lines (at 1 m cells, more than 20 km in one interval, which
+    /// the gap rules end first).
     ///
     /// ```
     /// use savsim_core::scene::geometry::{Geometry, HeightGrid, TerrainPatch};
@@ -219,7 +225,7 @@ impl Geometry {
             while k < hi {
                 let t = (k - w0) / (w1 - w0);
                 if t > t0 && t < t1 {
-                    if at.len() >= 256 {
+                    if at.len() >= MAX_UNDER_CROSSINGS {
                         return None;
                     }
                     at.push(t);

@@ -1,0 +1,157 @@
+//! Losses of well clear over a flight: for each pair of tracks, the episodes in which the
+//! well-clear volume is violated, exact for motion that is linear between samples (each
+//! interval's relative velocity is its displacement over its length).
+
+use glam::DVec3;
+use smallvec::SmallVec;
+
+use crate::daa::well_clear::{Relative, Volume};
+
+/// One loss of well clear.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Episode {
+    /// When well clear was lost, seconds.
+    pub start_t_s: f64,
+    /// When it was regained, seconds (`None` while it lasts).
+    pub end_t_s: Option<f64>,
+    /// Least horizontal separation seen in it (at its samples and ends), metres.
+    pub min_horizontal_m: f64,
+    /// Least vertical separation seen in it (at its samples and ends), metres.
+    pub min_vertical_m: f64,
+}
+
+impl Episode {
+    /// How long it lasted, seconds (to `now_t_s` while it lasts).
+    pub fn duration_s(&self, now_t_s: f64) -> f64 {
+        self.end_t_s.unwrap_or(now_t_s) - self.start_t_s
+    }
+}
+
+/// A change of a pair's state within one interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Change {
+    /// Well clear was lost at this time.
+    Lost {
+        /// When, seconds.
+        t_s: f64,
+    },
+    /// Well clear was regained at this time, after an episode of this length.
+    Regained {
+        /// When, seconds.
+        t_s: f64,
+        /// How long the episode lasted, seconds.
+        duration_s: f64,
+    },
+}
+
+/// One pair's well-clear history.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PairLog {
+    /// Its episodes, in time order (the last may be open).
+    pub episodes: Vec<Episode>,
+    /// Least modified tau (for the volume's DTHR) seen at any sample while closing, seconds.
+    pub min_tau_mod_s: Option<f64>,
+    /// The last time observed, seconds.
+    pub last_t_s: f64,
+}
+
+impl PairLog {
+    /// Whether well clear is lost now.
+    pub fn open(&self) -> bool {
+        self.episodes.last().is_some_and(|e| e.end_t_s.is_none())
+    }
+
+    /// Total time without well clear, seconds.
+    pub fn duration_s(&self) -> f64 {
+        self.episodes
+            .iter()
+            .map(|e| e.duration_s(self.last_t_s))
+            .sum()
+    }
+
+    /// Fold in one interval from `t0_s` to `t1_s` in which the relative position (either
+    /// sign) moves linearly from `rel0_enu_m` to `rel1_enu_m`; the changes within it.
+    ///
+    /// ```
+    /// use glam::DVec3;
+    /// use savsim_core::daa::episodes::{Change, PairLog};
+    /// use savsim_core::daa::well_clear::Volume;
+    /// let cylinder = Volume { dthr_m: 600.0, zthr_m: 100.0, tthr_s: 0.0, tcoa_s: 0.0 };
+    /// let mut log = PairLog::default();
+    /// // Closing at 100 m/s from 3000 m: lost at 24 s, regained at 36 s, within one 60 s step.
+    /// let changes = log.observe(&cylinder, 0.0, 60.0, DVec3::new(3000.0, 0.0, 0.0), DVec3::new(-3000.0, 0.0, 0.0));
+    /// assert_eq!(changes.len(), 2);
+    /// assert!(matches!(changes[0], Change::Lost { t_s } if (t_s - 24.0).abs() < 1e-9));
+    /// assert!((log.duration_s() - 12.0).abs() < 1e-9);
+    /// ```
+    pub fn observe(
+        &mut self,
+        volume: &Volume,
+        t0_s: f64,
+        t1_s: f64,
+        rel0_enu_m: DVec3,
+        rel1_enu_m: DVec3,
+    ) -> SmallVec<[Change; 2]> {
+        let mut changes = SmallVec::new();
+        let dt = t1_s - t0_s;
+        if dt.is_nan() || dt <= 0.0 {
+            return changes;
+        }
+        let rel = Relative {
+            s_m: rel0_enu_m,
+            v_mps: (rel1_enu_m - rel0_enu_m) / dt,
+        };
+        let at_end = Relative {
+            s_m: rel1_enu_m,
+            ..rel
+        };
+        if let Some(tau) = at_end.tau_mod_s(volume.dthr_m) {
+            self.min_tau_mod_s = Some(self.min_tau_mod_s.map_or(tau, |m| m.min(tau)));
+        }
+        self.last_t_s = t1_s;
+        match volume.interval(&rel, 0.0, dt) {
+            None => self.close(t0_s, &mut changes),
+            Some((a, b)) => {
+                if self.open() && a > 0.0 {
+                    self.close(t0_s, &mut changes);
+                }
+                if !self.open() {
+                    self.start(t0_s + a, rel0_enu_m.lerp(rel1_enu_m, a / dt), &mut changes);
+                }
+                self.note(rel0_enu_m.lerp(rel1_enu_m, b / dt));
+                self.note(rel1_enu_m.lerp(rel0_enu_m, 1.0 - a / dt));
+                if b < dt {
+                    self.close(t0_s + b, &mut changes);
+                }
+            }
+        }
+        changes
+    }
+
+    fn start(&mut self, t_s: f64, rel: DVec3, changes: &mut SmallVec<[Change; 2]>) {
+        self.episodes.push(Episode {
+            start_t_s: t_s,
+            end_t_s: None,
+            min_horizontal_m: rel.truncate().length(),
+            min_vertical_m: rel.z.abs(),
+        });
+        changes.push(Change::Lost { t_s });
+    }
+
+    fn note(&mut self, rel: DVec3) {
+        if let Some(e) = self.episodes.last_mut().filter(|e| e.end_t_s.is_none()) {
+            e.min_horizontal_m = e.min_horizontal_m.min(rel.truncate().length());
+            e.min_vertical_m = e.min_vertical_m.min(rel.z.abs());
+        }
+    }
+
+    fn close(&mut self, t_s: f64, changes: &mut SmallVec<[Change; 2]>) {
+        if let Some(e) = self.episodes.last_mut().filter(|e| e.end_t_s.is_none()) {
+            e.end_t_s = Some(t_s);
+            changes.push(Change::Regained {
+                t_s,
+                duration_s: t_s - e.start_t_s,
+            });
+        }
+    }
+}

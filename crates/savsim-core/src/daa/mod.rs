@@ -1,0 +1,21 @@
+//! Detect-and-avoid metrics: DO-365's well clear, alerting as a DAIDALUS configuration sets
+//! it, and DAIDALUS's own files (`.conf`, `.daa`), so that savsim and DAIDALUS can be run side
+//! by side on the same input.
+//!
+//! - [`well_clear`]: the well-clear predicate and its interval for linear relative motion.
+//! - [`alerting`]: alert levels, and their filtering (M of N, hysteresis, persistence).
+//! - [`conf`], [`scenario`], [`units`]: DAIDALUS's configuration and state files.
+//! - [`projection`]: geodetic states made Euclidean as DAIDALUS does.
+//! - [`alerting_run`]: a state file's alerting, row by row, as `DaidalusAlerting` reports it.
+//! - [`episodes`]: losses of well clear over a flight, for events, summaries and batch rows.
+//! - [`ratios`]: weighted NMAC and loss-of-well-clear rates and risk ratios over encounters.
+
+pub mod alerting;
+pub mod alerting_run;
+pub mod conf;
+pub mod episodes;
+pub mod projection;
+pub mod ratios;
+pub mod scenario;
+pub mod units;
+pub mod well_clear;

@@ -1,0 +1,322 @@
+//! DAIDALUS's state files (`.daa`): a header line naming the columns, an optional units line,
+//! then one row per aircraft and time (the first aircraft of each time is the ownship).
+//!
+//! Columns, case-insensitive, in any order: the name (`name`, `aircraft`, `id`); the position,
+//! geodetic (`lat`, `lon`, `alt`; default units deg, deg, ft) or Euclidean (`sx`, `sy`, `sz`;
+//! nmi, nmi, ft); the velocity, Cartesian (`vx`, `vy`, `vz`: east, north, up; knot, knot, fpm)
+//! or polar (`trk`, `gs`, `vs`; deg from north, knot, fpm); the time (`time`, `clock`, `tm`,
+//! `st`; s, or `hh:mm:ss`); optionally `alerter` (the alerter's number or name). A units line
+//! (`[deg]`, `[ft]`, `unitless`...) overrides the defaults column by column. Other columns
+//! (uncertainty, for example) are kept nowhere.
+
+use glam::DVec3;
+
+use crate::daa::units::si_per;
+
+/// An aircraft's position as the file gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Position {
+    /// Latitude and longitude (degrees) and altitude (metres).
+    Geodetic {
+        /// Latitude, degrees.
+        lat_deg: f64,
+        /// Longitude, degrees.
+        lon_deg: f64,
+        /// Altitude, metres.
+        alt_m: f64,
+    },
+    /// A point of a Euclidean frame (east, north, up), metres.
+    Euclidean(DVec3),
+}
+
+/// One aircraft at one time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    /// Its name.
+    pub name: String,
+    /// Where it is.
+    pub position: Position,
+    /// Its velocity, east, north, up, m/s.
+    pub velocity_enu_mps: DVec3,
+    /// The alerter the row names (1-based), if it names one.
+    pub alerter: Option<AlerterRef>,
+}
+
+/// An alerter named by a row: by number or by name.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AlerterRef {
+    /// 1-based index.
+    Index(usize),
+    /// The alerter's name.
+    Name(String),
+}
+
+/// Every aircraft at one time; the ownship first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    /// The time, seconds.
+    pub time_s: f64,
+    /// The aircraft, ownship first.
+    pub aircraft: Vec<State>,
+}
+
+/// Why a state file could not be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file has no header line.
+    #[error("empty file: no header line")]
+    Empty,
+    /// A required column is absent.
+    #[error(
+        "no {0} column (the header needs name, lat|sx, lon|sy, alt|sz, vx|trk, vy|gs, vz|vs, time)"
+    )]
+    MissingColumn(&'static str),
+    /// A unit the reader does not know.
+    #[error("column {column}: unknown unit [{unit}]")]
+    Unit {
+        /// The column's header.
+        column: String,
+        /// The unit.
+        unit: String,
+    },
+    /// A row that cannot be read.
+    #[error("line {line}: {message}")]
+    Row {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// The columns a state needs, their index and the SI per unit of each.
+struct Columns {
+    name: usize,
+    geodetic: bool,
+    polar: bool,
+    position: [(usize, f64); 3],
+    velocity: [(usize, f64); 3],
+    time: (usize, f64),
+    alerter: Option<usize>,
+}
+
+/// Most rows a state file may hold (`savsim daa` reads it whole).
+pub const MAX_ROWS: usize = 10_000_000;
+
+/// Read a state file's steps, in file order (rows of one time together; a row whose time
+/// differs from the one before starts a new step).
+///
+/// ```
+/// use savsim_core::daa::scenario::{parse, Position};
+/// let text = "NAME sx sy sz vx vy vz time\n\
+///     [none] [m] [m] [m] [m/s] [m/s] [m/s] [s]\n\
+///     own 0 0 100 10 0 0 0\n\
+///     intr 1000 0 100 -10 0 0 0\n";
+/// let steps = parse(text).unwrap();
+/// assert_eq!(steps.len(), 1);
+/// assert_eq!(steps[0].aircraft[1].position, Position::Euclidean(glam::DVec3::new(1000.0, 0.0, 100.0)));
+/// assert_eq!(steps[0].aircraft[1].velocity_enu_mps.x, -10.0);
+/// ```
+pub fn parse(text: &str) -> Result<Vec<Step>, ScenarioError> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(k, l)| (k + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let (_, header) = lines.next().ok_or(ScenarioError::Empty)?;
+    let headers: Vec<String> = split(header).map(str::to_ascii_lowercase).collect();
+    let mut pending = lines.next();
+    let units: Option<Vec<String>> = match pending {
+        Some((_, l)) if is_units_line(l) => {
+            pending = None;
+            Some(
+                split(l)
+                    .map(|u| u.trim_matches(['[', ']']).to_string())
+                    .collect(),
+            )
+        }
+        _ => None,
+    };
+    let columns = columns(&headers, units.as_deref())?;
+    let mut steps: Vec<Step> = Vec::new();
+    let mut rows = 0usize;
+    for (line, row) in pending.into_iter().chain(lines) {
+        rows += 1;
+        if rows > MAX_ROWS {
+            return Err(ScenarioError::Row {
+                line,
+                message: format!("more than {MAX_ROWS} rows"),
+            });
+        }
+        let (time_s, state) =
+            read_row(&columns, row).map_err(|message| ScenarioError::Row { line, message })?;
+        match steps.last_mut() {
+            Some(step) if step.time_s == time_s => step.aircraft.push(state),
+            _ => steps.push(Step {
+                time_s,
+                aircraft: vec![state],
+            }),
+        }
+    }
+    Ok(steps)
+}
+
+/// A line's fields: comma-separated when it has a comma, else by whitespace.
+fn split(line: &str) -> Box<dyn Iterator<Item = &str> + '_> {
+    if line.contains(',') {
+        Box::new(line.split(',').map(str::trim))
+    } else {
+        Box::new(line.split_whitespace())
+    }
+}
+
+/// A units line: every field a bracketed unit or `unitless`.
+fn is_units_line(line: &str) -> bool {
+    split(line).all(|f| {
+        let f = f.trim();
+        f.is_empty() || f.starts_with('[') || f.eq_ignore_ascii_case("unitless")
+    })
+}
+
+/// Where each needed column is, and its unit.
+fn columns(headers: &[String], units: Option<&[String]>) -> Result<Columns, ScenarioError> {
+    let find = |names: &[&str]| headers.iter().position(|h| names.contains(&h.as_str()));
+    let need =
+        |names: &[&str], what: &'static str| find(names).ok_or(ScenarioError::MissingColumn(what));
+    let geodetic = find(&["lat", "latitude"]).is_some();
+    let polar = find(&["trk", "track"]).is_some();
+    let unit = |index: usize, default: &str| -> Result<f64, ScenarioError> {
+        let given = units.and_then(|u| u.get(index)).map(String::as_str);
+        let name = match given {
+            Some(u) if !u.is_empty() && u != "unitless" && u != "none" => u,
+            _ => default,
+        };
+        si_per(name).ok_or_else(|| ScenarioError::Unit {
+            column: headers[index].clone(),
+            unit: name.into(),
+        })
+    };
+    let at = |names: &[&str],
+              what: &'static str,
+              default: &str|
+     -> Result<(usize, f64), ScenarioError> {
+        let index = need(names, what)?;
+        Ok((index, unit(index, default)?))
+    };
+    let position = if geodetic {
+        [
+            at(&["lat", "latitude"], "lat", "deg")?,
+            at(&["lon", "long", "longitude"], "lon", "deg")?,
+            at(&["alt", "altitude"], "alt", "ft")?,
+        ]
+    } else {
+        [
+            at(&["sx"], "sx", "nmi")?,
+            at(&["sy"], "sy", "nmi")?,
+            at(&["sz", "alt", "altitude"], "sz", "ft")?,
+        ]
+    };
+    let velocity = if polar {
+        [
+            at(&["trk", "track"], "trk", "deg")?,
+            at(&["gs", "groundspeed", "groundspd"], "gs", "knot")?,
+            at(&["vs", "verticalspeed", "hdot"], "vs", "fpm")?,
+        ]
+    } else {
+        [
+            at(&["vx"], "vx", "knot")?,
+            at(&["vy"], "vy", "knot")?,
+            at(&["vz"], "vz", "fpm")?,
+        ]
+    };
+    Ok(Columns {
+        name: need(&["name", "aircraft", "id"], "name")?,
+        geodetic,
+        polar,
+        position,
+        velocity,
+        time: at(&["time", "clock", "tm", "st"], "time", "s")?,
+        alerter: find(&["alerter"]),
+    })
+}
+
+/// One row: its time and the state.
+fn read_row(c: &Columns, row: &str) -> Result<(f64, State), String> {
+    let fields: Vec<&str> = split(row).collect();
+    let field = |i: usize| {
+        fields
+            .get(i)
+            .copied()
+            .ok_or_else(|| format!("no column {}", i + 1))
+    };
+    let number = |(i, si): (usize, f64)| -> Result<f64, String> {
+        let text = field(i)?;
+        let x: f64 = text
+            .parse()
+            .map_err(|_| format!("column {}: not a number: {text:?}", i + 1))?;
+        if !x.is_finite() || x.abs() > 1e12 {
+            return Err(format!("column {}: out of range: {text:?}", i + 1));
+        }
+        Ok(x * si)
+    };
+    let [p0, p1, p2] = c.position.map(number);
+    let position = if c.geodetic {
+        let to_deg = 180.0 / std::f64::consts::PI;
+        let (lat_deg, lon_deg) = (p0? * to_deg, p1? * to_deg);
+        if lat_deg.abs() > 90.0 {
+            return Err(format!("latitude {lat_deg} outside +/-90 degrees"));
+        }
+        Position::Geodetic {
+            lat_deg,
+            lon_deg,
+            alt_m: p2?,
+        }
+    } else {
+        Position::Euclidean(DVec3::new(p0?, p1?, p2?))
+    };
+    let [v0, v1, v2] = c.velocity.map(number);
+    let velocity_enu_mps = if c.polar {
+        let (trk_rad, gs_mps) = (v0?, v1?);
+        DVec3::new(gs_mps * trk_rad.sin(), gs_mps * trk_rad.cos(), v2?)
+    } else {
+        DVec3::new(v0?, v1?, v2?)
+    };
+    let time_s = time(field(c.time.0)?, c.time.1)?;
+    let alerter = c
+        .alerter
+        .and_then(|i| fields.get(i))
+        .map(|a| match a.parse::<usize>() {
+            Ok(k) => AlerterRef::Index(k),
+            Err(_) => AlerterRef::Name(a.to_string()),
+        });
+    Ok((
+        time_s,
+        State {
+            name: field(c.name)?.to_string(),
+            position,
+            velocity_enu_mps,
+            alerter,
+        },
+    ))
+}
+
+/// A time field: seconds (in the column's unit) or `hh:mm:ss`.
+fn time(text: &str, si: f64) -> Result<f64, String> {
+    let parts: Vec<&str> = text.split(':').collect();
+    let bad = || format!("not a time: {text:?}");
+    let t = if parts.len() > 1 {
+        parts
+            .iter()
+            .try_fold(0.0, |acc, p| {
+                p.trim().parse::<f64>().map(|x| acc * 60.0 + x)
+            })
+            .map_err(|_| bad())?
+    } else {
+        text.parse::<f64>().map_err(|_| bad())? * si
+    };
+    if t.is_finite() && t.abs() <= 1e12 {
+        Ok(t)
+    } else {
+        Err(bad())
+    }
+}

@@ -1,0 +1,453 @@
+//! Issue 24: well clear and alerting. The formulas against values worked by hand from DO-365's
+//! definitions (in this file's comments); `savsim daa`'s CSV against hand values; losses of
+//! well clear in batch rows and events; and, when `SAVSIM_DAIDALUS` names a script that runs
+//! DAIDALUS's `DaidalusAlerting` (docs/daa.md says how to build one) and ../shared/fixtures/daa
+//! holds DAIDALUS's configurations, parity cell by cell on DAIDALUS's H1 scenario and savsim's
+//! own (tests/fixtures/daa).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use glam::DVec3;
+use savsim::daa::alerting::{Conflict, Filter};
+use savsim::daa::conf::Config;
+use savsim::daa::well_clear::{Relative, Volume};
+
+use crate::common::{root, shared_fixtures};
+
+fn rel(s: [f64; 3], v: [f64; 3]) -> Relative {
+    Relative {
+        s_m: DVec3::from(s),
+        v_mps: DVec3::from(v),
+    }
+}
+
+#[test]
+fn the_taumod_entry_is_the_root_worked_by_hand() {
+    // Head on, 5000 m apart, closing at 100 m/s; DTHR 600 m, TTHR 35 s. With x the range,
+    // tau_mod = (x^2 - 600^2) / (100 x) = 35 gives x^2 - 3500 x - 360000 = 0, x = 3600 m:
+    // 14 s from now. Leaving the 600 m circle: x = -600, t = 56 s.
+    let v = Volume {
+        dthr_m: 600.0,
+        zthr_m: 100.0,
+        tthr_s: 35.0,
+        tcoa_s: 0.0,
+    };
+    let r = rel([5000.0, 0.0, 0.0], [-100.0, 0.0, 0.0]);
+    let (t_in, t_out) = v.interval(&r, 0.0, 180.0).unwrap();
+    assert!((t_in - 14.0).abs() < 1e-9, "{t_in}");
+    assert!((t_out - 56.0).abs() < 1e-9, "{t_out}");
+    // A miss distance of 601 m: never.
+    let r = rel([5000.0, 601.0, 0.0], [-100.0, 0.0, 0.0]);
+    assert_eq!(v.interval(&r, 0.0, 180.0), None);
+    // Within the lookahead only: a 10 s lookahead ends before 14 s.
+    let r = rel([5000.0, 0.0, 0.0], [-100.0, 0.0, 0.0]);
+    assert_eq!(v.interval(&r, 0.0, 10.0), None);
+}
+
+#[test]
+fn the_tcoa_entry_is_worked_by_hand() {
+    // 300 m above, closing vertically at 10 m/s, level horizontally inside DTHR; ZTHR 100 m,
+    // TCOA 20 s: co-altitude at 30 s, so violated from 30 - 20 = 10 s (before the 100 m band,
+    // entered at 20 s) to 40 s (leaving the band below).
+    let v = Volume {
+        dthr_m: 600.0,
+        zthr_m: 100.0,
+        tthr_s: 0.0,
+        tcoa_s: 20.0,
+    };
+    let r = rel([100.0, 0.0, 300.0], [0.0, 0.0, -10.0]);
+    let (t_in, t_out) = v.interval(&r, 0.0, 180.0).unwrap();
+    assert!(
+        (t_in - 10.0).abs() < 1e-9 && (t_out - 40.0).abs() < 1e-9,
+        "{t_in} {t_out}"
+    );
+    // Diverging vertically, 300 m apart: never.
+    let r = rel([100.0, 0.0, 300.0], [0.0, 0.0, 10.0]);
+    assert!(!v.violated(&r) && v.interval(&r, 0.0, 180.0).is_none());
+}
+
+#[test]
+fn miss_distances_and_times_are_worked_by_hand() {
+    // s = (3000, 400), v = (-100, 0): tcpa = 30 s, dcpa = 400 m; HMD within 20 s: |(1000, 400)|.
+    let r = rel([3000.0, 400.0, 50.0], [-100.0, 0.0, -1.0]);
+    assert!((r.tcpa_s() - 30.0).abs() < 1e-12 && (r.dcpa_m() - 400.0).abs() < 1e-9);
+    assert!((r.hmd_m(20.0) - 1000f64.hypot(400.0)).abs() < 1e-9);
+    // Vertically: co-altitude at 50 s; VMD within 20 s is 30 m, within 60 s is 0.
+    assert!((r.vmd_m(20.0) - 30.0).abs() < 1e-12 && r.vmd_m(60.0) == 0.0);
+    assert_eq!(r.tcoa_s(), Some(50.0));
+    // tau_mod for DTHR 1000 m: (1000^2 - 3000^2 - 400^2) / (-300000).
+    let expect = (1e6 - 9e6 - 160000.0) / -300000.0;
+    assert!((r.tau_mod_s(1000.0).unwrap() - expect).abs() < 1e-12);
+}
+
+#[test]
+fn alert_levels_follow_the_alerting_times() {
+    // One level, a 600 m cylinder, alerting time 20 s, early 30 s: at 100 m/s closing from
+    // 4000 m the violation starts 34 s ahead: no alert; from 2500 m, 19 s: alert.
+    let conf = "alerters = A\nA_alert_1_detector = d\nA_alert_1_alerting_time = 20 [s]\n\
+        A_alert_1_early_alerting_time = 30 [s]\nA_alert_1_region = NEAR\n\
+        A_d_WCV_DTHR = 600 [m]\nA_d_WCV_ZTHR = 100 [m]\nA_d_WCV_TTHR = 0 [s]\n\
+        A_d_WCV_TCOA = 0 [s]\nA_load_core_detection_d = gov.nasa.larcfm.ACCoRD.WCV_TAUMOD\n";
+    let c = Config::parse(conf).unwrap();
+    let alerter = &c.alerters[0];
+    let at = |x: f64| rel([x, 0.0, 0.0], [-100.0, 0.0, 0.0]);
+    assert_eq!(alerter.raw_level(&at(4000.0), 180.0, None), 0);
+    assert_eq!(alerter.raw_level(&at(2500.0), 180.0, None), 1);
+    // Already alerting: held while the violation is within the early alerting time (29 s).
+    assert_eq!(alerter.raw_level(&at(3500.0), 180.0, Some(1)), 1);
+    assert_eq!(alerter.raw_level(&at(3500.0), 180.0, None), 0);
+    let c0 = Conflict::of(&alerter.levels[0].volume, &at(2500.0), 180.0);
+    assert!((c0.time_in_s - 19.0).abs() < 1e-9);
+}
+
+#[test]
+fn the_filter_resets_after_the_hysteresis_time() {
+    // M of N off; hysteresis 5 s, persistence 4 s: level 2 raised at t = 0 is held to 3 s, and
+    // after a 6 s silence the filter starts afresh.
+    let mut f = Filter::new(5.0, 4.0, 0, 0);
+    assert_eq!(f.step(2, 0.0), 2);
+    assert_eq!(f.step(0, 3.0), 2);
+    assert_eq!(f.step(0, 4.0), 0);
+    assert_eq!(f.step(1, 10.0), 1);
+    assert_eq!(f.previous(10.0), None);
+    assert_eq!(f.previous(11.0), Some(1));
+}
+
+#[test]
+fn bad_configurations_and_state_files_are_clear_errors() {
+    use savsim::daa::scenario::parse;
+    let bad = [
+        ("no alerters", "lookahead_time = 180 [s]\n"),
+        ("a line without =", "alerters = A\nnonsense\n"),
+        (
+            "a detector savsim lacks",
+            "alerters = A\nA_alert_1_detector = d\nA_load_core_detection_d = gov.nasa.larcfm.ACCoRD.TCAS3D\n",
+        ),
+        (
+            "a negative threshold",
+            "alerters = A\nA_alert_1_detector = d\nA_alert_1_alerting_time = 20 [s]\nA_d_WCV_DTHR = -1 [m]\nA_d_WCV_ZTHR = 1 [m]\nA_d_WCV_TTHR = 0 [s]\nA_d_WCV_TCOA = 0 [s]\nA_load_core_detection_d = WCV_TAUMOD\n",
+        ),
+    ];
+    for (what, text) in bad {
+        assert!(Config::parse(text).is_err(), "{what}");
+    }
+    for (what, text) in [
+        ("empty", ""),
+        ("no velocity", "name sx sy sz time\na 0 0 0 0\n"),
+        (
+            "unknown unit",
+            "name sx sy sz vx vy vz time\n[none] [parsec] [m] [m] [m/s] [m/s] [m/s] [s]\n",
+        ),
+        (
+            "not a number",
+            "name sx sy sz vx vy vz time\na x 0 0 0 0 0 0\n",
+        ),
+        ("short row", "name sx sy sz vx vy vz time\na 0 0\n"),
+        (
+            "latitude 100",
+            "name lat lon alt vx vy vz time\na 100 0 0 0 0 0 0\n",
+        ),
+        (
+            "a huge number",
+            "name sx sy sz vx vy vz time\na 1e300 0 0 0 0 0 0\n",
+        ),
+    ] {
+        let e = parse(text).unwrap_err();
+        assert!(!e.to_string().is_empty(), "{what}");
+    }
+}
+
+/// `savsim daa`'s output as its cells: (header, units, rows of cells).
+fn cells(csv: &str) -> (Vec<String>, Vec<String>, Vec<Vec<String>>) {
+    let split = |l: &str| {
+        l.split(',')
+            .map(|c| c.trim().to_string())
+            .collect::<Vec<_>>()
+    };
+    let mut lines = csv.lines();
+    let header = split(lines.next().unwrap());
+    let units = split(lines.next().unwrap());
+    (header, units, lines.map(split).collect())
+}
+
+fn savsim_daa(scenario: &Path, conf: &Path) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .arg("daa")
+        .arg(scenario)
+        .arg("--conf")
+        .arg(conf)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn savsim_daa_writes_daidalus_columns_and_units_with_hand_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let conf = dir.path().join("one.conf");
+    std::fs::write(
+        &conf,
+        "lookahead_time = 180 [s]\nmin_horizontal_recovery = 0.66 [nmi]\n\
+         min_vertical_recovery = 450 [ft]\nstep_hs = 5 [knot]\nstep_vs = 100 [fpm]\n\
+         alerters = A\nA_alert_1_detector = d\nA_alert_1_alerting_time = 30 [s]\n\
+         A_alert_1_region = MID\nA_d_WCV_DTHR = 1 [nmi]\nA_d_WCV_ZTHR = 500 [ft]\n\
+         A_d_WCV_TTHR = 0 [s]\nA_d_WCV_TCOA = 0 [s]\n\
+         A_load_core_detection_d = gov.nasa.larcfm.ACCoRD.WCV_TAUMOD\n",
+    )
+    .unwrap();
+    // Euclidean, DAIDALUS's default units (nmi, ft, knot, fpm): 3 nmi apart head on at 360
+    // knots closing (0.1 nmi/s): inside 1 nmi 20 s from now, alert (within 30 s); 1000 ft
+    // apart vertically and closing at 3000 fpm (50 ft/s): inside 500 ft in 10 s.
+    let daa = dir.path().join("one.daa");
+    std::fs::write(
+        &daa,
+        "NAME sx sy sz vx vy vz time\nown 0 0 1000 180 0 -1500 0\nintr 3 0 0 -180 0 1500 0\n",
+    )
+    .unwrap();
+    let (header, units, rows) = cells(&savsim_daa(&daa, &conf));
+    assert_eq!(header[0], "Time");
+    assert_eq!(header.len(), 16);
+    assert_eq!(header[5], "Time to Volume of Alert(1)");
+    assert_eq!(header[15], "Projected TAUMOD (WCV*)");
+    assert_eq!(units[6], "[nmi]");
+    assert_eq!(units[9], "[fpm]");
+    let r = &rows[0];
+    assert_eq!(
+        (r[0].as_str(), r[1].as_str(), r[2].as_str()),
+        ("0.0", "own", "intr")
+    );
+    assert_eq!((r[3].as_str(), r[4].as_str()), ("1", "1"));
+    assert_eq!(r[5], "20.0"); // time to volume
+    assert_eq!(r[6], "3.0"); // horizontal separation, nmi
+    assert_eq!(r[7], "1000.0"); // vertical separation, ft
+    assert_eq!(r[8], "360.0"); // horizontal closure, knot
+    assert_eq!(r[9], "3000.0"); // vertical closure, fpm
+    assert_eq!(r[10], "0.0"); // HMD: head on
+    assert_eq!(r[11], "0.0"); // VMD: co-altitude at 20 s
+    assert_eq!(r[12], "30.0"); // TCPA
+    assert_eq!(r[13], "0.0"); // DCPA
+    assert_eq!(r[14], "20.0"); // TCOA
+                               // tau_mod for DTHR 1 nmi: (1 - 9) nmi^2 / (3 nmi * -0.1 nmi/s) = 26.666667 s.
+    assert_eq!(r[15], "26.666667");
+}
+
+/// The script that runs DaidalusAlerting, from `SAVSIM_DAIDALUS`.
+fn daidalus() -> Option<PathBuf> {
+    match std::env::var_os("SAVSIM_DAIDALUS") {
+        Some(p) => Some(PathBuf::from(p)),
+        None => {
+            eprintln!("SKIP: SAVSIM_DAIDALUS is not set (a script running DaidalusAlerting)");
+            None
+        }
+    }
+}
+
+/// How two CSVs differ: rows, level mismatches, the largest difference of any numeric cell,
+/// and the cells that differ by more than the printed precision.
+struct Diff {
+    rows: usize,
+    level_mismatches: usize,
+    max_abs: f64,
+    beyond: Vec<String>,
+}
+
+fn compare(ours: &str, theirs: &str) -> Diff {
+    let (h1, u1, r1) = cells(ours);
+    let (h2, u2, r2) = cells(theirs);
+    assert_eq!(h1, h2, "headers");
+    assert_eq!(u1, u2, "units");
+    assert_eq!(r1.len(), r2.len(), "rows");
+    let mut diff = Diff {
+        rows: r1.len(),
+        level_mismatches: 0,
+        max_abs: 0.0,
+        beyond: Vec::new(),
+    };
+    for (k, (a, b)) in r1.iter().zip(&r2).enumerate() {
+        assert_eq!(a[..4], b[..4], "row {k}: time, names, alerter");
+        if a[4] != b[4] {
+            diff.level_mismatches += 1;
+            diff.beyond
+                .push(format!("row {k} level {} vs {}", a[4], b[4]));
+        }
+        for (c, (x, y)) in a.iter().zip(b).enumerate().skip(5) {
+            let (px, py) = (x.parse::<f64>(), y.parse::<f64>());
+            match (px, py) {
+                (Ok(x), Ok(y)) if x.is_finite() && y.is_finite() => {
+                    let d = (x - y).abs();
+                    diff.max_abs = diff.max_abs.max(d);
+                    // Within the printed precision: one unit of the 6th decimal, relative to
+                    // the magnitude for large values.
+                    if d > 1.01e-6 * x.abs().max(1.0) {
+                        diff.beyond.push(format!("row {k} {}: {x} vs {y}", h1[c]));
+                    }
+                }
+                _ if x == y => {}
+                _ => diff
+                    .beyond
+                    .push(format!("row {k} {}: {x:?} vs {y:?}", h1[c])),
+            }
+        }
+    }
+    diff
+}
+
+#[test]
+fn savsim_daa_matches_daidalus_cell_by_cell() {
+    let (Some(script), Some(shared)) = (daidalus(), shared_fixtures()) else {
+        return;
+    };
+    let confs = shared.join("daa");
+    if !confs.join("DO_365B_no_SUM.conf").exists() {
+        eprintln!("SKIP: ../shared/fixtures/daa has no DAIDALUS configurations");
+        return;
+    }
+    let mut scenarios: Vec<PathBuf> = std::fs::read_dir(root().join("tests/fixtures/daa"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "daa"))
+        .collect();
+    scenarios.sort();
+    scenarios.push(confs.join("H1.daa"));
+    let dir = tempfile::tempdir().unwrap();
+    let mut failures = Vec::new();
+    for scenario in &scenarios {
+        for conf in [
+            "DO_365B_no_SUM",
+            "DO_365B_no_SUM_Phase_II",
+            "DO_365B_no_SUM_Non_Coop",
+            "sUAS_2000ft_250ft",
+        ] {
+            let conf_path = confs.join(format!("{conf}.conf"));
+            let theirs_path = dir.path().join("theirs.csv");
+            let status = Command::new(&script)
+                .arg("--conf")
+                .arg(&conf_path)
+                .arg("--out")
+                .arg(&theirs_path)
+                .arg(scenario)
+                .stderr(std::process::Stdio::null())
+                .status()
+                .unwrap();
+            assert!(status.success(), "DAIDALUS on {}", scenario.display());
+            let theirs = std::fs::read_to_string(&theirs_path).unwrap();
+            let ours = savsim_daa(scenario, &conf_path);
+            let d = compare(&ours, &theirs);
+            let name = scenario.file_stem().unwrap().to_string_lossy();
+            eprintln!(
+                "| {name} | {conf} | {} | {} | {:.1e} | {} |",
+                d.rows,
+                d.level_mismatches,
+                d.max_abs,
+                d.beyond.len()
+            );
+            if !d.beyond.is_empty() {
+                failures.push(format!(
+                    "{name} {conf}: {:?}",
+                    &d.beyond[..d.beyond.len().min(5)]
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
+    use arrow_array::{BooleanArray, Float64Array};
+    let dir = tempfile::tempdir().unwrap();
+    // Own east at 20 m/s along y = 0, 100 m up; the intruder west at 20 m/s, `offset_m` north,
+    // level. Closing at 40 m/s from 2000 m: with the small-UAS volume (DTHR 609.6 m) and a
+    // 100 m offset, lost when dx = sqrt(609.6^2 - 100^2) = 601.34 m, at (2000 - 601.34) / 40
+    // = 34.966 s, for 2 * 601.34 / 40 = 30.067 s (within the 100 s flown). With 50 m offset:
+    // also an NMAC.
+    let own = "0 -1000 0 100; 100 1000 0 100";
+    let intruder = |offset_m: f64| format!("0 1000 {offset_m} 100; 100 -1000 {offset_m} 100");
+    let mut csv = String::from("id,own,intruder,duration_s,variant,pair,w\n");
+    // Four pairs: nominal always an NMAC (50 m); mitigated an NMAC once, a LoWC without
+    // NMAC once (300 m), clear twice (1000 m). Weights 1, 2, 1, 1.
+    for (k, (mitigated_m, w)) in [(50.0, 1.0), (300.0, 2.0), (1000.0, 1.0), (1000.0, 1.0)]
+        .into_iter()
+        .enumerate()
+    {
+        csv += &format!("n{k},{own},{},100,nominal,p{k},{w}\n", intruder(50.0));
+        csv += &format!(
+            "m{k},{own},{},100,mitigated,p{k},{w}\n",
+            intruder(mitigated_m)
+        );
+    }
+    csv += &format!("hand,{own},{},100,,,\n", intruder(100.0));
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(&manifest, csv).unwrap();
+    let out = dir.path().join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .args([
+            "batch",
+            manifest.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--jobs", "1", "--no-progress"])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let shard = std::fs::read_dir(&out)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let batch = crate::batch::read(&shard);
+    let lowc = crate::batch::column::<BooleanArray>(&batch, "lowc");
+    let first = crate::batch::column::<Float64Array>(&batch, "lowc_first_t_s");
+    let duration = crate::batch::column::<Float64Array>(&batch, "lowc_duration_s");
+    let hand = batch.num_rows() - 1;
+    let dx = (609.6f64.powi(2) - 100.0f64.powi(2)).sqrt();
+    assert!(lowc.value(hand));
+    assert!(
+        (first.value(hand) - (2000.0 - dx) / 40.0).abs() < 1e-6,
+        "{}",
+        first.value(hand)
+    );
+    assert!(
+        (duration.value(hand) - 2.0 * dx / 40.0).abs() < 1e-6,
+        "{}",
+        duration.value(hand)
+    );
+    // The mitigated pass 1000 m off never loses well clear.
+    assert!(!lowc.value(5));
+    let summary = Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .args(["batch", "summarize", out.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        summary.status.success(),
+        "{}",
+        String::from_utf8_lossy(&summary.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
+    let ratio = &json["ratios"][0];
+    assert_eq!(ratio["variant"], "mitigated");
+    assert_eq!(ratio["pairs"], 4);
+    // NMAC: mitigated 1 (w 1) of nominal 4 (w 5): 0.2; LoWC: 1 + 2 of 5: 0.6.
+    assert!((ratio["nmac_ratio"]["value"].as_f64().unwrap() - 0.2).abs() < 1e-12);
+    assert!((ratio["lowc_ratio"]["value"].as_f64().unwrap() - 0.6).abs() < 1e-12);
+    let low = ratio["nmac_ratio"]["low"].as_f64();
+    let high = ratio["nmac_ratio"]["high"].as_f64();
+    assert!(
+        low.zip(high).is_some_and(|(l, h)| l <= 0.2 && 0.2 <= h),
+        "{ratio}"
+    );
+}
