@@ -28,9 +28,9 @@ pub const OWNSHIP: u8 = 1;
 pub struct Encounter {
     /// Ownship track (seconds from the start, scene ENU).
     pub own: Vec<Waypoint>,
-    /// Intruder track.
-    pub intruder: Vec<Waypoint>,
-    /// Intruder kind.
+    /// The intruders: each one's id in the results and its track.
+    pub intruders: Vec<(Arc<str>, Vec<Waypoint>)>,
+    /// The intruders' kind.
     pub intruder_kind: Kind,
     /// Ownship samples per second.
     pub rate_hz: f64,
@@ -145,7 +145,6 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
     let mut events = Vec::new();
     let mut approaches = Approaches::with_volume(encounter.well_clear);
     let mut well_clear_changes = Vec::new();
-    let intruder_id: Arc<str> = Arc::from("intruder");
     let n = (encounter.duration_s * encounter.rate_hz).round().max(0.0) as usize;
     let mut tick_costs = crate::costs::TickCosts::default();
     let mut bodies = MovingBodies::default();
@@ -169,15 +168,17 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
             }
         }
         let kind = encounter.intruder_kind;
-        bodies.push(DynamicBody::on_track(
-            scene.dynamic.len() as u32,
-            intruder_id.clone(),
-            kind,
-            scene.threat_of(kind),
-            scene.kind_model(kind),
-            &encounter.intruder,
-            (t_before, t_s),
-        ));
+        for (k, (id, track)) in encounter.intruders.iter().enumerate() {
+            bodies.push(DynamicBody::on_track(
+                (scene.dynamic.len() + k) as u32,
+                id.clone(),
+                kind,
+                scene.threat_of(kind),
+                scene.kind_model(kind),
+                track,
+                (t_before, t_s),
+            ));
+        }
         approaches.observe(
             OWNSHIP,
             previous.as_ref(),
@@ -222,4 +223,77 @@ fn ownship_sample(plane: &LocalTangentPlane, track: &[Waypoint], t_s: f64) -> Tr
             body_rates_radps: DVec3::ZERO,
         },
     }
+}
+
+/// A DAIDALUS state file as an encounter's tracks: the first aircraft of each time is the
+/// ownship, every other a named intruder; times from the first step; geodetic states placed
+/// in the scene's ENU frame by WGS84 (their altitude as the height), Euclidean ones as ENU
+/// metres from the scene's origin. Each track's velocity columns are not used: the track is
+/// linear between its states, as any waypoint track.
+pub fn tracks_from_daa(path: &Path, scene: &Scene) -> Result<DaaTracks, String> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .len();
+    if size > 1 << 30 {
+        return Err(format!("{}: {size} bytes: at most 1 GiB", path.display()));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let steps =
+        crate::daa::scenario::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let plane = LocalTangentPlane::new(scene.origin);
+    let t0 = steps.first().map_or(0.0, |s| s.time_s);
+    let mut own: Vec<Waypoint> = Vec::new();
+    let mut intruders: Vec<(Arc<str>, Vec<Waypoint>)> = Vec::new();
+    for step in &steps {
+        let t_s = step.time_s - t0;
+        for (k, state) in step.aircraft.iter().enumerate() {
+            let position_enu_m = match state.position {
+                crate::daa::scenario::Position::Geodetic {
+                    lat_deg,
+                    lon_deg,
+                    alt_m,
+                } => plane.enu_m_from_geodetic(&crate::geo::Geodetic {
+                    lat_deg,
+                    lon_deg,
+                    alt_m,
+                }),
+                crate::daa::scenario::Position::Euclidean(p) => p,
+            };
+            let track = if k == 0 {
+                &mut own
+            } else {
+                let at = match intruders.iter().position(|(id, _)| **id == *state.name) {
+                    Some(at) => at,
+                    None => {
+                        intruders.push((Arc::from(state.name.as_str()), Vec::new()));
+                        intruders.len() - 1
+                    }
+                };
+                &mut intruders[at].1
+            };
+            // Times strictly increasing (a repeated time keeps its first state).
+            if track.last().is_none_or(|w| t_s > w.t_s) {
+                track.push(Waypoint {
+                    t_s,
+                    position_enu_m: position_enu_m.to_array(),
+                });
+            }
+        }
+    }
+    if own.is_empty() || intruders.is_empty() {
+        return Err(format!(
+            "{}: an encounter needs an ownship and at least one intruder",
+            path.display()
+        ));
+    }
+    Ok(DaaTracks { own, intruders })
+}
+
+/// The tracks of a DAIDALUS state file.
+#[derive(Debug, Clone)]
+pub struct DaaTracks {
+    /// The ownship's.
+    pub own: Vec<Waypoint>,
+    /// Each intruder's, by name.
+    pub intruders: Vec<(Arc<str>, Vec<Waypoint>)>,
 }

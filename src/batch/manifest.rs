@@ -29,6 +29,9 @@ pub struct Run {
     pub id: Option<String>,
     /// A flight log to replay.
     pub tlog: Option<String>,
+    /// A DAIDALUS state file (`.daa`) flown as an encounter: its first aircraft the ownship,
+    /// every other an intruder.
+    pub daa: Option<String>,
     /// A scene file (default: open air around ArduPilot SITL's default home).
     pub scene: Option<String>,
     /// Collision mode (default `exact`).
@@ -82,6 +85,7 @@ impl Run {
             }
         };
         anchor(&mut self.tlog);
+        anchor(&mut self.daa);
         anchor(&mut self.scene);
         for track in [&mut self.own, &mut self.intruder] {
             if track.as_deref().is_some_and(is_tlog_path) {

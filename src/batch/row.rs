@@ -100,10 +100,10 @@ pub struct RunRow {
 impl RunRow {
     /// A row with `run`'s inputs and no results yet.
     pub fn of_inputs(index: usize, run: &Run, mode: &str) -> Self {
-        let kind = match (&run.tlog, &run.own) {
-            (Some(_), _) => "tlog",
-            (None, Some(_)) => "encounter",
-            (None, None) => "",
+        let kind = match (&run.tlog, &run.own, &run.daa) {
+            (Some(_), _, _) => "tlog",
+            (None, Some(_), _) | (None, None, Some(_)) => "encounter",
+            (None, None, None) => "",
         };
         RunRow {
             index: index as u64,

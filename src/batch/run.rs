@@ -142,54 +142,73 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
         ..CollisionConfig::default()
     };
     let pipeline = scenes.pipeline(run.scene.as_deref(), &scene, config);
-    match (&run.tlog, &run.own, &run.intruder) {
-        (Some(tlog), None, None) => {
+    match (&run.tlog, &run.own, &run.intruder, &run.daa) {
+        (Some(tlog), None, None, None) => {
             replay_tlog(Path::new(tlog), scene, pipeline, well_clear(run)?, row)
         }
-        (None, Some(own), Some(intruder)) => {
+        (None, Some(own), Some(intruder), None) => {
             let mut stats = IngestStats::default();
             let own = track(own, &scene, &mut stats).map_err(|e| format!("own: {e}"))?;
-            let duration_s = match run.duration_s {
-                Some(d) => positive("duration_s", d, MAX_DURATION_S).map_err(|e| e.to_string())?,
-                None => own.last().map_or(0.0, |w| w.t_s),
-            };
-            let rate_hz = positive(
-                "rate_hz",
-                run.rate_hz.unwrap_or(DEFAULT_RATE_HZ),
-                MAX_RATE_HZ,
-            )
-            .map_err(|e| e.to_string())?;
-            if duration_s * rate_hz > MAX_SAMPLES {
-                return Err(format!(
-                    "duration_s {duration_s} x rate_hz {rate_hz}: at most {MAX_SAMPLES} samples a row"
-                ));
-            }
-            let encounter = Encounter {
-                own,
-                intruder: track(intruder, &scene, &mut stats)
-                    .map_err(|e| format!("intruder: {e}"))?,
-                intruder_kind: match run.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
-                    None => Kind::Dji,
-                    Some(k) => Kind::from_name(k)
-                        .ok_or_else(|| format!("intruder_kind {k:?}: not a kind"))?,
-                },
-                rate_hz,
-                duration_s,
-                well_clear: well_clear(run)?,
-            };
-            let flown = encounter::fly(&scene, pipeline, &encounter);
+            let intruder =
+                track(intruder, &scene, &mut stats).map_err(|e| format!("intruder: {e}"))?;
             row.record_ingest(&stats);
-            row.record_run(
-                &flown.pipeline.totals,
-                &flown.events,
-                &flown.approaches,
-                &flown.tick_costs,
-                0.0,
-            );
-            Ok(())
+            let intruders = vec![(Arc::from("intruder"), intruder)];
+            fly_encounter(run, &scene, pipeline, own, intruders, row)
         }
-        _ => Err("give either `tlog`, or both `own` and `intruder`".into()),
+        (None, None, None, Some(daa)) => {
+            let tracks = encounter::tracks_from_daa(Path::new(daa), &scene)?;
+            fly_encounter(run, &scene, pipeline, tracks.own, tracks.intruders, row)
+        }
+        _ => Err("give `tlog`, or both `own` and `intruder`, or `daa`".into()),
     }
+}
+
+/// Fly an encounter row: its length, rate, intruder kind and well-clear volume from the row.
+fn fly_encounter(
+    run: &Run,
+    scene: &Scene,
+    pipeline: Pipeline,
+    own: Vec<Waypoint>,
+    intruders: Vec<(Arc<str>, Vec<Waypoint>)>,
+    row: &mut RunRow,
+) -> Result<(), String> {
+    let duration_s = match run.duration_s {
+        Some(d) => positive("duration_s", d, MAX_DURATION_S).map_err(|e| e.to_string())?,
+        None => own.last().map_or(0.0, |w| w.t_s),
+    };
+    let rate_hz = positive(
+        "rate_hz",
+        run.rate_hz.unwrap_or(DEFAULT_RATE_HZ),
+        MAX_RATE_HZ,
+    )
+    .map_err(|e| e.to_string())?;
+    if duration_s * rate_hz > MAX_SAMPLES {
+        return Err(format!(
+            "duration_s {duration_s} x rate_hz {rate_hz}: at most {MAX_SAMPLES} samples a row"
+        ));
+    }
+    let encounter = Encounter {
+        own,
+        intruders,
+        intruder_kind: match run.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
+            None => Kind::Dji,
+            Some(k) => {
+                Kind::from_name(k).ok_or_else(|| format!("intruder_kind {k:?}: not a kind"))?
+            }
+        },
+        rate_hz,
+        duration_s,
+        well_clear: well_clear(run)?,
+    };
+    let flown = encounter::fly(scene, pipeline, &encounter);
+    row.record_run(
+        &flown.pipeline.totals,
+        &flown.events,
+        &flown.approaches,
+        &flown.tick_costs,
+        0.0,
+    );
+    Ok(())
 }
 
 /// A track given as waypoints or as a tlog path.

@@ -79,6 +79,7 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
         ("run_id", strings(rows, |r| Some(r.run_id.as_str()))),
         ("kind", strings(rows, |r| Some(r.kind.as_str()))),
         ("tlog", strings(rows, |r| r.inputs.tlog.as_deref())),
+        ("daa", strings(rows, |r| r.inputs.daa.as_deref())),
         ("scene", strings(rows, |r| r.inputs.scene.as_deref())),
         ("mode", strings(rows, |r| Some(r.mode.as_str()))),
         ("own", strings(rows, |r| r.inputs.own.as_deref())),
