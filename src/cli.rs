@@ -112,6 +112,10 @@ pub enum BatchCommand {
         /// The intruder's kind (a320, b737, dji, airship, balloon).
         #[arg(long, default_value = "dji")]
         intruder_kind: String,
+        /// Sample both tracks from this MIT LL encounter model (e.g.
+        /// scenes/encounter-models/uncor_1200code_v2p1.txt) instead of straight lines (docs/batch.md).
+        #[arg(long)]
+        model: Option<PathBuf>,
         /// Write the manifest here (.csv; default: stdout).
         #[arg(long)]
         out: Option<PathBuf>,

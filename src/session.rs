@@ -707,8 +707,8 @@ fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {
     (body_from(sample), sample.velocity_enu_mps.length())
 }
 
-/// The event of a well-clear change of vehicle `own`: a loss with the separations then (the
-/// episode's first), or a regain with its length.
+/// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
+/// regain with its length.
 fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
     match c.change {
         Change::Lost { t_s } => {
@@ -719,8 +719,8 @@ fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> Ev
             EventKind::WellClearLost {
                 track: c.body.to_string(),
                 lost_t: t_s,
-                horizontal_m: episode.map_or(f64::NAN, |e| e.min_horizontal_m),
-                vertical_m: episode.map_or(f64::NAN, |e| e.min_vertical_m),
+                horizontal_m: episode.map_or(f64::NAN, |e| e.lost_horizontal_m),
+                vertical_m: episode.map_or(f64::NAN, |e| e.lost_vertical_m),
             }
         }
         Change::Regained { t_s, duration_s } => EventKind::WellClearRegained {

@@ -21,6 +21,7 @@ pub fn run(args: &BatchArgs) -> Result<()> {
         duration_s,
         rate_hz,
         intruder_kind,
+        model,
         out,
     }) = &args.command
     {
@@ -28,7 +29,7 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             .as_ref()
             .map(|p| std::fs::canonicalize(p).map_err(|e| Error::file(p, e)))
             .transpose()?;
-        let runs = gen::encounters(&GenOptions {
+        let options = GenOptions {
             n: *n,
             seed: *seed,
             scene: scene.map(|p| p.to_string_lossy().into_owned()),
@@ -36,7 +37,19 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             duration_s: *duration_s,
             rate_hz: *rate_hz,
             intruder_kind: intruder_kind.clone(),
-        })?;
+        };
+        let runs = match model {
+            None => gen::encounters(&options)?,
+            Some(path) => {
+                let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+                let model =
+                    crate::daa::encounter_model::Model::parse(&text).map_err(|e| Error::Daa {
+                        path: path.clone(),
+                        message: e.to_string(),
+                    })?;
+                crate::batch::gen_model::encounters(&options, &model)?
+            }
+        };
         let csv_error = |path: &Path, e: csv::Error| Error::file(path, std::io::Error::other(e));
         return match out {
             Some(path) => {

@@ -61,20 +61,15 @@ fn straight(start: DVec3, velocity: DVec3, duration_s: f64) -> String {
     )
 }
 
-/// The encounters, as manifest rows; options that make no sense are a usage error.
-///
-/// ```
-/// use savsim::batch::gen::{encounters, GenOptions};
-/// let options = GenOptions { n: 3, seed: 7, scene: None, mode: "exact".into(),
-///     duration_s: 180.0, rate_hz: 10.0, intruder_kind: "dji".into() };
-/// let a = encounters(&options).unwrap();
-/// assert_eq!(a, encounters(&options).unwrap()); // deterministic
-/// assert_eq!(a[2].id.as_deref(), Some("enc-000002"));
-/// ```
-pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
+/// Options that make no sense are a usage error.
+pub fn check(options: &GenOptions) -> Result<()> {
     use savsim_core::bounds::{positive, MAX_DURATION_S, MAX_RATE_HZ};
-    positive("--duration-s", options.duration_s, MAX_DURATION_S)?;
-    positive("--rate-hz", options.rate_hz, MAX_RATE_HZ)?;
+    positive(
+        "duration_s (--duration-s)",
+        options.duration_s,
+        MAX_DURATION_S,
+    )?;
+    positive("rate_hz (--rate-hz)", options.rate_hz, MAX_RATE_HZ)?;
     if options.n > MAX_GENERATED {
         return Err(Error::Usage(format!(
             "--n {}: at most {MAX_GENERATED} encounters a file (shard a larger study)",
@@ -90,6 +85,21 @@ pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
             options.intruder_kind
         )));
     }
+    Ok(())
+}
+
+/// The encounters, as manifest rows; options that make no sense are a usage error.
+///
+/// ```
+/// use savsim::batch::gen::{encounters, GenOptions};
+/// let options = GenOptions { n: 3, seed: 7, scene: None, mode: "exact".into(),
+///     duration_s: 180.0, rate_hz: 10.0, intruder_kind: "dji".into() };
+/// let a = encounters(&options).unwrap();
+/// assert_eq!(a, encounters(&options).unwrap()); // deterministic
+/// assert_eq!(a[2].id.as_deref(), Some("enc-000002"));
+/// ```
+pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
+    check(options)?;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let d = options.duration_s;
     let heading = |rng: &mut ChaCha8Rng, speed: f64| {
@@ -118,7 +128,7 @@ pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
             let vertical_m: f64 = rng.random_range(-100.0..=100.0);
             // Perpendicular to the relative velocity, in the horizontal plane.
             let across = (intruder_velocity - own_velocity)
-                .normalize()
+                .normalize_or_zero()
                 .cross(DVec3::Z)
                 * side;
             let intruder_at_cpa = own_at_cpa + across * horizontal_m + DVec3::Z * vertical_m;

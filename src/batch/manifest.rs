@@ -29,9 +29,6 @@ pub struct Run {
     pub id: Option<String>,
     /// A flight log to replay.
     pub tlog: Option<String>,
-    /// A DAIDALUS state file (`.daa`) flown as an encounter: its first aircraft the ownship,
-    /// every other an intruder.
-    pub daa: Option<String>,
     /// A scene file (default: open air around ArduPilot SITL's default home).
     pub scene: Option<String>,
     /// Collision mode (default `exact`).
@@ -56,6 +53,12 @@ pub struct Run {
     pub expect_cpa_t_s: Option<f64>,
     /// Whether the encounter was built to be an NMAC.
     pub expect_nmac: Option<bool>,
+    /// A model encounter's time of closest approach by construction, seconds after the start.
+    pub tca_s: Option<f64>,
+    /// Its horizontal miss distance at that time, metres.
+    pub hmd_at_tca_m: Option<f64>,
+    /// Its vertical miss distance then (intruder above positive), metres.
+    pub vmd_at_tca_m: Option<f64>,
     /// The well-clear volume losses are judged with: `small-uas` (default: 2000 ft, 250 ft),
     /// `phase-1`, `phase-2`, `non-coop` (DO-365), or `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`.
     pub well_clear: Option<String>,
@@ -66,6 +69,10 @@ pub struct Run {
     pub pair: Option<String>,
     /// The encounter's importance weight (default 1).
     pub w: Option<f64>,
+    /// A DAIDALUS state file (`.daa`) flown as an encounter: its first aircraft the ownship,
+    /// every other an intruder. (The columns after `expect_nmac` came later: a CSV written
+    /// with the earlier ones still reads.)
+    pub daa: Option<String>,
 }
 
 impl Run {

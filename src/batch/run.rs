@@ -159,7 +159,7 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
             let tracks = encounter::tracks_from_daa(Path::new(daa), &scene)?;
             fly_encounter(run, &scene, pipeline, tracks.own, tracks.intruders, row)
         }
-        _ => Err("give `tlog`, or both `own` and `intruder`, or `daa`".into()),
+        _ => Err("give either `tlog`, or both `own` and `intruder`, or `daa`".into()),
     }
 }
 

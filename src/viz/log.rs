@@ -15,7 +15,7 @@ use super::colliders::{obstacle_name, ColliderView};
 use super::draw::{
     box_of_geometry, boxes_of, kind_color, local, pose_of_static, see_through, viz_offset, LocalBox,
 };
-use super::markers::Markers;
+use super::markers::{Markers, Where};
 use super::rows::Rows;
 use super::{paths, TickFrame, VizMsg, VizOptions};
 use crate::collision::bodies::BodySource;
@@ -212,11 +212,17 @@ fn log_tick(
     log_traffic(rec, rows, &mut state.traffic, scene, f, state.offset)?;
     for e in &f.events {
         let normal_m = chase_distance_m(scene, f.model) / 4.0;
-        if let Some(focus) =
-            state
-                .markers
-                .on_event(rec, e, f, state.offset, normal_m, &v.recent, position)?
-        {
+        if let Some(focus) = state.markers.on_event(
+            rec,
+            e,
+            f,
+            Where {
+                offset: state.offset,
+                normal_m,
+                recent: &v.recent,
+                now: position,
+            },
+        )? {
             state.layout.focus_s.get_or_insert(focus);
         }
     }

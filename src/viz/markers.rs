@@ -20,6 +20,19 @@ struct Marker {
     normal: Vec3,
 }
 
+/// Where an event's marker goes: the logged frame's offset, the normal's length, the
+/// vehicle's recent logged positions (time, position) and its position now.
+pub struct Where<'a> {
+    /// Scene ENU minus logged coordinates.
+    pub offset: DVec3,
+    /// Length of a collision's normal arrow, metres.
+    pub normal_m: f32,
+    /// The vehicle's recent logged positions.
+    pub recent: &'a VecDeque<(f64, Vec3)>,
+    /// Its logged position now.
+    pub now: Vec3,
+}
+
 /// Every marker so far.
 #[derive(Default)]
 pub struct Markers {
@@ -30,20 +43,22 @@ pub struct Markers {
 
 impl Markers {
     /// Mark an event of vehicle `f.system_id`: a collision at its contact point with its normal
-    /// (`normal_m` long), a near miss where the vehicle was when it was closest (found in
-    /// `recent`: (time, logged position); `now` if that is no longer kept). Returns the span of
-    /// `tlog_time` to select for a collision.
-    #[allow(clippy::too_many_arguments)]
+    /// (`at.normal_m` long), a near miss or a loss of well clear where the vehicle was then
+    /// (found in `at.recent`: (time, logged position); `at.now` if that is no longer kept).
+    /// Returns the span of `tlog_time` to select for a collision.
     pub fn on_event(
         &mut self,
         rec: &RecordingStream,
         e: &Event,
         f: &TickFrame,
-        offset: DVec3,
-        normal_m: f32,
-        recent: &VecDeque<(f64, Vec3)>,
-        now: Vec3,
+        at: Where<'_>,
     ) -> RecordingStreamResult<Option<(f64, f64)>> {
+        let Where {
+            offset,
+            normal_m,
+            recent,
+            now,
+        } = at;
         let id = f.system_id;
         match &e.kind {
             EventKind::Collision {

@@ -426,6 +426,12 @@ fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
         "{}",
         duration.value(hand)
     );
+    let least = crate::batch::column::<Float64Array>(&batch, "lowc_min_horizontal_m");
+    assert!(
+        (least.value(hand) - 100.0).abs() < 1e-6,
+        "{}",
+        least.value(hand)
+    );
     // The mitigated pass 1000 m off never loses well clear.
     assert!(!lowc.value(5));
     let summary = Command::new(env!("CARGO_BIN_EXE_savsim"))
@@ -503,4 +509,229 @@ fn a_daa_file_is_a_batch_row_with_every_intruder() {
     assert_eq!(names, ["Left", "Right"]);
     // DAIDALUS raises alerts on both with a small-UAS volume (its CSV, docs/daa.md): lost.
     assert!(crate::batch::column::<BooleanArray>(&batch, "lowc").value(0));
+}
+
+/// The bundled MIT LL uncorrelated model.
+fn uncor_model() -> savsim::daa::encounter_model::Model {
+    let path = root().join("scenes/encounter-models/uncor_1200code_v2p1.txt");
+    savsim::daa::encounter_model::Model::parse(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// The p-value of a chi-square test of `observed` counts against `probabilities` (bins
+/// expected under 5 merged into one).
+fn chi_square_p(observed: &[f64], probabilities: &[f64]) -> f64 {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    let n: f64 = observed.iter().sum();
+    let (mut stat, mut cells) = (0.0, 0usize);
+    let (mut small_o, mut small_e) = (0.0, 0.0);
+    for (o, p) in observed.iter().zip(probabilities) {
+        let e = n * p;
+        if e < 5.0 {
+            small_o += o;
+            small_e += e;
+        } else {
+            stat += (o - e).powi(2) / e;
+            cells += 1;
+        }
+    }
+    if small_e > 0.0 {
+        stat += (small_o - small_e).powi(2) / small_e.max(1e-12);
+        cells += 1;
+    }
+    if cells < 2 {
+        return 1.0;
+    }
+    1.0 - ChiSquared::new((cells - 1) as f64).unwrap().cdf(stat)
+}
+
+/// P(x[i] | its parents' bins in x), from the counts as the model format lays them out
+/// (written here: each variable's counts a bins x configurations matrix stored column by
+/// column, the configuration of ascending parents with the first varying fastest).
+fn conditional(net: &savsim::daa::encounter_model::Network, i: usize, x: &[usize]) -> f64 {
+    let r = net.bins[i];
+    let (mut j, mut stride) = (0, 1);
+    for (p, &bin) in x.iter().enumerate() {
+        if net.parents[i].contains(&p) {
+            j += bin * stride;
+            stride *= net.bins[p];
+        }
+    }
+    let column = &net.counts[i][j * r..(j + 1) * r];
+    let total: f64 = column.iter().sum();
+    if total > 0.0 {
+        column[x[i]] / total
+    } else {
+        1.0 / r as f64
+    }
+}
+
+#[test]
+fn the_encounter_model_sampler_reproduces_its_networks() {
+    use rand::SeedableRng;
+    let model = uncor_model();
+    let net = &model.initial;
+    assert_eq!(
+        net.labels,
+        ["G", "A", "L", "v", "\\dot v", "\\dot h", "\\dot \\psi"]
+    );
+    // Each variable's exact marginal, by enumerating every joint state (4*4*4*8*5*7*7 of them)
+    // with the product of its conditional probabilities: another way than ancestral sampling.
+    let n = net.labels.len();
+    // G has no parents: its counts are the file's first four numbers of N_initial.
+    let text =
+        std::fs::read_to_string(root().join("scenes/encounter-models/uncor_1200code_v2p1.txt"))
+            .unwrap();
+    let line = text
+        .lines()
+        .skip_while(|l| !l.starts_with("# N_initial"))
+        .nth(1)
+        .unwrap();
+    let g: Vec<f64> = line
+        .split_whitespace()
+        .take(4)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let g_total: f64 = g.iter().sum();
+    let mut marginals: Vec<Vec<f64>> = net.bins.iter().map(|&r| vec![0.0; r]).collect();
+    let total: usize = net.bins.iter().product();
+    let mut x = vec![0usize; n];
+    for mut code in 0..total {
+        for (xi, &r) in x.iter_mut().zip(&net.bins) {
+            *xi = code % r;
+            code /= r;
+        }
+        let p: f64 = (0..n).map(|i| conditional(net, i, &x)).product();
+        for i in 0..n {
+            marginals[i][x[i]] += p;
+        }
+    }
+    for (k, c) in g.iter().enumerate() {
+        assert!((marginals[0][k] - c / g_total).abs() < 1e-9, "G marginal");
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2024);
+    let mut counts: Vec<Vec<f64>> = net.bins.iter().map(|&r| vec![0.0; r]).collect();
+    for _ in 0..100_000 {
+        let s = model.sample_initial(&mut rng);
+        for i in 0..n {
+            counts[i][s[i]] += 1.0;
+        }
+    }
+    for i in 0..n {
+        let p = chi_square_p(&counts[i], &marginals[i]);
+        assert!(
+            p > 0.01,
+            "{}: p = {p}, {:?} vs {:?}",
+            net.labels[i],
+            counts[i],
+            marginals[i]
+        );
+    }
+    // The transition network: from one state, the next second's bins of each dynamic
+    // variable against its conditional probabilities.
+    let start = model.sample_initial(&mut rng);
+    for &(now, next) in &model.temporal {
+        let mut state = start.clone();
+        state.resize(model.transition.labels.len(), 0);
+        let p = model.transition.probabilities(next, &state, n);
+        let mut seen = vec![0.0; p.len()];
+        for _ in 0..100_000 {
+            let mut x = start.clone();
+            model.step(&mut x, &mut rng);
+            seen[x[now]] += 1.0;
+        }
+        let pv = chi_square_p(&seen, &p);
+        assert!(pv > 0.01, "{}: p = {pv}", model.transition.labels[next]);
+    }
+}
+
+#[test]
+fn model_encounters_hold_their_miss_distances_at_tca_and_fly() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = root().join("scenes/encounter-models/uncor_1200code_v2p1.txt");
+    let manifest = dir.path().join("enc.csv");
+    let gen = |out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_savsim"))
+            .args([
+                "batch",
+                "gen-encounters",
+                "--n",
+                "12",
+                "--seed",
+                "5",
+                "--duration-s",
+                "120",
+            ])
+            .arg("--model")
+            .arg(&model)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let out = gen(&manifest);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let again = dir.path().join("again.csv");
+    assert!(gen(&again).status.success());
+    assert_eq!(
+        std::fs::read(&manifest).unwrap(),
+        std::fs::read(&again).unwrap(),
+        "deterministic"
+    );
+    let mut reader = csv::Reader::from_path(&manifest).unwrap();
+    let headers = reader.headers().unwrap().clone();
+    let col = |name: &str| headers.iter().position(|h| h == name).unwrap();
+    let at = |track: &str, t: f64| -> DVec3 {
+        let w = savsim::batch::encounter::parse_waypoints(track).unwrap();
+        let k = w.iter().position(|p| (p.t_s - t).abs() < 1e-9).unwrap();
+        DVec3::from(w[k].position_enu_m)
+    };
+    let mut turning = 0;
+    for row in reader.records() {
+        let row = row.unwrap();
+        let tca: f64 = row[col("tca_s")].parse().unwrap();
+        let (own, intruder) = (&row[col("own")], &row[col("intruder")]);
+        let d = at(intruder, tca) - at(own, tca);
+        let hmd: f64 = row[col("hmd_at_tca_m")].parse().unwrap();
+        let vmd: f64 = row[col("vmd_at_tca_m")].parse().unwrap();
+        assert!((d.truncate().length() - hmd).abs() < 0.01, "{d} vs {hmd}");
+        assert!((d.z - vmd).abs() < 0.01, "{d} vs {vmd}");
+        // Not straight lines: some tracks turn (their heading changes along them).
+        let w = savsim::batch::encounter::parse_waypoints(own).unwrap();
+        let heading = |k: usize| {
+            let v = DVec3::from(w[k + 1].position_enu_m) - DVec3::from(w[k].position_enu_m);
+            v.y.atan2(v.x)
+        };
+        if (heading(0) - heading(w.len() - 2)).abs() > 0.1 {
+            turning += 1;
+        }
+    }
+    assert!(turning > 0, "no model track turned");
+    let results = dir.path().join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .args([
+            "batch",
+            manifest.to_str().unwrap(),
+            "--out",
+            results.to_str().unwrap(),
+        ])
+        .args(["--jobs", "1", "--no-progress"])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        String::from_utf8_lossy(&run.stdout).contains("12 runs"),
+        "{}",
+        String::from_utf8_lossy(&run.stdout)
+    );
+    assert!(String::from_utf8_lossy(&run.stdout).contains("0 failed"));
 }

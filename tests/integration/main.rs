@@ -44,6 +44,8 @@
 //! - `viz_render`: the demo's recording rendered headless by rerun's own viewer, the vehicle
 //!   found in the picture.
 
+#![allow(clippy::disallowed_methods)]
+
 mod batch;
 mod bench;
 mod cities;

@@ -45,9 +45,12 @@ def main():
     generated = savsim.gen_encounters(24, seed=5, scene=CITY, duration_s=60.0)
     assert savsim.load_manifest(manifest) == generated, "gen-encounters differs from Python's"
     # A tlog row and a failing row join the encounters.
+    with open(manifest) as f:
+        columns = f.readline().count(",") + 1
+    pad = lambda row: row + "," * (columns - row.count(",") - 1) + "\n"
     with open(manifest, "a") as f:
-        f.write(f"demo,{DEMO},{CITY},exact,,,,,,,,,,\n")
-        f.write(f"missing,{work}/missing.tlog,,exact,,,,,,,,,,\n")
+        f.write(pad(f"demo,{DEMO},{CITY},exact"))
+        f.write(pad(f"missing,{work}/missing.tlog,,exact"))
     print("checked: gen-encounters from Python equals the CLI's")
 
     subprocess.run([binary, "batch", manifest, "--out", os.path.join(work, "cli"), "--jobs",

@@ -15,7 +15,7 @@ use glam::DVec3;
 use crate::collision::bodies::{
     inside_solid, view, Body, BodyPose, Holder, ObstacleRef, ObstacleView, World,
 };
-use crate::collision::config::Mode;
+use crate::collision::config::{CollisionConfig, Mode};
 use crate::collision::contact;
 use crate::collision::meshes::MeshCache;
 use crate::collision::sensing::SensingState;
@@ -143,19 +143,19 @@ pub(crate) struct Contacts {
 }
 
 impl Contacts {
-    /// Test one interval of the vehicle in `mode` (`sensing` holds the paper's colliders,
-    /// `before` what the previous sample left). Returns the exact tests run.
-    #[allow(clippy::too_many_arguments)]
+    /// Test one interval of the vehicle in `cfg.mode`, reporting gaps within
+    /// `cfg.near_miss_m` (`sensing` holds the paper's colliders, `before` what the previous
+    /// sample left). Returns the exact tests run.
     pub fn run(
         &mut self,
         world: &World<'_>,
         meshes: &mut MeshCache,
-        mode: Mode,
-        band_m: f64,
+        cfg: &CollisionConfig,
         sensing: &SensingState,
         motion: &Motion,
         before: Before<'_>,
     ) -> usize {
+        let (mode, band_m) = (cfg.mode, cfg.near_miss_m);
         self.touching.clear();
         self.near.clear();
         self.gaps.clear();

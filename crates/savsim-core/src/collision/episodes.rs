@@ -56,6 +56,15 @@ pub struct Episodes {
     near: Vec<Near>,
 }
 
+/// What the contact layer found over one interval.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Found<'a> {
+    /// The contacts (every span of each), with where and when they began.
+    pub touching: &'a [(ObstacleRef, Touch)],
+    /// The obstacles within the near-miss band, with their gaps.
+    pub near: &'a [(ObstacleRef, f64)],
+}
+
 impl Episodes {
     /// Obstacles in contact at the last sample.
     pub fn touching(&self) -> &[ObstacleRef] {
@@ -63,18 +72,16 @@ impl Episodes {
     }
 
     /// Fold one interval (`t_before` to `t_s`) into the episodes, pushing what began or ended.
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn update(
         &mut self,
         scene: &Scene,
         dynamic: &MovingBodies,
-        touching_now: &[(ObstacleRef, Touch)],
-        near_now: &[(ObstacleRef, f64)],
-        t_before: f64,
-        t_s: f64,
+        found: Found<'_>,
+        (t_before, t_s): (f64, f64),
         event: &dyn Fn(EventKind) -> Event,
         events: &mut Vec<Event>,
     ) {
+        let (touching_now, near_now) = (found.touching, found.near);
         // Collisions: contacts that were not there at the last sample, and every further span
         // of contact with the same obstacle within the interval.
         for (k, (o, touch)) in touching_now.iter().enumerate() {

@@ -21,7 +21,7 @@ pub use crate::collision::sensing::{RayHit, SensingState};
 use crate::collision::bodies::{radius_m, World};
 use crate::collision::broad_phase::StaticBroadPhase;
 use crate::collision::contacts::{Before, Contacts, Motion};
-use crate::collision::episodes::{sweepable_from, Episodes};
+use crate::collision::episodes::{sweepable_from, Episodes, Found};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::octree::Octree;
@@ -449,24 +449,21 @@ impl Pipeline {
         report.narrow_tests = self.contacts.run(
             &world,
             &mut self.meshes,
-            cfg.mode,
-            cfg.near_miss_m,
+            &cfg,
             &state.sensing,
             &motion,
             before,
         );
         std::mem::swap(&mut state.gaps, &mut self.contacts.gaps);
         state.gaps_t_s = Some(t);
-        state.episodes.update(
-            scene,
-            dynamic,
-            &self.contacts.touching,
-            &self.contacts.near,
-            previous.map_or(t, |p| p.t_s),
-            t,
-            &event,
-            events,
-        );
+        let found = Found {
+            touching: &self.contacts.touching,
+            near: &self.contacts.near,
+        };
+        let interval = (previous.map_or(t, |p| p.t_s), t);
+        state
+            .episodes
+            .update(scene, dynamic, found, interval, &event, events);
         report.contact_ns = elapsed_ns(started);
         match cfg.mode {
             Mode::Box => report.active_box = scene.obstacles.len() + dynamic.len(),

@@ -65,17 +65,15 @@ pub(crate) fn rate_and_swap(
             {
                 continue;
             }
-            swap(
-                act,
-                ColliderKind::Mesh,
+            let change = Swap {
+                to: ColliderKind::Mesh,
                 t,
-                v.id,
+                id: v.id,
                 beta,
-                hit.distance_m,
-                "threat",
-                event,
-                events,
-            );
+                distance_m: hit.distance_m,
+                reason: "threat",
+            };
+            swap(act, change, event, events);
         }
     }
     let mut i = 0;
@@ -90,17 +88,15 @@ pub(crate) fn rate_and_swap(
         };
         let distance_m = v.aabb_enu_m.distance_to(position);
         if distance_m > cfg.box_beyond_m {
-            swap(
-                act,
-                ColliderKind::Box,
+            let change = Swap {
+                to: ColliderKind::Box,
                 t,
-                v.id,
-                act.beta,
+                id: v.id,
+                beta: act.beta,
                 distance_m,
-                "far",
-                event,
-                events,
-            );
+                reason: "far",
+            };
+            swap(act, change, event, events);
             if rules == Rules::Sensor {
                 // Far: it leaves the sensor's set (its mesh becomes evictable).
                 i -= 1;
@@ -142,26 +138,30 @@ pub(crate) fn make_resident_ahead(f: &Frame<'_>, meshes: &mut MeshCache, state: 
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn swap(
-    act: &mut Active,
+/// One collider change, as its event reports it.
+struct Swap<'a> {
     to: ColliderKind,
     t: f64,
-    id: &str,
+    id: &'a str,
     beta: f64,
     distance_m: f64,
     reason: &'static str,
+}
+
+fn swap(
+    act: &mut Active,
+    s: Swap<'_>,
     event: &dyn Fn(EventKind) -> Event,
     events: &mut Vec<Event>,
 ) {
     events.push(event(EventKind::ColliderSwap {
-        obstacle: id.to_owned(),
+        obstacle: s.id.to_owned(),
         from: act.collider,
-        to,
-        beta,
-        distance_m,
-        reason,
+        to: s.to,
+        beta: s.beta,
+        distance_m: s.distance_m,
+        reason: s.reason,
     }));
-    act.collider = to;
-    act.since_t_s = t;
+    act.collider = s.to;
+    act.since_t_s = s.t;
 }

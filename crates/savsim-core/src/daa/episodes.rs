@@ -14,9 +14,13 @@ pub struct Episode {
     pub start_t_s: f64,
     /// When it was regained, seconds (`None` while it lasts).
     pub end_t_s: Option<f64>,
-    /// Least horizontal separation seen in it (at its samples and ends), metres.
+    /// Horizontal separation when it was lost, metres.
+    pub lost_horizontal_m: f64,
+    /// Vertical separation when it was lost, metres.
+    pub lost_vertical_m: f64,
+    /// Least horizontal separation in it (exact for motion linear between samples), metres.
     pub min_horizontal_m: f64,
-    /// Least vertical separation seen in it (at its samples and ends), metres.
+    /// Least vertical separation in it (exact for motion linear between samples), metres.
     pub min_vertical_m: f64,
 }
 
@@ -83,6 +87,9 @@ impl PairLog {
     /// assert_eq!(changes.len(), 2);
     /// assert!(matches!(changes[0], Change::Lost { t_s } if (t_s - 24.0).abs() < 1e-9));
     /// assert!((log.duration_s() - 12.0).abs() < 1e-9);
+    /// // Lost at 600 m; the least separation in it, 0 m at 30 s, between the samples.
+    /// let e = &log.episodes[0];
+    /// assert!((e.lost_horizontal_m - 600.0).abs() < 1e-9 && e.min_horizontal_m < 1e-9);
     /// ```
     pub fn observe(
         &mut self,
@@ -118,8 +125,7 @@ impl PairLog {
                 if !self.open() {
                     self.start(t0_s + a, rel0_enu_m.lerp(rel1_enu_m, a / dt), &mut changes);
                 }
-                self.note(rel0_enu_m.lerp(rel1_enu_m, b / dt));
-                self.note(rel1_enu_m.lerp(rel0_enu_m, 1.0 - a / dt));
+                self.note_least(&rel, a, b);
                 if b < dt {
                     self.close(t0_s + b, &mut changes);
                 }
@@ -129,19 +135,34 @@ impl PairLog {
     }
 
     fn start(&mut self, t_s: f64, rel: DVec3, changes: &mut SmallVec<[Change; 2]>) {
+        let (horizontal, vertical) = (rel.truncate().length(), rel.z.abs());
         self.episodes.push(Episode {
             start_t_s: t_s,
             end_t_s: None,
-            min_horizontal_m: rel.truncate().length(),
-            min_vertical_m: rel.z.abs(),
+            lost_horizontal_m: horizontal,
+            lost_vertical_m: vertical,
+            min_horizontal_m: horizontal,
+            min_vertical_m: vertical,
         });
         changes.push(Change::Lost { t_s });
     }
 
-    fn note(&mut self, rel: DVec3) {
+    /// Fold into the open episode the least horizontal and vertical separations of `s + t v`
+    /// for `t` in `[a, b]` (each at its own closest instant: linear motion).
+    fn note_least(&mut self, rel: &Relative, a: f64, b: f64) {
+        let (s, v) = (rel.s_m, rel.v_mps);
+        let vh = v.truncate().length_squared();
+        let th = if vh > 0.0 {
+            -s.truncate().dot(v.truncate()) / vh
+        } else {
+            a
+        };
+        let tz = if v.z != 0.0 { -s.z / v.z } else { a };
+        let horizontal = (s + v * th.clamp(a, b)).truncate().length();
+        let vertical = (s.z + v.z * tz.clamp(a, b)).abs();
         if let Some(e) = self.episodes.last_mut().filter(|e| e.end_t_s.is_none()) {
-            e.min_horizontal_m = e.min_horizontal_m.min(rel.truncate().length());
-            e.min_vertical_m = e.min_vertical_m.min(rel.z.abs());
+            e.min_horizontal_m = e.min_horizontal_m.min(horizontal);
+            e.min_vertical_m = e.min_vertical_m.min(vertical);
         }
     }
 

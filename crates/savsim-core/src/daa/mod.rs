@@ -8,11 +8,13 @@
 //! - [`projection`]: geodetic states made Euclidean as DAIDALUS does.
 //! - [`alerting_run`]: a state file's alerting, row by row, as `DaidalusAlerting` reports it.
 //! - [`episodes`]: losses of well clear over a flight, for events, summaries and batch rows.
+//! - [`encounter_model`]: MIT LL's encounter models read and sampled into tracks.
 //! - [`ratios`]: weighted NMAC and loss-of-well-clear rates and risk ratios over encounters.
 
 pub mod alerting;
 pub mod alerting_run;
 pub mod conf;
+pub mod encounter_model;
 pub mod episodes;
 pub mod projection;
 pub mod ratios;

@@ -152,11 +152,14 @@ impl Volume {
     /// let rel = Relative { s_m: DVec3::new(3000.0, 0.0, 0.0), v_mps: DVec3::new(-100.0, 0.0, 0.0) };
     /// let (t_in, t_out) = v.interval(&rel, 0.0, 180.0).unwrap();
     /// assert!((t_in - 24.0).abs() < 1e-9 && (t_out - 36.0).abs() < 1e-9);
-    /// // With TTHR 30 s: from when tau_mod reaches 30 s.
+    /// // With TTHR 30 s, from 5000 m: from when tau_mod reaches 30 s (at 3000 m it is 28.8 s:
+    /// // already violated).
     /// let v = Volume { tthr_s: 30.0, ..v };
-    /// let (t_in, _) = v.interval(&rel, 0.0, 180.0).unwrap();
-    /// let s = 3000.0 - 100.0 * t_in;
+    /// let far = Relative { s_m: DVec3::new(5000.0, 0.0, 0.0), ..rel };
+    /// let (t_in, _) = v.interval(&far, 0.0, 180.0).unwrap();
+    /// let s = 5000.0 - 100.0 * t_in;
     /// assert!(((s * s - 600.0 * 600.0) / (100.0 * s) - 30.0).abs() < 1e-9);
+    /// assert_eq!(v.interval(&rel, 0.0, 180.0).unwrap().0, 0.0);
     /// ```
     pub fn interval(&self, rel: &Relative, from_s: f64, to_s: f64) -> Option<(f64, f64)> {
         let (v_lo, v_hi) = self.vertical_span(rel.s_m.z, rel.v_mps.z)?;
