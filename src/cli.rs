@@ -211,7 +211,8 @@ pub struct CollisionArgs {
     #[arg(long, default_value_t = 10.0)]
     pub near_miss_m: f64,
     /// The well-clear volume losses of well clear are judged with: `small-uas` (2000 ft,
-    /// 250 ft), `phase-1`, `phase-2`, `non-coop` (DO-365), or `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`.
+    /// 250 ft), `phase-1`, `phase-2`, `non-coop` (DO-365), `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`, or
+    /// `none` (not judged).
     #[arg(long, default_value = "small-uas")]
     pub well_clear: String,
     /// Telemetry gaps longer than this are reported and not swept, seconds.

@@ -504,12 +504,12 @@ impl Session {
                 }))
                 .collect::<Vec<_>>(),
             "well_clear": {
-                "volume": {
-                    "dthr_m": self.approaches.volume.dthr_m,
-                    "zthr_m": self.approaches.volume.zthr_m,
-                    "tthr_s": self.approaches.volume.tthr_s,
-                    "tcoa_s": self.approaches.volume.tcoa_s,
-                },
+                "volume": self.approaches.volume.map(|v| json!({
+                    "dthr_m": v.dthr_m,
+                    "zthr_m": v.zthr_m,
+                    "tthr_s": v.tthr_s,
+                    "tcoa_s": v.tcoa_s,
+                })),
                 "pairs": self
                     .approaches
                     .well_clear

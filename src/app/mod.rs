@@ -77,11 +77,11 @@ fn parse_ahp(text: &str) -> Result<AhpWeights> {
 fn session_for(args: &CollisionArgs) -> Result<Session> {
     let scene = load_scene(args.scene.as_deref())?;
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
-    let volume = crate::daa::well_clear::Volume::parse(&args.well_clear).ok_or_else(|| {
+    let volume = crate::daa::well_clear::setting(&args.well_clear).ok_or_else(|| {
         Error::Usage(format!(
-            "--well-clear {}: give small-uas, phase-1, phase-2, non-coop or \
-             DTHR_M,ZTHR_M,TTHR_S,TCOA_S (non-negative)",
-            args.well_clear
+            "--well-clear {}: {}",
+            args.well_clear,
+            crate::daa::well_clear::SETTING_HELP
         ))
     })?;
     session.approaches = crate::collision::approach::Approaches::with_volume(volume);

@@ -36,8 +36,8 @@ pub struct Encounter {
     pub rate_hz: f64,
     /// Length, seconds.
     pub duration_s: f64,
-    /// The well-clear volume losses are judged with.
-    pub well_clear: crate::daa::well_clear::Volume,
+    /// The well-clear volume losses are judged with (`None`: not judged).
+    pub well_clear: Option<crate::daa::well_clear::Volume>,
 }
 
 /// What an encounter produced.

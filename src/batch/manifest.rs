@@ -60,7 +60,8 @@ pub struct Run {
     /// Its vertical miss distance then (intruder above positive), metres.
     pub vmd_at_tca_m: Option<f64>,
     /// The well-clear volume losses are judged with: `small-uas` (default: 2000 ft, 250 ft),
-    /// `phase-1`, `phase-2`, `non-coop` (DO-365), or `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`.
+    /// `phase-1`, `phase-2`, `non-coop` (DO-365), `DTHR_M,ZTHR_M,TTHR_S,TCOA_S`, or `none`
+    /// (not judged: `lowc` false and its other columns empty).
     pub well_clear: Option<String>,
     /// The variant the row flies (`nominal`, `mitigated`...): `batch summarize` compares
     /// variants over the rows of one `pair`.

@@ -226,29 +226,27 @@ fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypo
     Ok(track)
 }
 
-/// The row's well-clear volume (small UAS when it names none).
-fn well_clear(run: &Run) -> Result<Volume, String> {
-    match run
+/// The row's well-clear volume (small UAS when it names none; `None` for `none`).
+fn well_clear(run: &Run) -> Result<Option<Volume>, String> {
+    let name = run
         .well_clear
         .as_deref()
         .map(str::trim)
-        .filter(|w| !w.is_empty())
-    {
-        None => Ok(Volume::SMALL_UAS),
-        Some(w) => Volume::parse(w).ok_or_else(|| {
-            format!(
-                "well_clear {w:?}: give small-uas, phase-1, phase-2, non-coop or \
-                 DTHR_M,ZTHR_M,TTHR_S,TCOA_S (non-negative)"
-            )
-        }),
-    }
+        .filter(|w| !w.is_empty());
+    crate::daa::well_clear::setting(name.unwrap_or("small-uas")).ok_or_else(|| {
+        format!(
+            "well_clear {:?}: {}",
+            name.unwrap_or(""),
+            crate::daa::well_clear::SETTING_HELP
+        )
+    })
 }
 
 fn replay_tlog(
     path: &Path,
     scene: Arc<Scene>,
     pipeline: Pipeline,
-    volume: Volume,
+    volume: Option<Volume>,
     row: &mut RunRow,
 ) -> Result<(), String> {
     let mut session = Session::with_pipeline(scene, pipeline, None).map_err(|e| e.to_string())?;

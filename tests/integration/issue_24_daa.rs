@@ -360,7 +360,7 @@ fn savsim_daa_matches_daidalus_cell_by_cell() {
 
 #[test]
 fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
-    use arrow_array::{BooleanArray, Float64Array};
+    use arrow_array::{Array, BooleanArray, Float64Array};
     let dir = tempfile::tempdir().unwrap();
     // Own east at 20 m/s along y = 0, 100 m up; the intruder west at 20 m/s, `offset_m` north,
     // level. Closing at 40 m/s from 2000 m: with the small-UAS volume (DTHR 609.6 m) and a
@@ -369,20 +369,22 @@ fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
     // also an NMAC.
     let own = "0 -1000 0 100; 100 1000 0 100";
     let intruder = |offset_m: f64| format!("0 1000 {offset_m} 100; 100 -1000 {offset_m} 100");
-    let mut csv = String::from("id,own,intruder,duration_s,variant,pair,w\n");
+    let mut csv = String::from("id,own,intruder,duration_s,variant,pair,w,well_clear\n");
     // Four pairs: nominal always an NMAC (50 m); mitigated an NMAC once, a LoWC without
     // NMAC once (300 m), clear twice (1000 m). Weights 1, 2, 1, 1.
     for (k, (mitigated_m, w)) in [(50.0, 1.0), (300.0, 2.0), (1000.0, 1.0), (1000.0, 1.0)]
         .into_iter()
         .enumerate()
     {
-        csv += &format!("n{k},{own},{},100,nominal,p{k},{w}\n", intruder(50.0));
+        csv += &format!("n{k},{own},{},100,nominal,p{k},{w},\n", intruder(50.0));
         csv += &format!(
-            "m{k},{own},{},100,mitigated,p{k},{w}\n",
+            "m{k},{own},{},100,mitigated,p{k},{w},\n",
             intruder(mitigated_m)
         );
     }
-    csv += &format!("hand,{own},{},100,,,\n", intruder(100.0));
+    csv += &format!("hand,{own},{},100,,,,\n", intruder(100.0));
+    // Well clear not judged: no loss reported, the NMAC still is.
+    csv += &format!("off,{own},{},100,,,,none\n", intruder(100.0));
     let manifest = dir.path().join("m.csv");
     std::fs::write(&manifest, csv).unwrap();
     let out = dir.path().join("out");
@@ -413,7 +415,10 @@ fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
     let lowc = crate::batch::column::<BooleanArray>(&batch, "lowc");
     let first = crate::batch::column::<Float64Array>(&batch, "lowc_first_t_s");
     let duration = crate::batch::column::<Float64Array>(&batch, "lowc_duration_s");
-    let hand = batch.num_rows() - 1;
+    let hand = batch.num_rows() - 2;
+    let off = batch.num_rows() - 1;
+    assert!(!lowc.value(off) && first.is_null(off));
+    assert!(crate::batch::column::<BooleanArray>(&batch, "nmac").value(off));
     let dx = (609.6f64.powi(2) - 100.0f64.powi(2)).sqrt();
     assert!(lowc.value(hand));
     assert!(

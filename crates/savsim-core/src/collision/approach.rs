@@ -89,13 +89,13 @@ pub struct Approaches {
     pub by_pair: BTreeMap<(u8, Arc<str>), Approach>,
     /// Well clear by (vehicle, body id): its episodes.
     pub well_clear: BTreeMap<(u8, Arc<str>), PairLog>,
-    /// The well-clear volume judged.
-    pub volume: Volume,
+    /// The well-clear volume judged (`None`: well clear is not judged).
+    pub volume: Option<Volume>,
 }
 
 impl Default for Approaches {
     fn default() -> Self {
-        Self::with_volume(Volume::SMALL_UAS)
+        Self::with_volume(Some(Volume::SMALL_UAS))
     }
 }
 
@@ -109,8 +109,8 @@ pub struct WellClearChange {
 }
 
 impl Approaches {
-    /// No approaches yet; well clear judged with `volume`.
-    pub fn with_volume(volume: Volume) -> Self {
+    /// No approaches yet; well clear judged with `volume` (`None`: not judged).
+    pub fn with_volume(volume: Option<Volume>) -> Self {
         Self {
             by_pair: BTreeMap::new(),
             well_clear: BTreeMap::new(),
@@ -143,8 +143,11 @@ impl Approaches {
                 .entry(key.clone())
                 .and_modify(|m| *m = m.merge(a))
                 .or_insert(a);
+            let Some(volume) = &self.volume else {
+                continue;
+            };
             let log = self.well_clear.entry(key).or_default();
-            for change in log.observe(&self.volume, before.t_s, current.t_s, rel0, rel1) {
+            for change in log.observe(volume, before.t_s, current.t_s, rel0, rel1) {
                 changes.push(WellClearChange {
                     body: body.id.clone(),
                     change,

@@ -205,6 +205,26 @@ impl Volume {
     }
 }
 
+/// What `--well-clear` and the `well_clear` column accept.
+pub const SETTING_HELP: &str = "give small-uas, phase-1, phase-2, non-coop, \
+    DTHR_M,ZTHR_M,TTHR_S,TCOA_S (non-negative) or none";
+
+/// The well-clear volume a name gives (`Some(None)` for `none`: not judged), `None` for a name
+/// that is none of them.
+///
+/// ```
+/// use savsim_core::daa::well_clear::setting;
+/// assert_eq!(setting("none"), Some(None));
+/// assert!(setting("phase-1").unwrap().is_some());
+/// assert_eq!(setting("nonsense"), None);
+/// ```
+pub fn setting(name: &str) -> Option<Option<Volume>> {
+    match name.trim() {
+        "none" => Some(None),
+        other => Volume::parse(other).map(Some),
+    }
+}
+
 /// A root of `a t^2 + b t + c` (a > 0): the larger when `larger`, else the smaller; `None`
 /// when there is none (a discriminant a rounding below zero counts as a double root).
 fn root(a: f64, b: f64, c: f64, larger: bool) -> Option<f64> {
