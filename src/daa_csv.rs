@@ -12,7 +12,7 @@ use crate::daa::scenario;
 use crate::daa::units::si_per;
 use crate::error::{Error, Result};
 
-/// Most bytes `savsim daa` reads from one input file.
+/// Most bytes read from one DAIDALUS file or encounter model.
 const MAX_INPUT_BYTES: u64 = 1 << 30;
 
 /// Run `savsim daa`.
@@ -35,7 +35,8 @@ pub fn command(args: &DaaArgs) -> Result<()> {
     }
 }
 
-fn read(path: &Path) -> Result<String> {
+/// A DAIDALUS file or an encounter model, whole: at most [`MAX_INPUT_BYTES`], as text.
+pub fn read(path: &Path) -> Result<String> {
     let size = std::fs::metadata(path)
         .map_err(|e| Error::file(path, e))?
         .len();

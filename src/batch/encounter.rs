@@ -231,13 +231,7 @@ fn ownship_sample(plane: &LocalTangentPlane, track: &[Waypoint], t_s: f64) -> Tr
 /// metres from the scene's origin. Each track's velocity columns are not used: the track is
 /// linear between its states, as any waypoint track.
 pub fn tracks_from_daa(path: &Path, scene: &Scene) -> Result<DaaTracks, String> {
-    let size = std::fs::metadata(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?
-        .len();
-    if size > 1 << 30 {
-        return Err(format!("{}: {size} bytes: at most 1 GiB", path.display()));
-    }
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = crate::daa_csv::read(path).map_err(|e| e.to_string())?;
     let steps =
         crate::daa::scenario::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let plane = LocalTangentPlane::new(scene.origin);

@@ -54,34 +54,25 @@ pub fn read_dir(dir: &Path) -> Result<Outcomes> {
     Ok(all)
 }
 
+/// Column `name` of `batch` as an array of type `T`; an error naming it when it is missing or
+/// of another type.
+fn column<'a, T: 'static>(batch: &'a RecordBatch, name: &str, path: &Path) -> Result<&'a T> {
+    batch
+        .column_by_name(name)
+        .and_then(|c| c.as_any().downcast_ref::<T>())
+        .ok_or_else(|| Error::Usage(format!("{}: no column {name} of its type", path.display())))
+}
+
 fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Outcomes) -> Result<()> {
-    let missing = |name: &str| Error::Usage(format!("{}: no column {name}", path.display()));
-    let column = |name: &str| batch.column_by_name(name).ok_or_else(|| missing(name));
-    let strings = |name: &str| -> Result<StringArray> {
-        column(name)?
-            .as_any()
-            .downcast_ref::<StringArray>()
-            .cloned()
-            .ok_or_else(|| missing(name))
-    };
-    let bools = |name: &str| -> Result<BooleanArray> {
-        column(name)?
-            .as_any()
-            .downcast_ref::<BooleanArray>()
-            .cloned()
-            .ok_or_else(|| missing(name))
-    };
+    let strings = |name: &str| column::<StringArray>(batch, name, path);
+    let bools = |name: &str| column::<BooleanArray>(batch, name, path);
     let (run_id, variant, pair, error) = (
         strings("run_id")?,
         strings("variant")?,
         strings("pair")?,
         strings("error")?,
     );
-    let w = column("w")?
-        .as_any()
-        .downcast_ref::<Float64Array>()
-        .cloned()
-        .ok_or_else(|| missing("w"))?;
+    let w = column::<Float64Array>(batch, "w", path)?;
     let (nmac, lowc) = (bools("nmac")?, bools("lowc")?);
     for i in 0..batch.num_rows() {
         if error.is_valid(i) {
@@ -96,8 +87,8 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Outcomes) -> Result<()
             }
         };
         all.outcomes.push(Outcome {
-            pair: text(&pair, run_id.value(i)),
-            variant: text(&variant, "nominal"),
+            pair: text(pair, run_id.value(i)),
+            variant: text(variant, "nominal"),
             weight: if w.is_valid(i) { w.value(i) } else { 1.0 },
             nmac: nmac.value(i),
             lowc: lowc.value(i),

@@ -11,7 +11,7 @@ use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
 use crate::common::{assert_ran, have_python_module, root};
 
-fn savsim(args: &[&str]) -> Output {
+pub(crate) fn savsim(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_savsim"))
         .args(args)
         .env_remove("SLURM_ARRAY_TASK_ID")

@@ -358,6 +358,26 @@ fn savsim_daa_matches_daidalus_cell_by_cell() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// `savsim batch MANIFEST --out OUT` on one job, checked to have run.
+fn batch_on_one_job(manifest: &Path, out: &Path) -> std::process::Output {
+    let run = crate::batch::savsim(&[
+        "batch",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--jobs",
+        "1",
+        "--no-progress",
+    ]);
+    crate::common::assert_ran(&run);
+    run
+}
+
+/// The rows of the one shard a one-shard run wrote to `out`.
+fn only_shard(out: &Path) -> arrow_array::RecordBatch {
+    crate::batch::read(&out.join("part-00000-of-00001.parquet"))
+}
+
 #[test]
 fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
     use arrow_array::{Array, BooleanArray, Float64Array};
@@ -388,30 +408,8 @@ fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
     let manifest = dir.path().join("m.csv");
     std::fs::write(&manifest, csv).unwrap();
     let out = dir.path().join("out");
-    let run = Command::new(env!("CARGO_BIN_EXE_savsim"))
-        .args([
-            "batch",
-            manifest.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .args(["--jobs", "1", "--no-progress"])
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX")
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let shard = std::fs::read_dir(&out)
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let batch = crate::batch::read(&shard);
+    batch_on_one_job(&manifest, &out);
+    let batch = only_shard(&out);
     let lowc = crate::batch::column::<BooleanArray>(&batch, "lowc");
     let first = crate::batch::column::<Float64Array>(&batch, "lowc_first_t_s");
     let duration = crate::batch::column::<Float64Array>(&batch, "lowc_duration_s");
@@ -475,30 +473,8 @@ fn a_daa_file_is_a_batch_row_with_every_intruder() {
     )
     .unwrap();
     let out = dir.path().join("out");
-    let run = Command::new(env!("CARGO_BIN_EXE_savsim"))
-        .args([
-            "batch",
-            manifest.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .args(["--jobs", "1", "--no-progress"])
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX")
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let shard = std::fs::read_dir(&out)
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let batch = crate::batch::read(&shard);
+    batch_on_one_job(&manifest, &out);
+    let batch = only_shard(&out);
     let error = crate::batch::column::<StringArray>(&batch, "error");
     assert!(error.is_null(0), "{}", error.value(0));
     let approaches = crate::batch::column::<ListArray>(&batch, "approaches").value(0);
@@ -637,7 +613,7 @@ fn the_encounter_model_sampler_reproduces_its_networks() {
     for &(now, next) in &model.temporal {
         let mut state = start.clone();
         state.resize(model.transition.labels.len(), 0);
-        let p = model.transition.probabilities(next, &state, n);
+        let p = model.transition.probabilities(next, &state);
         let mut seen = vec![0.0; p.len()];
         for _ in 0..100_000 {
             let mut x = start.clone();
@@ -716,23 +692,7 @@ fn model_encounters_hold_their_miss_distances_at_tca_and_fly() {
     }
     assert!(turning > 0, "no model track turned");
     let results = dir.path().join("out");
-    let run = Command::new(env!("CARGO_BIN_EXE_savsim"))
-        .args([
-            "batch",
-            manifest.to_str().unwrap(),
-            "--out",
-            results.to_str().unwrap(),
-        ])
-        .args(["--jobs", "1", "--no-progress"])
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX")
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let run = batch_on_one_job(&manifest, &results);
     assert!(
         String::from_utf8_lossy(&run.stdout).contains("12 runs"),
         "{}",

@@ -367,29 +367,30 @@ impl Network {
         j
     }
 
-    /// The probabilities of variable `i`'s bins given its parents' bins in `x` (a column with
-    /// no counts: every bin alike).
-    pub fn probabilities(&self, i: usize, x: &[usize], first_sampled: usize) -> Vec<f64> {
+    /// The counts of variable `i`'s bins given its parents' bins in `x`.
+    fn column(&self, i: usize, x: &[usize]) -> &[f64] {
         let r = self.bins[i];
         let j = self.configuration(i, x);
-        let column = &self.counts[i - first_sampled][j * r..(j + 1) * r];
+        let first_sampled = self.labels.len() - self.counts.len();
+        &self.counts[i - first_sampled][j * r..(j + 1) * r]
+    }
+
+    /// The probabilities of variable `i`'s bins given its parents' bins in `x` (a column with
+    /// no counts: every bin alike).
+    pub fn probabilities(&self, i: usize, x: &[usize]) -> Vec<f64> {
+        let column = self.column(i, x);
         let total: f64 = column.iter().sum();
         if total > 0.0 {
             column.iter().map(|c| c / total).collect()
         } else {
-            vec![1.0 / r as f64; r]
+            vec![1.0 / column.len() as f64; column.len()]
         }
-    }
-
-    fn first_sampled(&self) -> usize {
-        self.labels.len() - self.counts.len()
     }
 
     /// Draw variable `i`'s bin given its parents' bins in `x`.
     fn draw(&self, i: usize, x: &[usize], rng: &mut impl Rng) -> usize {
-        let r = self.bins[i];
-        let j = self.configuration(i, x);
-        let column = &self.counts[i - self.first_sampled()][j * r..(j + 1) * r];
+        let column = self.column(i, x);
+        let r = column.len();
         let total: f64 = column.iter().sum();
         if total <= 0.0 {
             return rng.random_range(0..r);
