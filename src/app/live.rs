@@ -5,7 +5,8 @@
 //! [`Supervisor`] route and supervise, records, runs the session, and sends what the
 //! supervisor says is due to the endpoint it names. It stops on SIGINT/SIGTERM, at the
 //! deadline, or when a link fails; what was queued is still processed, so the summary counts
-//! every byte received.
+//! every byte received (after a signal, for at most [`STOP_DRAIN`]; the rest is counted as
+//! unprocessed).
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -99,6 +100,10 @@ pub struct FeedLinkReport {
     pub latency: Option<Latency>,
 }
 
+/// After a signal, what the links had queued is processed for at most this long; the rest is
+/// counted, not processed, so that a run behind its stream still stops promptly.
+pub const STOP_DRAIN: Duration = Duration::from_secs(1);
+
 /// A link that brings nothing for this long is logged (once per silence), s.
 const SILENT_LINK_S: f64 = 5.0;
 
@@ -116,6 +121,11 @@ pub struct LinkReport {
     pub dropped_chunks: u64,
     /// Bytes in those.
     pub dropped_bytes: u64,
+    /// Chunks still queued when a signal stopped the run and [`STOP_DRAIN`] had passed: not
+    /// processed (0 when the run ended otherwise: then the whole queue is processed).
+    pub unprocessed_chunks: u64,
+    /// Bytes in those.
+    pub unprocessed_bytes: u64,
     /// Messages to send that could not be (no connection yet, a full queue, an error).
     pub unsent: u64,
     /// TCP connections made or accepted.
@@ -450,9 +460,19 @@ pub fn run_links(
     }
     let counters = network.counters.clone();
     let stopped = network.stop();
-    // What the links had queued is still counted and processed.
+    // What the links had queued is still processed: all of it, or after a signal what
+    // STOP_DRAIN allows (the rest counted).
+    let drain_until = shutdown
+        .load(Ordering::Relaxed)
+        .then(|| Instant::now() + STOP_DRAIN);
+    let (mut unprocessed_chunks, mut unprocessed_bytes) = (0u64, 0u64);
     while let Ok(chunk) = chunks.try_recv() {
-        thread.process(&chunk);
+        if drain_until.is_some_and(|d| Instant::now() >= d) {
+            unprocessed_chunks += 1;
+            unprocessed_bytes += chunk.bytes.len() as u64;
+        } else {
+            thread.process(&chunk);
+        }
     }
     if let Some(rec) = thread.recorder.as_mut() {
         if let Err(e) = rec.flush() {
@@ -476,6 +496,8 @@ pub fn run_links(
         vehicles: thread.supervisor.vehicles(),
         dropped_chunks: session.ingestor.stats.dropped_chunks,
         dropped_bytes: session.ingestor.stats.dropped_bytes,
+        unprocessed_chunks,
+        unprocessed_bytes,
         unsent: load(&counters.unsent),
         silences,
         connects: load(&counters.connects),

@@ -409,8 +409,8 @@ pub(crate) fn inside_solid(geometry: &Geometry, pose: &BodyPose, point: DVec3) -
     geometry.contains_local_point(local.as_vec3())
 }
 
-/// Radius of the sphere about a geometry's origin that holds it, metres.
-pub(crate) fn radius_m(geometry: &Geometry) -> f64 {
+/// The radius of the sphere about its origin that holds `geometry`, metres.
+pub fn radius_m(geometry: &Geometry) -> f64 {
     f64::from(
         geometry
             .local_aabb

@@ -284,6 +284,24 @@ impl Aabb64 {
     pub fn distance_to(&self, p: DVec3) -> f64 {
         (self.min - p).max(p - self.max).max(DVec3::ZERO).length()
     }
+
+    /// Euclidean distance between the nearest points of this box and `other` (0 when they
+    /// meet).
+    ///
+    /// ```
+    /// use savsim_core::scene::Aabb64;
+    /// use glam::DVec3;
+    /// let a = Aabb64::new(DVec3::ZERO, DVec3::ONE);
+    /// let b = Aabb64::new(DVec3::new(4.0, 5.0, 0.5), DVec3::new(5.0, 6.0, 2.0));
+    /// assert_eq!(a.distance_to_box(&b), 5.0);
+    /// assert_eq!(a.distance_to_box(&a), 0.0);
+    /// ```
+    pub fn distance_to_box(&self, other: &Aabb64) -> f64 {
+        (self.min - other.max)
+            .max(other.min - self.max)
+            .max(DVec3::ZERO)
+            .length()
+    }
 }
 
 /// A static obstacle (building, terrain patch, tree).

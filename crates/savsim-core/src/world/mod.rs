@@ -11,10 +11,17 @@ use std::collections::{BTreeMap, VecDeque};
 use glam::{DMat3, DQuat, DVec3, EulerRot};
 
 use crate::geo::{Geodetic, LocalTangentPlane};
+use crate::scene::Aabb64;
 pub mod clock;
+pub mod index;
 pub mod report;
 
+use index::{TrackIndex, TrackKey};
 use report::{AdsbReport, AttitudeReport, PositionReport, Report, SenderId};
+
+/// How far past a track's newest sample [`History::predict`] carries it, seconds: traffic
+/// reports slower than the vehicles it is traffic to.
+pub const PREDICT_MAX_S: f64 = 5.0;
 
 /// How the store ages and remembers tracks. Defaults in the field docs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -193,6 +200,11 @@ impl History {
         })
     }
 
+    /// The samples, oldest first.
+    pub fn samples(&self) -> impl DoubleEndedIterator<Item = &TrackSample> {
+        self.samples.iter()
+    }
+
     /// Number of samples held.
     pub fn len(&self) -> usize {
         self.samples.len()
@@ -281,6 +293,17 @@ pub struct WorldStore {
     pub seen: BTreeMap<SenderId, VehicleSeen>,
     /// The next track generation handed out.
     next_generation: u32,
+    /// Which tracks may be near a region ([`WorldStore::tracks_near`]).
+    index: TrackIndex,
+}
+
+/// A track found by [`WorldStore::tracks_near`].
+#[derive(Debug, Clone, Copy)]
+pub enum Track<'a> {
+    /// A MAVLink vehicle.
+    Vehicle(&'a VehicleTrack),
+    /// An ADS-B aircraft.
+    Traffic(&'a TrafficTrack),
 }
 
 /// What the store saw of one vehicle over a whole run.
@@ -313,7 +336,97 @@ impl WorldStore {
             expired: 0,
             seen: BTreeMap::new(),
             next_generation: 1,
+            index: TrackIndex::default(),
         }
+    }
+
+    /// Call `visit` with every track whose predicted position ([`History::predict`]) at some
+    /// time from `since_t_s` on may lie in `region`: all of them, and perhaps others. Through
+    /// the index, rebuilt first when it is stale at `now_t_s`; a scan of every track when
+    /// `since_t_s` is older than the index looks back ([`index::LOOKBACK_S`]).
+    ///
+    /// ```
+    /// use savsim_core::{geo::Geodetic, scene::Aabb64, world::{Track, WorldStore, WorldConfig}};
+    /// use savsim_core::world::report::{PositionReport, Report, SenderId};
+    /// let origin = Geodetic::new(-35.363261, 149.165230, 584.0);
+    /// let mut world = WorldStore::new(origin, WorldConfig::default());
+    /// for (id, east_m) in [(1u8, 0.0), (2, 5000.0)] {
+    ///     let position = world.plane().geodetic_from_enu_m(glam::DVec3::new(east_m, 0.0, 50.0));
+    ///     let report = Report::Position(PositionReport { time_boot_ms: 1000, position,
+    ///         relative_alt_m: 50.0, velocity_ned_mps: glam::DVec3::ZERO, heading_deg: None });
+    ///     world.apply(10.0, SenderId { system_id: id, component_id: 1 }, &report);
+    /// }
+    /// let mut found = Vec::new();
+    /// let region = Aabb64::around(glam::DVec3::ZERO, glam::DVec3::splat(100.0));
+    /// world.tracks_near(&region, 10.0, 10.0, |t| if let Track::Vehicle(v) = t {
+    ///     found.push(v.id.system_id)
+    /// });
+    /// assert_eq!(found, [1]);
+    /// ```
+    pub fn tracks_near(
+        &mut self,
+        region: &Aabb64,
+        since_t_s: f64,
+        now_t_s: f64,
+        mut visit: impl FnMut(Track<'_>),
+    ) {
+        let count = self.vehicles.len() + self.traffic.len();
+        if self.index.stale(now_t_s, count) {
+            let vehicles = self
+                .vehicles
+                .iter()
+                .map(|(k, v)| (TrackKey::Vehicle(*k), &v.history));
+            let traffic = self
+                .traffic
+                .iter()
+                .map(|(k, t)| (TrackKey::Traffic(*k), &t.history));
+            self.index.build(now_t_s, vehicles.chain(traffic));
+        }
+        if !self.index.covers(since_t_s) {
+            self.index.scans += 1;
+            self.vehicles
+                .values()
+                .for_each(|v| visit(Track::Vehicle(v)));
+            self.traffic.values().for_each(|t| visit(Track::Traffic(t)));
+            return;
+        }
+        let (vehicles, traffic) = (&self.vehicles, &self.traffic);
+        self.index.near(region, |key| match key {
+            TrackKey::Vehicle(s) => {
+                if let Some(v) = vehicles.get(&s) {
+                    visit(Track::Vehicle(v));
+                }
+            }
+            TrackKey::Traffic(icao) => {
+                if let Some(t) = traffic.get(&icao) {
+                    visit(Track::Traffic(t));
+                }
+            }
+        });
+    }
+
+    /// The fastest speed of any track's newest sample, m/s, over at least the tracks
+    /// [`WorldStore::tracks_near`] last looked at (a bound for how far they reach).
+    pub fn max_speed_mps(&self) -> f64 {
+        self.index.max_speed_mps()
+    }
+
+    /// The index's builds and full scans so far.
+    pub fn index_counts(&self) -> (u64, u64) {
+        (self.index.builds, self.index.scans)
+    }
+
+    /// The vehicle with MAVLink system id `system_id` (its lowest component id, if several).
+    pub fn vehicle_of_system(&self, system_id: u8) -> Option<&VehicleTrack> {
+        let from = SenderId {
+            system_id,
+            component_id: 0,
+        };
+        self.vehicles
+            .range(from..)
+            .next()
+            .map(|(_, v)| v)
+            .filter(|v| v.id.system_id == system_id)
     }
 
     /// The scene's tangent plane.
@@ -451,6 +564,8 @@ impl WorldStore {
         track.history.push(sample, capacity);
         track.positions += 1;
         let speedup = track.clock.speedup();
+        self.index
+            .moved(TrackKey::Vehicle(sender), &self.vehicles[&sender].history);
         if rebooted {
             self.next_generation = self.next_generation.wrapping_add(1);
         }
@@ -506,6 +621,8 @@ impl WorldStore {
         track.history.push(sample, capacity);
         track.last_heard_t_s = t_s;
         track.pressure_altitude = a.pressure_altitude;
+        self.index
+            .moved(TrackKey::Traffic(a.icao_address), &track.history);
     }
 
     /// Drop tracks not heard from since `now_t_s - stale_after_s`. Returns how many went.

@@ -1,6 +1,8 @@
 //! A run: decoded messages in, world state and collision ticks through, events and a summary
 //! out. Synchronous; replay drives it directly, live from its own named thread.
 
+mod traffic;
+
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -13,7 +15,7 @@ use serde_json::json;
 use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{
-    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies, Pipeline, VehicleKey,
+    BodyPose, CollisionConfig, DynamicBody, MovingBodies, Pipeline, VehicleKey,
 };
 use crate::daa::episodes::Change;
 use crate::error::{Error, Result};
@@ -23,11 +25,8 @@ use crate::ingest::outbox::Outbox;
 use crate::ingest::stats::SenderId;
 use crate::ingest::tlog::TlogWriter;
 use crate::ingest::Ingestor;
-use crate::scene::{DynamicSource, Kind, Scene};
-use crate::world::{TrackSample, WorldConfig, WorldStore, WorldUpdate};
-
-/// Extrapolate traffic at most this far past its last report, seconds.
-const TRAFFIC_PREDICT_MAX_S: f64 = 5.0;
+use crate::scene::Scene;
+use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 
 /// Most collision and near-miss events kept in memory for the run's printed report.
 const NOTABLE_KEPT: usize = 1000;
@@ -51,6 +50,10 @@ pub struct Session {
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     pub approaches: Approaches,
     dynamic: MovingBodies,
+    /// Scratch: the moving bodies the world's index found, before they are sorted.
+    found: Vec<DynamicBody>,
+    /// The largest model radius in the scene (the watch range's margin), metres.
+    max_model_radius_m: f64,
     /// Scratch: the well-clear changes of the tick.
     well_clear_changes: Vec<WellClearChange>,
     flight_start_t_s: Option<f64>,
@@ -111,6 +114,7 @@ impl Session {
                     .map_err(|e| Error::file(p, e))
             })
             .transpose()?;
+        let max_model_radius_m = scene.as_deref().map_or(0.0, traffic::max_model_radius_m);
         Ok(Self {
             ingestor: Ingestor::default(),
             world: WorldStore::new(origin, WorldConfig::default()),
@@ -123,6 +127,8 @@ impl Session {
             approaches: Approaches::default(),
             well_clear_changes: Vec::new(),
             dynamic: MovingBodies::default(),
+            found: Vec::new(),
+            max_model_radius_m,
             flight_start_t_s: None,
             last_expire_t_s: f64::NEG_INFINITY,
             started: Instant::now(),
@@ -261,16 +267,30 @@ impl Session {
             return Ok(());
         };
         let previous = track.history.previous().copied();
+        let generation = track.generation;
         let start = *self.flight_start_t_s.get_or_insert(current.t_s);
-        let t_before = previous.map_or(current.t_s, |p| p.t_s);
-        fill_dynamic(
+        let watch = traffic::Watch {
+            collision: pipeline.config,
+            volume: self.approaches.volume,
+            feed: self
+                .feed
+                .as_ref()
+                .map(|f| traffic::Watch::feed_of(&f.config)),
+            max_model_radius_m: self.max_model_radius_m,
+        };
+        let interval = traffic::Interval {
+            own: sender,
+            previous: previous.as_ref(),
+            current: &current,
+            flight_start_t_s: start,
+        };
+        traffic::fill_dynamic(
             &mut self.dynamic,
+            &mut self.found,
             &scene,
-            &self.world,
-            sender,
-            start,
-            t_before,
-            current.t_s,
+            &mut self.world,
+            &watch,
+            &interval,
         );
         let first = self.events.len();
         self.approaches.observe(
@@ -294,7 +314,7 @@ impl Session {
         let key = VehicleKey {
             vehicle: u16::from(sender.system_id),
             component_id: sender.component_id,
-            generation: track.generation,
+            generation,
         };
         let report = pipeline.step(
             &scene,
@@ -568,143 +588,6 @@ pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
     let text = serde_json::to_vec_pretty(value).map_err(|e| Error::file(path, e.into()))?;
     std::fs::write(&tmp, text).map_err(|e| Error::file(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
-}
-
-fn body_from(sample: &TrackSample) -> BodyPose {
-    BodyPose::of(sample)
-}
-
-/// The moving obstacles seen by vehicle `own` between `t_before` and `t_now`. Ids are shared
-/// (`Arc<str>`): after warm-up this does not allocate.
-fn fill_dynamic(
-    out: &mut MovingBodies,
-    scene: &Scene,
-    world: &WorldStore,
-    own: SenderId,
-    flight_start_t_s: f64,
-    t_before: f64,
-    t_now: f64,
-) {
-    out.clear();
-    let mut claimed_sysids = [false; 256];
-    let mut claimed_icao: smallvec::SmallVec<[u32; 8]> = smallvec::SmallVec::new();
-    for (index, d) in scene.dynamic.iter().enumerate() {
-        let mut generation = 0;
-        let poses = match &d.source {
-            DynamicSource::Waypoints(w) => {
-                out.push(DynamicBody::on_track(
-                    index as u32,
-                    d.id.clone(),
-                    d.kind,
-                    d.threat,
-                    d.geometry_index,
-                    w,
-                    (t_before - flight_start_t_s, t_now - flight_start_t_s),
-                ));
-                continue;
-            }
-            DynamicSource::SystemId(id) => {
-                claimed_sysids[usize::from(*id)] = true;
-                if *id == own.system_id {
-                    None
-                } else {
-                    world
-                        .vehicles
-                        .values()
-                        .find(|v| v.id.system_id == *id)
-                        .and_then(|v| {
-                            generation = v.generation;
-                            Some((
-                                body_speed(&v.history.predict(t_before, TRAFFIC_PREDICT_MAX_S)?),
-                                body_speed(&v.history.predict(t_now, TRAFFIC_PREDICT_MAX_S)?),
-                            ))
-                        })
-                }
-            }
-            DynamicSource::Icao(icao) => {
-                claimed_icao.push(*icao);
-                world.traffic.get(icao).and_then(|tr| {
-                    generation = tr.generation;
-                    Some((
-                        body_speed(&tr.history.predict(t_before, TRAFFIC_PREDICT_MAX_S)?),
-                        body_speed(&tr.history.predict(t_now, TRAFFIC_PREDICT_MAX_S)?),
-                    ))
-                })
-            }
-        };
-        if let Some(((previous, _), (current, speed_mps))) = poses {
-            out.push(DynamicBody {
-                key: BodyKey {
-                    source: BodySource::Scripted(index as u32),
-                    generation,
-                },
-                id: d.id.clone(),
-                kind: d.kind,
-                threat: d.threat,
-                geometry_index: d.geometry_index,
-                previous,
-                current,
-                speed_mps,
-            });
-        }
-    }
-    // Other MAVLink vehicles are traffic to this one.
-    for v in world.vehicles.values() {
-        if v.id.system_id == own.system_id || claimed_sysids[usize::from(v.id.system_id)] {
-            continue;
-        }
-        let (Some(before), Some(now)) = (
-            v.history.predict(t_before, TRAFFIC_PREDICT_MAX_S),
-            v.history.predict(t_now, TRAFFIC_PREDICT_MAX_S),
-        ) else {
-            continue;
-        };
-        out.push(DynamicBody {
-            key: BodyKey {
-                source: BodySource::Vehicle {
-                    vehicle: u16::from(v.id.system_id),
-                    component_id: v.id.component_id,
-                },
-                generation: v.generation,
-            },
-            id: v.label.clone(),
-            kind: Kind::Dji,
-            threat: scene.threat_of(Kind::Dji),
-            geometry_index: scene.vehicle_model(v.id.system_id),
-            previous: body_from(&before),
-            current: body_from(&now),
-            speed_mps: now.velocity_enu_mps.length(),
-        });
-    }
-    for tr in world.traffic.values() {
-        if claimed_icao.contains(&tr.icao_address) {
-            continue;
-        }
-        let (Some(before), Some(now)) = (
-            tr.history.predict(t_before, TRAFFIC_PREDICT_MAX_S),
-            tr.history.predict(t_now, TRAFFIC_PREDICT_MAX_S),
-        ) else {
-            continue;
-        };
-        let kind = Kind::from_adsb_emitter(tr.emitter_type);
-        out.push(DynamicBody {
-            key: BodyKey {
-                source: BodySource::Traffic(tr.icao_address),
-                generation: tr.generation,
-            },
-            id: tr.label.clone(),
-            kind,
-            threat: scene.threat_of(kind),
-            geometry_index: scene.kind_model(kind),
-            previous: body_from(&before),
-            current: body_from(&now),
-            speed_mps: now.velocity_enu_mps.length(),
-        });
-    }
-}
-
-fn body_speed(sample: &TrackSample) -> (BodyPose, f64) {
-    (body_from(sample), sample.velocity_enu_mps.length())
 }
 
 /// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
