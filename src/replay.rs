@@ -59,11 +59,11 @@ pub fn replay(
     let mut n: u64 = 0;
     loop {
         if shutdown.load(Ordering::Relaxed) {
-            session.interrupted = true;
+            session.set_interrupted(true);
             break;
         }
         let record = reader
-            .next_record(&mut session.ingestor.stats)
+            .next_record(session.stats_mut())
             .map_err(|e| Error::file(path, e))?;
         let Some(record) = record else { break };
         let t_s = record.timestamp_us as f64 * 1e-6;

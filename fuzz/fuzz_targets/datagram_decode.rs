@@ -19,7 +19,7 @@ fuzz_target!(|data: &[u8]| {
         let skipped = frames_in_datagram(datagram, |frame| {
             let _ = session.on_frame(t_s, frame);
         });
-        skipped.count_into(&mut session.ingestor.stats);
+        skipped.count_into(session.stats_mut());
     }
     // As one TCP stream read in pieces of the same size.
     let mut framer = StreamFramer::default();
@@ -27,7 +27,7 @@ fuzz_target!(|data: &[u8]| {
         let skipped = framer.push(piece, |frame| {
             let _ = session.on_frame(t_s, frame);
         });
-        skipped.count_into(&mut session.ingestor.stats);
+        skipped.count_into(session.stats_mut());
     }
     let _ = session.summary("fuzz", "fuzz");
 });

@@ -46,14 +46,14 @@ fuzz_target!(|data: &[u8]| {
     session.start_feed(config).unwrap();
     let mut reader = TlogReader::new(tlog);
     loop {
-        let record = match reader.next_record(&mut session.ingestor.stats) {
+        let record = match reader.next_record(session.stats_mut()) {
             Ok(Some(r)) => r,
             Ok(None) | Err(_) => break,
         };
         let t_s = record.timestamp_us as f64 * 1e-6;
         let _ = session.on_frame(t_s, &record.frame);
         // What live mode sends: encoded by the feed's identity, then dropped.
-        session.feed_out.clear();
+        session.drain_feed().for_each(drop);
     }
     let _ = session.finish();
     let _ = session.summary("fuzz", "fuzz");

@@ -28,7 +28,7 @@ fuzz_target!(|data: &[u8]| {
     let mut session = Session::with_pipeline(scene.clone(), pipeline.clone(), None).unwrap();
     let mut reader = TlogReader::new(data);
     loop {
-        let record = match reader.next_record(&mut session.ingestor.stats) {
+        let record = match reader.next_record(session.stats_mut()) {
             Ok(Some(r)) => r,
             Ok(None) | Err(_) => break,
         };

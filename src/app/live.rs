@@ -287,8 +287,8 @@ impl LiveSession {
     pub fn send_feed(&mut self, network: &Network, received_t_s: f64) {
         let feed = &mut self.feed;
         let now_s = unix_now_s();
-        if !self.session.feed_out.is_empty() {
-            for m in self.session.feed_out.drain(..) {
+        if self.session.has_feed_out() {
+            for m in self.session.drain_feed() {
                 let Some((_, to)) = self.supervisor.routes().find(|(id, _)| *id == m.to) else {
                     feed.unrouted += 1;
                     continue;
@@ -331,10 +331,7 @@ impl LiveSession {
                     system_id: frame.system_id,
                     component_id: frame.component_id,
                 };
-                session
-                    .ingestor
-                    .stats
-                    .restart_sequence(sender, frame.sequence);
+                session.stats_mut().restart_sequence(sender, frame.sequence);
             }
             if let Some(rec) = recorder.as_mut() {
                 if let Err(e) = rec.write_record(t_us, frame.bytes) {
@@ -358,7 +355,7 @@ impl LiveSession {
                 .or_default()
                 .push(&chunk.bytes, &mut on_frame),
         };
-        skipped.count_into(&mut self.session.ingestor.stats);
+        skipped.count_into(self.session.stats_mut());
         if chunk.kind != ChunkKind::Connected {
             let waited_us = ((unix_now_s() - chunk.t_s) * 1e6).max(0.0) as u64;
             self.latency_us.saturating_record(waited_us);
@@ -400,7 +397,7 @@ pub fn run_links(
     };
     let (network, chunks) = Network::start(runtime, links, options.queue_len);
     let mut outbox = Outbox::new(options.gcs);
-    let feeding = session.feed.is_some();
+    let feeding = session.feed().is_some();
     let mut thread = LiveSession::new(session, supervisor, recorder);
     thread.feed = FeedSender::new(options.feed_from);
     if let Some(path) = &options.feed_out {
@@ -410,7 +407,7 @@ pub fn run_links(
         let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
         thread.feed.record = Some((path.clone(), TlogWriter::new(BufWriter::new(file))));
     }
-    thread.session.own = vec![options.gcs, options.feed_from];
+    thread.session.set_own(vec![options.gcs, options.feed_from]);
     let deadline = options.duration.map(|d| Instant::now() + d);
     // Per link: when it last brought anything, and whether its silence was logged.
     let mut heard_t_s = vec![(unix_now_s(), false); endpoints.len()];
@@ -486,16 +483,16 @@ pub fn run_links(
     }
     let mut session = thread.session;
     let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
-    session.ingestor.stats.dropped_chunks = load(&counters.dropped_chunks);
-    session.ingestor.stats.dropped_bytes = load(&counters.dropped_bytes);
-    session.interrupted = shutdown.load(Ordering::Relaxed);
+    session.stats_mut().dropped_chunks = load(&counters.dropped_chunks);
+    session.stats_mut().dropped_bytes = load(&counters.dropped_bytes);
+    session.set_interrupted(shutdown.load(Ordering::Relaxed));
     let h = &thread.latency_us;
     let report = LinkReport {
         endpoints,
         counts: thread.supervisor.counts,
         vehicles: thread.supervisor.vehicles(),
-        dropped_chunks: session.ingestor.stats.dropped_chunks,
-        dropped_bytes: session.ingestor.stats.dropped_bytes,
+        dropped_chunks: session.stats().dropped_chunks,
+        dropped_bytes: session.stats().dropped_bytes,
         unprocessed_chunks,
         unprocessed_bytes,
         unsent: load(&counters.unsent),

@@ -84,7 +84,7 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
             crate::daa::well_clear::SETTING_HELP
         ))
     })?;
-    session.approaches = crate::collision::approach::Approaches::with_volume(volume);
+    session.set_approaches(crate::collision::approach::Approaches::with_volume(volume));
     if let Some(target) = &args.rerun {
         start_viz(&mut session, target, args.rerun_octree)?;
     }
@@ -319,34 +319,35 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
 
 /// Print what a run found, for a person at a terminal.
 pub fn print_report(session: &Session) {
-    let stats = &session.ingestor.stats;
+    let stats = &session.stats();
     let span = stats.time_span_s.map_or(0.0, |(a, b)| b - a);
     println!(
         "{} messages over {:.1} s from {} vehicle(s); {} bad frames, {} values rejected",
         stats.messages_total(),
         span,
-        session.world.seen.len(),
+        session.world().seen.len(),
         stats.bad_frames(),
         stats.rejected_total()
     );
-    let Some(p) = &session.pipeline else { return };
-    let (median_us, p99_us) = session.tick_costs.percentiles_us();
+    let Some(p) = session.pipeline() else { return };
+    let (median_us, p99_us) = session.tick_costs().percentiles_us();
     println!(
         "{} ticks in {} mode: {} collisions, {} near misses, {} collider swaps, {} telemetry gaps",
-        p.totals.ticks,
-        p.config.mode.name(),
-        p.totals.collisions,
-        p.totals.near_misses,
-        p.totals.swaps,
-        p.totals.telemetry_gaps
+        p.totals().ticks,
+        p.config().mode.name(),
+        p.totals().collisions,
+        p.totals().near_misses,
+        p.totals().swaps,
+        p.totals().telemetry_gaps
     );
     println!(
         "tick cost median {median_us:.1} us, p99 {p99_us:.1} us; {} meshes built ({} triangles)",
-        p.meshes.built, p.meshes.triangles
+        p.meshes().counts().built,
+        p.meshes().counts().triangles
     );
     // Times relative to the first message, as a person reads a flight (`Session::elapsed_s`).
     let t0 = stats.time_span_s.map_or(0.0, |(first, _)| first);
-    for e in &session.notable {
+    for e in session.notable() {
         match &e.kind {
             EventKind::Collision {
                 obstacle,

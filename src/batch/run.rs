@@ -202,7 +202,7 @@ fn fly_encounter(
     };
     let flown = encounter::fly(scene, pipeline, &encounter);
     row.record_run(
-        &flown.pipeline.totals,
+        &flown.pipeline.totals(),
         &flown.events,
         &flown.approaches,
         &flown.tick_costs,
@@ -250,22 +250,18 @@ fn replay_tlog(
     row: &mut RunRow,
 ) -> Result<(), String> {
     let mut session = Session::with_pipeline(scene, pipeline, None).map_err(|e| e.to_string())?;
-    session.approaches = Approaches::with_volume(volume);
+    session.set_approaches(Approaches::with_volume(volume));
     let never = AtomicBool::new(false);
     replay(path, Speed::Max, false, None, &mut session, &never).map_err(|e| e.to_string())?;
     session.finish().map_err(|e| e.to_string())?;
-    let t0_s = session
-        .ingestor
-        .stats
-        .time_span_s
-        .map_or(0.0, |(first, _)| first);
-    row.record_ingest(&session.ingestor.stats);
-    if let Some(p) = &session.pipeline {
+    let t0_s = session.stats().time_span_s.map_or(0.0, |(first, _)| first);
+    row.record_ingest(&session.stats());
+    if let Some(p) = session.pipeline() {
         row.record_run(
-            &p.totals,
-            &session.notable,
-            &session.approaches,
-            &session.tick_costs,
+            &p.totals(),
+            &session.notable(),
+            session.approaches(),
+            &session.tick_costs(),
             t0_s,
         );
     }

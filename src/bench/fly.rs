@@ -156,7 +156,7 @@ pub(crate) fn bench_scene(
         .enumerate()
         .map(|(m, mode)| {
             let (pipeline, startup_s) = &pipelines[m];
-            let totals = &pipeline.totals;
+            let totals = &pipeline.totals();
             let ticks = totals.ticks.max(1) as f64;
             let (median, p99) = percentiles_us(&costs[m].tick_ns);
             let (contact_median, contact_p99) = percentiles_us(&costs[m].contact_ns);
@@ -175,14 +175,14 @@ pub(crate) fn bench_scene(
                 contact_p99_us: contact_p99,
                 sensing_frames: totals.sensing_frames,
                 sensing_median_us: sensing_median,
-                meshes_built_on_contact: pipeline.meshes.built_on_contact,
+                meshes_built_on_contact: pipeline.meshes().counts().built_on_contact,
                 active_box_mean: totals.active_box_sum as f64 / ticks,
                 active_mesh_mean: totals.active_mesh_sum as f64 / ticks,
                 triangles_mean: totals.active_triangles_sum as f64 / ticks,
                 triangles_max: totals.active_triangles_max,
-                memory_bytes: pipeline.octree.memory_bytes() + pipeline.meshes.bytes,
+                memory_bytes: pipeline.octree().memory_bytes() + pipeline.meshes().counts().bytes,
                 startup_s: *startup_s,
-                mesh_build_s: pipeline.meshes.build_time.as_secs_f64(),
+                mesh_build_s: pipeline.meshes().counts().build_time.as_secs_f64(),
                 collisions: sum(|r| r.collisions),
                 missed: sum(|r| r.missed),
                 false_collisions: sum(|r| r.false_collisions),

@@ -128,19 +128,19 @@ pub fn run(
         false_collisions += fa;
     }
     let (cost_median_us, cost_p99_us) = percentiles_us(&tick_ns);
-    let m = &exact.meshes;
+    let m = &exact.meshes();
     ResidencyRow {
         scene: scene.name.clone(),
         mesh_obstacles: mesh_obstacles.len(),
         mesh_triangles,
         all_meshes_bytes,
         budget_bytes: m.budget(),
-        peak_bytes: m.peak_bytes,
-        built: m.built,
-        built_on_contact: m.built_on_contact,
-        evicted: m.evicted,
-        prefetch_refused: m.prefetch_refused,
-        ticks: exact.totals.ticks,
+        peak_bytes: m.counts().peak_bytes,
+        built: m.counts().built,
+        built_on_contact: m.counts().built_on_contact,
+        evicted: m.counts().evicted,
+        prefetch_refused: m.counts().prefetch_refused,
+        ticks: exact.totals().ticks,
         cost_median_us,
         cost_p99_us,
         collisions: truth_count,

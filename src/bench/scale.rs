@@ -154,7 +154,7 @@ pub fn sizes(sizes: &[usize], modes: &[Mode], config: CollisionConfig) -> Vec<Si
                 obstacles: n,
                 mode: mode.name().to_owned(),
                 startup_s,
-                octree_bytes: pipeline.octree.memory_bytes(),
+                octree_bytes: pipeline.octree().memory_bytes(),
                 cost_median_us: median,
                 cost_p99_us: p99,
                 cost_vs_smallest: median / smallest.max(1e-9),

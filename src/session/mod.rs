@@ -34,21 +34,21 @@ const NOTABLE_KEPT: usize = 1000;
 /// A run's state.
 pub struct Session {
     /// Decoding and its counters.
-    pub ingestor: Ingestor,
+    ingestor: Ingestor,
     /// Every track.
-    pub world: WorldStore,
+    world: WorldStore,
     /// The scene, when collisions are checked.
-    pub scene: Option<Arc<Scene>>,
+    scene: Option<Arc<Scene>>,
     /// The collision pipeline, when collisions are checked.
-    pub pipeline: Option<Pipeline>,
+    pipeline: Option<Pipeline>,
     events_out: Option<(PathBuf, BufWriter<File>)>,
     events: Vec<Event>,
     /// Collisions and near misses (the first `NOTABLE_KEPT`, 1000), for the printed report.
-    pub notable: Vec<Event>,
+    notable: Vec<Event>,
     /// Per-tick collision cost.
-    pub tick_costs: crate::costs::TickCosts,
+    tick_costs: crate::costs::TickCosts,
     /// Closest approach of each vehicle to each moving body, on the receive clock.
-    pub approaches: Approaches,
+    approaches: Approaches,
     dynamic: MovingBodies,
     /// Scratch: the moving bodies the world's index found, before they are sorted.
     found: Vec<DynamicBody>,
@@ -60,20 +60,20 @@ pub struct Session {
     last_expire_t_s: f64,
     started: Instant,
     /// Set when the run was stopped by a signal.
-    pub interrupted: bool,
+    interrupted: bool,
     /// The rerun logger, when `--rerun` is on.
     #[cfg(feature = "viz")]
     viz: Option<crate::viz::Logger>,
     ticks: u64,
     /// The closed-loop feed, when `--feed` is on.
-    pub feed: Option<Feed>,
+    feed: Option<Feed>,
     /// Feed messages made and not yet sent (live) or written (replay).
-    pub feed_out: Vec<FeedMessage>,
+    feed_out: Vec<FeedMessage>,
     /// Where replay writes the feed (`--feed-out`): a tlog, encoded as the feed's identity.
     feed_tlog: Option<(PathBuf, TlogWriter<BufWriter<File>>, Outbox)>,
     /// savsim's own MAVLink identities (its GCS, its feed): their frames, echoed back by a
     /// router, are counted and never applied to the world.
-    pub own: Vec<SenderId>,
+    own: Vec<SenderId>,
 }
 
 impl Session {
@@ -143,6 +143,83 @@ impl Session {
         })
     }
 
+    /// What decoding counted.
+    pub fn stats(&self) -> &crate::ingest::stats::IngestStats {
+        &self.ingestor.stats
+    }
+
+    /// What decoding counted, for a reader or a link that counts what it skipped or dropped.
+    pub fn stats_mut(&mut self) -> &mut crate::ingest::stats::IngestStats {
+        &mut self.ingestor.stats
+    }
+
+    /// Every track.
+    pub fn world(&self) -> &WorldStore {
+        &self.world
+    }
+
+    /// The collision pipeline, when collisions are checked.
+    pub fn pipeline(&self) -> Option<&Pipeline> {
+        self.pipeline.as_ref()
+    }
+
+    /// Collisions, near misses and losses of well clear (the first 1000), for the printed
+    /// report.
+    pub fn notable(&self) -> &[Event] {
+        &self.notable
+    }
+
+    /// Per-tick collision cost.
+    pub fn tick_costs(&self) -> &crate::costs::TickCosts {
+        &self.tick_costs
+    }
+
+    /// Closest approaches and well clear, so far.
+    pub fn approaches(&self) -> &Approaches {
+        &self.approaches
+    }
+
+    /// Judge approaches and well clear with `approaches` (before the first message).
+    pub fn set_approaches(&mut self, approaches: Approaches) {
+        self.approaches = approaches;
+    }
+
+    /// Whether the run was stopped by a signal.
+    pub fn interrupted(&self) -> bool {
+        self.interrupted
+    }
+
+    /// Record whether the run was stopped by a signal.
+    pub fn set_interrupted(&mut self, interrupted: bool) {
+        self.interrupted = interrupted;
+    }
+
+    /// The closed-loop feed, when on.
+    pub fn feed(&self) -> Option<&Feed> {
+        self.feed.as_ref()
+    }
+
+    /// Whether feed messages are waiting to be sent.
+    pub fn has_feed_out(&self) -> bool {
+        !self.feed_out.is_empty()
+    }
+
+    /// The feed messages made and not yet sent.
+    pub fn pending_feed(&self) -> &[FeedMessage] {
+        &self.feed_out
+    }
+
+    /// Take the feed messages made and not yet sent.
+    pub fn drain_feed(&mut self) -> std::vec::Drain<'_, FeedMessage> {
+        self.feed_out.drain(..)
+    }
+
+    /// savsim's own MAVLink identities: their frames, echoed back by a router, are never
+    /// applied to the world.
+    pub fn set_own(&mut self, own: Vec<SenderId>) {
+        self.own = own;
+    }
+
     /// Stream this run to rerun. Needs a scene.
     #[cfg(feature = "viz")]
     pub fn start_viz(
@@ -170,7 +247,7 @@ impl Session {
         let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
             return Err(Error::Usage("--rerun needs --scene".into()));
         };
-        let leaves = pipeline.octree.leaves().map(|(_, b, _)| b).collect();
+        let leaves = pipeline.octree().leaves().map(|(_, b, _)| b).collect();
         self.viz = Some(crate::viz::Logger::with_stream(
             rec,
             scene.clone(),
@@ -270,7 +347,7 @@ impl Session {
         let generation = track.generation;
         let start = *self.flight_start_t_s.get_or_insert(current.t_s);
         let watch = traffic::Watch {
-            collision: pipeline.config,
+            collision: *pipeline.config(),
             volume: self.approaches.volume,
             feed: self
                 .feed
@@ -363,7 +440,7 @@ impl Session {
                         .map(|(dir, hit)| (*dir, hit.map(|h| h.distance_m)))
                         .collect()
                 }),
-                ray_length_m: pipeline.config.ray_length_m,
+                ray_length_m: pipeline.config().ray_length_m,
                 feed: self
                     .feed
                     .as_ref()
@@ -371,7 +448,7 @@ impl Session {
                 feed_max_m: self.feed.as_ref().map_or(0.0, |f| f.config.range.max_m),
                 node: sensing
                     .and_then(|s| s.node())
-                    .map(|n| pipeline.octree.node_aabb(n)),
+                    .map(|n| pipeline.octree().node_aabb(n)),
                 colliders: sensing.map_or_else(Vec::new, |s| s.colliders().collect()),
                 dynamic: self
                     .dynamic
@@ -460,11 +537,11 @@ impl Session {
             })
             .collect();
         let collision = self.pipeline.as_ref().map(|p| {
-            let totals = &p.totals;
+            let totals = &p.totals();
             let ticks = totals.ticks.max(1) as f64;
             let (median_us, p99_us) = self.tick_costs.percentiles_us();
             json!({
-                "mode": p.config.mode.name(),
+                "mode": p.config().mode.name(),
                 "ticks": totals.ticks,
                 "collisions": totals.collisions,
                 "collider_swaps": totals.swaps,
@@ -486,18 +563,18 @@ impl Session {
                     "cost_us_median": median_us,
                     "cost_us_p99": p99_us,
                 },
-                "meshes_built": p.meshes.built,
-                "meshes_built_on_contact": p.meshes.built_on_contact,
-                "meshes_evicted": p.meshes.evicted,
-                "meshes_prefetch_refused": p.meshes.prefetch_refused,
-                "meshes_worker_failures": p.meshes.worker_failures,
-                "mesh_budget_bytes": p.meshes.budget(),
-                "mesh_bytes_peak": p.meshes.peak_bytes,
-                "mesh_triangles_built": p.meshes.triangles,
-                "mesh_bytes_built": p.meshes.bytes,
-                "mesh_build_s": p.meshes.build_time.as_secs_f64(),
-                "octree": { "nodes": p.octree.node_count(), "depth": p.octree.depth() },
-                "ahp": p.config.ahp,
+                "meshes_built": p.meshes().counts().built,
+                "meshes_built_on_contact": p.meshes().counts().built_on_contact,
+                "meshes_evicted": p.meshes().counts().evicted,
+                "meshes_prefetch_refused": p.meshes().counts().prefetch_refused,
+                "meshes_worker_failures": p.meshes().counts().worker_failures,
+                "mesh_budget_bytes": p.meshes().budget(),
+                "mesh_bytes_peak": p.meshes().counts().peak_bytes,
+                "mesh_triangles_built": p.meshes().counts().triangles,
+                "mesh_bytes_built": p.meshes().counts().bytes,
+                "mesh_build_s": p.meshes().counts().build_time.as_secs_f64(),
+                "octree": { "nodes": p.octree().node_count(), "depth": p.octree().depth() },
+                "ahp": p.config().ahp,
             })
         });
         json!({

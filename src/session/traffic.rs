@@ -17,6 +17,7 @@ use crate::collision::pipeline::{
 };
 use crate::daa::well_clear::{Volume, FT_M};
 use crate::feed::FeedConfig;
+use crate::ingest::stats::SenderId;
 use crate::scene::{Aabb64, DynamicSource, Kind, Scene};
 use crate::world::{Track, TrackSample, WorldStore, PREDICT_MAX_S};
 
@@ -45,10 +46,7 @@ pub(crate) fn max_model_radius_m(scene: &Scene) -> f64 {
         .chain(scene.kind_models.iter().map(|(_, g)| *g))
         .chain(scene.dynamic.iter().map(|d| d.geometry_index))
         .chain([0]);
-    models
-        .filter_map(|g| scene.geometries.get(g))
-        .map(|g| radius_m(g))
-        .fold(0.0, f64::max)
+    models.map(|g| model_radius_m(scene, g)).fold(0.0, f64::max)
 }
 
 impl Watch {
@@ -86,15 +84,22 @@ impl Watch {
 
 /// One vehicle's interval, as the tick sees it.
 pub(crate) struct Interval<'a> {
-    pub own: crate::ingest::stats::SenderId,
+    pub own: SenderId,
     pub previous: Option<&'a TrackSample>,
     pub current: &'a TrackSample,
     /// Receive time of the run's first vehicle sample (scripted tracks' zero).
     pub flight_start_t_s: f64,
 }
 
-/// The moving obstacles seen by vehicle `interval.own` over its interval, into `out`. Ids are
-/// shared (`Arc<str>`).
+impl Interval<'_> {
+    /// Its start and end times (receive clock, seconds).
+    fn times(&self) -> (f64, f64) {
+        (self.previous.unwrap_or(self.current).t_s, self.current.t_s)
+    }
+}
+
+/// The moving obstacles seen by vehicle `interval.own` over its interval, into `out` (`found`
+/// is scratch). Ids are shared (`Arc<str>`).
 pub(crate) fn fill_dynamic(
     out: &mut MovingBodies,
     found: &mut Vec<DynamicBody>,
@@ -104,21 +109,45 @@ pub(crate) fn fill_dynamic(
     interval: &Interval<'_>,
 ) {
     out.clear();
-    let (own, current) = (interval.own, interval.current);
-    let before = interval.previous.unwrap_or(current);
-    let (t_before, t_now) = (before.t_s, current.t_s);
-    let own_box =
-        Aabb64::new(before.position_enu_m, before.position_enu_m).including(current.position_enu_m);
-    let own_mps = current.velocity_enu_mps.length();
-    let own_radius_m = scene
-        .geometries
-        .get(scene.vehicle_model(own.system_id))
-        .map_or(0.0, |g| radius_m(g));
-    let mut claimed_sysids = [false; 256];
-    let mut claimed_icao: smallvec::SmallVec<[u32; 8]> = smallvec::SmallVec::new();
+    let claims = fill_scripted(out, scene, world, interval);
+    found.clear();
+    fill_nearby(found, scene, world, watch, interval, &claims);
+    // In the order of their keys, whatever order the index found them in.
+    found.sort_unstable_by_key(|b| b.key);
+    out.extend(found.drain(..));
+}
+
+/// The vehicles and aircraft the scene's tracks stand for (they are not traffic twice).
+struct Claims {
+    system_ids: [bool; 256],
+    icao: smallvec::SmallVec<[u32; 8]>,
+}
+
+/// The scene's tracks (scripted, or standing for a vehicle or an aircraft) over the interval.
+fn fill_scripted(
+    out: &mut MovingBodies,
+    scene: &Scene,
+    world: &WorldStore,
+    interval: &Interval<'_>,
+) -> Claims {
+    let mut claims = Claims {
+        system_ids: [false; 256],
+        icao: smallvec::SmallVec::new(),
+    };
+    let times = interval.times();
     for (index, d) in scene.dynamic.iter().enumerate() {
-        match &d.source {
-            DynamicSource::Waypoints(w) => out.push(DynamicBody::on_track(
+        let who = |generation| Identity {
+            key: BodyKey {
+                source: BodySource::Scripted(index as u32),
+                generation,
+            },
+            id: &d.id,
+            kind: d.kind,
+            threat: d.threat,
+            geometry_index: d.geometry_index,
+        };
+        let body = match &d.source {
+            DynamicSource::Waypoints(w) => Some(DynamicBody::on_track(
                 index as u32,
                 d.id.clone(),
                 d.kind,
@@ -126,109 +155,116 @@ pub(crate) fn fill_dynamic(
                 d.geometry_index,
                 w,
                 (
-                    t_before - interval.flight_start_t_s,
-                    t_now - interval.flight_start_t_s,
+                    times.0 - interval.flight_start_t_s,
+                    times.1 - interval.flight_start_t_s,
                 ),
             )),
             DynamicSource::SystemId(id) => {
-                claimed_sysids[usize::from(*id)] = true;
-                let history = world
+                claims.system_ids[usize::from(*id)] = true;
+                world
                     .vehicle_of_system(*id)
-                    .filter(|_| *id != own.system_id)
-                    .map(|v| (&v.history, v.generation));
-                let who = |generation| Identity {
-                    key: BodyKey {
-                        source: BodySource::Scripted(index as u32),
-                        generation,
-                    },
-                    id: &d.id,
-                    kind: d.kind,
-                    threat: d.threat,
-                    geometry_index: d.geometry_index,
-                };
-                if let Some(b) = history.and_then(|(h, g)| predicted(h, who(g), (t_before, t_now)))
-                {
-                    out.push(b);
-                }
+                    .filter(|_| *id != interval.own.system_id)
+                    .and_then(|v| predicted(&v.history, who(v.generation), times))
             }
             DynamicSource::Icao(icao) => {
-                claimed_icao.push(*icao);
-                let found = world.traffic.get(icao).and_then(|tr| {
-                    let who = Identity {
-                        key: BodyKey {
-                            source: BodySource::Scripted(index as u32),
-                            generation: tr.generation,
-                        },
-                        id: &d.id,
-                        kind: d.kind,
-                        threat: d.threat,
-                        geometry_index: d.geometry_index,
-                    };
-                    predicted(&tr.history, who, (t_before, t_now))
-                });
-                out.extend(found);
-            }
-        }
-    }
-    // Other MAVLink vehicles and ADS-B traffic within the watch range.
-    let reach_m =
-        watch.range_m(own_mps, world.max_speed_mps()) + own_radius_m + watch.max_model_radius_m;
-    let region = own_box.inflated(reach_m);
-    found.clear();
-    world.tracks_near(&region, t_before, t_now, |track| {
-        let body = match track {
-            Track::Vehicle(v) => {
-                if v.id.system_id == own.system_id || claimed_sysids[usize::from(v.id.system_id)] {
-                    return;
-                }
-                let who = Identity {
-                    key: BodyKey {
-                        source: BodySource::Vehicle {
-                            vehicle: u16::from(v.id.system_id),
-                            component_id: v.id.component_id,
-                        },
-                        generation: v.generation,
-                    },
-                    id: &v.label,
-                    kind: Kind::Dji,
-                    threat: scene.threat_of(Kind::Dji),
-                    geometry_index: scene.vehicle_model(v.id.system_id),
-                };
-                predicted(&v.history, who, (t_before, t_now))
-            }
-            Track::Traffic(tr) => {
-                if claimed_icao.contains(&tr.icao_address) {
-                    return;
-                }
-                let kind = Kind::from_adsb_emitter(tr.emitter_type);
-                let who = Identity {
-                    key: BodyKey {
-                        source: BodySource::Traffic(tr.icao_address),
-                        generation: tr.generation,
-                    },
-                    id: &tr.label,
-                    kind,
-                    threat: scene.threat_of(kind),
-                    geometry_index: scene.kind_model(kind),
-                };
-                predicted(&tr.history, who, (t_before, t_now))
+                claims.icao.push(*icao);
+                world
+                    .traffic
+                    .get(icao)
+                    .and_then(|tr| predicted(&tr.history, who(tr.generation), times))
             }
         };
-        let Some(body) = body else { return };
+        out.extend(body);
+    }
+    claims
+}
+
+/// The other vehicles and the ADS-B traffic within the watch range of the interval, into
+/// `found`, in the order the world's index finds them.
+fn fill_nearby(
+    found: &mut Vec<DynamicBody>,
+    scene: &Scene,
+    world: &mut WorldStore,
+    watch: &Watch,
+    interval: &Interval<'_>,
+    claims: &Claims,
+) {
+    let current = interval.current;
+    let before = interval.previous.unwrap_or(current);
+    let times = interval.times();
+    let own_box =
+        Aabb64::new(before.position_enu_m, before.position_enu_m).including(current.position_enu_m);
+    let own_mps = current.velocity_enu_mps.length();
+    let own_radius_m = model_radius_m(scene, scene.vehicle_model(interval.own.system_id));
+    let reach_m =
+        watch.range_m(own_mps, world.max_speed_mps()) + own_radius_m + watch.max_model_radius_m;
+    world.tracks_near(&own_box.inflated(reach_m), times.0, times.1, |track| {
+        let Some(body) = body_of(scene, track, interval.own, claims, times) else {
+            return;
+        };
         let body_box = Aabb64::new(body.previous.position_enu_m, body.previous.position_enu_m)
             .including(body.current.position_enu_m);
-        let body_radius_m = scene
-            .geometries
-            .get(body.geometry_index)
-            .map_or(0.0, |g| radius_m(g));
-        let within_m = watch.range_m(own_mps, body.speed_mps) + own_radius_m + body_radius_m;
+        let within_m = watch.range_m(own_mps, body.speed_mps)
+            + own_radius_m
+            + model_radius_m(scene, body.geometry_index);
         if own_box.distance_to_box(&body_box) <= within_m {
             found.push(body);
         }
     });
-    // In the order of their keys, whatever order the index found them in.
-    found.sort_unstable_by_key(|b| b.key);
-    out.extend(found.drain(..));
+}
+
+/// A track as a moving body over `times`: `None` for the vehicle itself, a track the scene's
+/// tracks claim, or one with no sample.
+fn body_of(
+    scene: &Scene,
+    track: Track<'_>,
+    own: SenderId,
+    claims: &Claims,
+    times: (f64, f64),
+) -> Option<DynamicBody> {
+    match track {
+        Track::Vehicle(v) => {
+            if v.id.system_id == own.system_id || claims.system_ids[usize::from(v.id.system_id)] {
+                return None;
+            }
+            let who = Identity {
+                key: BodyKey {
+                    source: BodySource::Vehicle {
+                        vehicle: u16::from(v.id.system_id),
+                        component_id: v.id.component_id,
+                    },
+                    generation: v.generation,
+                },
+                id: &v.label,
+                kind: Kind::Dji,
+                threat: scene.threat_of(Kind::Dji),
+                geometry_index: scene.vehicle_model(v.id.system_id),
+            };
+            predicted(&v.history, who, times)
+        }
+        Track::Traffic(tr) => {
+            if claims.icao.contains(&tr.icao_address) {
+                return None;
+            }
+            let kind = Kind::from_adsb_emitter(tr.emitter_type);
+            let who = Identity {
+                key: BodyKey {
+                    source: BodySource::Traffic(tr.icao_address),
+                    generation: tr.generation,
+                },
+                id: &tr.label,
+                kind,
+                threat: scene.threat_of(kind),
+                geometry_index: scene.kind_model(kind),
+            };
+            predicted(&tr.history, who, times)
+        }
+    }
+}
+
+/// The radius of geometry `index` (0 when the scene has none such), metres.
+fn model_radius_m(scene: &Scene, index: usize) -> f64 {
+    scene.geometries.get(index).map_or(0.0, |g| radius_m(g))
 }
 
 /// Who a moving body is.

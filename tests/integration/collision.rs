@@ -135,7 +135,7 @@ fn crossing_node_boundaries_drops_the_old_nodes_colliders() {
         10.0,
     );
     let (pipeline, events) = fly(&s, Mode::Paper, &flight);
-    assert!(pipeline.octree.depth() >= 4);
+    assert!(pipeline.octree().depth() >= 4);
     // Every obstacle's swaps chain (from = previous to), start from none, and some end in none.
     let mut left = 0;
     for o in &s.obstacles {
@@ -156,7 +156,7 @@ fn an_obstacle_just_across_a_node_face_is_not_hidden() {
     let s0 = scene(&base);
     let probe = Pipeline::new(&s0, CollisionConfig::default());
     let p = DVec3::new(10.0, 20.0, 3.0);
-    let leaf = probe.octree.node_aabb(probe.octree.leaf_at(p).unwrap());
+    let leaf = probe.octree().node_aabb(probe.octree().leaf_at(p).unwrap());
     let face_x = leaf.max.x;
     // A wall whose west face is 5 cm beyond the leaf's east face.
     let wall = obstacle(
@@ -171,8 +171,8 @@ fn an_obstacle_just_across_a_node_face_is_not_hidden() {
     let pipeline = Pipeline::new(&s, CollisionConfig::default());
     assert_eq!(
         pipeline
-            .octree
-            .node_aabb(pipeline.octree.leaf_at(stop).unwrap())
+            .octree()
+            .node_aabb(pipeline.octree().leaf_at(stop).unwrap())
             .max
             .x,
         face_x

@@ -109,7 +109,7 @@ fn live_udp_survives_faults_and_accounts_for_every_frame() {
         }
         sent
     });
-    let stats = &session.ingestor.stats;
+    let stats = &session.stats();
     assert_eq!(stats.count_of(33), sent.valid, "{:?}", stats.to_summary());
     assert_eq!(stats.garbage_bytes, sent.garbage_bytes);
     assert_eq!(stats.bad_crc, 0);
@@ -127,9 +127,9 @@ fn live_udp_survives_faults_and_accounts_for_every_frame() {
         system_id: 8,
         component_id: 1,
     };
-    assert!(session.world.vehicles.contains_key(&eight));
-    assert_eq!(session.world.seen[&eight].boot_resets, 1);
-    assert_eq!(session.world.seen[&eight].positions, 100);
+    assert!(session.world().vehicles.contains_key(&eight));
+    assert_eq!(session.world().seen[&eight].boot_resets, 1);
+    assert_eq!(session.world().seen[&eight].positions, 100);
 }
 
 #[test]
@@ -163,7 +163,7 @@ fn live_udp_holds_a_10_s_burst_of_100k_messages_per_second() {
         }
         (sent, start.elapsed())
     });
-    let stats = &session.ingestor.stats;
+    let stats = &session.stats();
     let rate = frames as f64 / elapsed.as_secs_f64();
     let seven = stats.sequence[&SenderId {
         system_id: 7,

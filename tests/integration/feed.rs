@@ -169,7 +169,7 @@ fn sector_bin_and_rangefinder_distances_match_an_exact_ray_cast_within_a_centime
                 &pose_frames(&plane, 1, &mut seq, t_ms, pose),
             );
             let origin = session
-                .world
+                .world()
                 .vehicles
                 .values()
                 .next()
@@ -179,7 +179,7 @@ fn sector_bin_and_rangefinder_distances_match_an_exact_ray_cast_within_a_centime
                 .unwrap()
                 .position_enu_m;
             let (_, roll, pitch, yaw) = pose;
-            let out: Vec<FeedMessage> = std::mem::take(&mut session.feed_out);
+            let out: Vec<FeedMessage> = session.drain_feed().collect();
             assert!(
                 !out.is_empty(),
                 "a frame for every sample 100 ms apart at 20 Hz"
@@ -418,7 +418,7 @@ fn two_vehicles_are_fed_live_each_at_its_own_address_and_an_echo_is_ignored() {
         None,
     );
     // The echoed feed (ADS-B of vehicle 2 included) was counted, never applied to the world.
-    let world = &run.session.world;
+    let world = &run.session.world();
     assert_eq!(
         world
             .vehicles
@@ -495,10 +495,12 @@ fn frame_stamps(hz: f64, times_ms: &[u32]) -> (Vec<u32>, serde_json::Value) {
             t_s,
             &pose_frames(&plane, 1, &mut seq, t_ms, pose),
         );
-        if let Some(MavMessage::DISTANCE_SENSOR(d)) = session.feed_out.first().map(|m| &m.message) {
+        if let Some(MavMessage::DISTANCE_SENSOR(d)) =
+            session.pending_feed().first().map(|m| &m.message)
+        {
             stamps.push(d.time_boot_ms);
         }
-        session.feed_out.clear();
+        session.drain_feed().for_each(drop);
     }
     let summary = session.summary("replay", "test");
     (stamps, summary["feed"]["vehicles"][0].clone())
@@ -639,7 +641,7 @@ fn traffic_the_vehicle_re_streams_is_not_read_back_as_traffic() {
         let t_s = 1000.0 + f64::from(i) * 0.1;
         let mut bytes = pose_frames(&plane, 1, &mut seq, 60_000 + i * 100, pose);
         // Last sample's ADS-B, handed back by the vehicle (1/1) ...
-        for m in session.feed_out.drain(..) {
+        for m in session.drain_feed() {
             if let MavMessage::ADSB_VEHICLE(mut a) = m.message {
                 bytes.extend(frame_v2(1, 1, seq, &MavMessage::ADSB_VEHICLE(a.clone())));
                 echoed += 1;
@@ -658,7 +660,7 @@ fn traffic_the_vehicle_re_streams_is_not_read_back_as_traffic() {
         feed(&mut session, t_s, &bytes);
     }
     assert!(echoed >= 5, "the feed sent ADS-B {echoed} times");
-    let traffic: Vec<u32> = session.world.traffic.keys().copied().collect();
+    let traffic: Vec<u32> = session.world().traffic.keys().copied().collect();
     assert_eq!(
         traffic,
         [0x48_40D6],

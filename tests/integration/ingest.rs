@@ -235,7 +235,7 @@ fn tlog_written_by_pymavlink_matches_pymavlink_counts() {
     );
     let want: BTreeMap<String, u64> = serde_json::from_str(out.trim()).unwrap();
     let session = crate::common::replay_into_session(&path, None);
-    let stats = &session.ingestor.stats;
+    let stats = &session.stats();
     let got: BTreeMap<String, u64> = stats
         .messages_by_name()
         .into_iter()
@@ -251,8 +251,8 @@ fn tlog_written_by_pymavlink_matches_pymavlink_counts() {
     assert_eq!(stats.clock_backwards, 1);
     assert!(stats.truncated_at.is_some());
     // Two vehicles and one ADS-B aircraft in the world.
-    assert_eq!(session.world.seen.len(), 2);
-    assert_eq!(session.world.traffic.len(), 1);
+    assert_eq!(session.world().seen.len(), 2);
+    assert_eq!(session.world().traffic.len(), 1);
 }
 
 /// PX4 SITL started again after a shutdown is silent for 0.49 s and numbers its frames from 0

@@ -203,11 +203,11 @@ fn a_session_survives_expiry_and_a_new_lower_sysid() {
         feed(&mut session, t, &bytes);
     }
     session.finish().unwrap();
-    assert!(session.world.expired >= 1, "vehicle 9 expired");
-    let on_1 = collisions_on(&session.notable, 1);
+    assert!(session.world().expired >= 1, "vehicle 9 expired");
+    let on_1 = collisions_on(&session.notable(), 1);
     assert_eq!(on_1.len(), 1, "{on_1:?}");
     assert_eq!(on_1[0].0, "wall");
-    let on_3 = collisions_on(&session.notable, 3);
+    let on_3 = collisions_on(&session.notable(), 3);
     assert_eq!(on_3.len(), 1, "{on_3:?}");
     assert_eq!(on_3[0].0, "wall");
 }
@@ -259,8 +259,8 @@ fn two_samples_in_one_tcp_read_are_swept_apart() {
     // The server sends for about 2 s, then closes; savsim would reconnect, and stops at 4 s.
     let run = crate::common::run_live(&runtime, vec![link], Duration::from_secs(4), session, None);
     let session = run.session;
-    assert_eq!(session.ingestor.stats.count_of(33), 10);
-    let hits = collisions_on(&session.notable, 1);
+    assert_eq!(session.stats().count_of(33), 10);
+    let hits = collisions_on(&session.notable(), 1);
     assert_eq!(hits.len(), 1, "{hits:?}");
     assert_eq!(hits[0].0, "wall");
 }
@@ -319,7 +319,7 @@ fn a_reboot_in_the_middle_of_a_contact_starts_a_new_episode() {
         );
     }
     session.finish().unwrap();
-    let hits = collisions_on(&session.notable, 1);
+    let hits = collisions_on(&session.notable(), 1);
     assert_eq!(hits.len(), 2, "{hits:?}");
     assert!((hits[1].1 - 1003.0).abs() < 1e-6, "{hits:?}");
     let summary = session.summary("test", "frames");
@@ -358,8 +358,8 @@ fn vehicles_collide_with_each_other() {
         feed(&mut session, t, &bytes);
     }
     session.finish().unwrap();
-    let on_1 = collisions_on(&session.notable, 1);
-    let on_2 = collisions_on(&session.notable, 2);
+    let on_1 = collisions_on(&session.notable(), 1);
+    let on_2 = collisions_on(&session.notable(), 2);
     assert_eq!(on_1.len(), 1, "{on_1:?}");
     assert_eq!(on_2.len(), 1, "{on_2:?}");
     assert_eq!(on_1[0].0, "vehicle:2");
@@ -472,14 +472,21 @@ fn a_mesh_budget_smaller_than_the_flight_needs_misses_nothing() {
         assert_eq!(a.0, b.0);
         assert!((a.1 - b.1).abs() <= 1e-3, "{a:?} vs {b:?}");
     }
-    assert!(exact.meshes.evicted > 0, "the budget forced evictions");
+    assert!(
+        exact.meshes().counts().evicted > 0,
+        "the budget forced evictions"
+    );
     let budget = (budget_mib * 1024.0 * 1024.0) as usize;
     assert!(
-        exact.meshes.peak_bytes <= budget + 200_000,
+        exact.meshes().counts().peak_bytes <= budget + 200_000,
         "held {} at most, budget {budget}",
-        exact.meshes.peak_bytes
+        exact.meshes().counts().peak_bytes
     );
-    assert!(exact.meshes.bytes <= budget, "held {}", exact.meshes.bytes);
+    assert!(
+        exact.meshes().counts().bytes <= budget,
+        "held {}",
+        exact.meshes().counts().bytes
+    );
 }
 
 fn turning_flight(yaw_rate_radps: f64, roll_rad: f64, climb_mps: f64) -> Vec<TrackSample> {
@@ -650,24 +657,32 @@ fn a_session_on_a_shared_pipeline_reports_what_a_fresh_one_does() {
     };
     let mut fresh = Session::new(Some(s.clone()), CollisionConfig::default(), None).unwrap();
     fly(&mut fresh);
-    let fresh_pipeline = fresh.pipeline.as_ref().unwrap();
-    assert_eq!(collisions_on(&fresh.notable, 1)[0].0, "u-plan");
+    let fresh_pipeline = fresh.pipeline().unwrap();
+    assert_eq!(collisions_on(fresh.notable(), 1)[0].0, "u-plan");
     // The terrain's exact shape is a height field and the blocks' a compound: no mesh at all.
-    assert_eq!(fresh_pipeline.meshes.built, 0, "exact builds no mesh here");
+    assert_eq!(
+        fresh_pipeline.meshes().counts().built,
+        0,
+        "exact builds no mesh here"
+    );
 
     let mut shared = Pipeline::new(&s, CollisionConfig::default());
     shared.build_every_mesh(&s);
-    let built = shared.meshes.built;
+    let built = shared.meshes().counts().built;
     assert_eq!(built, 3);
     for _ in 0..2 {
         let mut session = Session::with_pipeline(s.clone(), shared.clone(), None).unwrap();
         fly(&mut session);
-        let pipeline = session.pipeline.as_ref().unwrap();
-        assert_eq!(session.notable, fresh.notable);
-        assert_eq!(pipeline.totals, fresh_pipeline.totals);
-        assert_eq!(pipeline.meshes.built, built, "no mesh was built again");
+        let pipeline = session.pipeline().unwrap();
+        assert_eq!(session.notable(), fresh.notable());
+        assert_eq!(pipeline.totals(), fresh_pipeline.totals());
+        assert_eq!(
+            pipeline.meshes().counts().built,
+            built,
+            "no mesh was built again"
+        );
     }
-    assert_eq!(shared.totals.ticks, 0, "the shared pipeline is untouched");
+    assert_eq!(shared.totals().ticks, 0, "the shared pipeline is untouched");
 }
 
 /// A swarm large enough for the moving bodies' own broad phase (its `Bvh`): pairs of quads
@@ -765,15 +780,15 @@ fn the_mesh_worker_changes_where_meshes_are_built_and_nothing_else() {
                 ..config(Mode::Exact)
             },
         );
-        p.meshes.set_worker(worker);
+        p.set_mesh_worker(worker);
         let events = run_samples(&mut p, &s, 1, &flight, &[]).1;
-        let m = &p.meshes;
+        let m = &p.meshes();
         let counts = (
-            m.built,
-            m.built_on_contact,
-            m.evicted,
-            m.peak_bytes,
-            m.prefetch_refused,
+            m.counts().built,
+            m.counts().built_on_contact,
+            m.counts().evicted,
+            m.counts().peak_bytes,
+            m.counts().prefetch_refused,
         );
         (events, counts)
     };

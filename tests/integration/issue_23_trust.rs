@@ -241,14 +241,14 @@ fn the_rangefinder_reads_terrain_under_a_hovering_pitched_and_rolled_vehicle() {
                 {
                     bytes.extend(frame_v2(1, 1, (4 * i + 2 * again as usize + k) as u8, m));
                 }
-                swaps_before = session.pipeline.as_ref().unwrap().totals.swaps;
+                swaps_before = session.pipeline().unwrap().totals().swaps;
                 feed(&mut session, 100.0 + f64::from(t_ms - 19_900) / 1e3, &bytes);
             }
-            if session.pipeline.as_ref().unwrap().totals.swaps == swaps_before {
+            if session.pipeline().unwrap().totals().swaps == swaps_before {
                 sensing_checked += sensing_rays_agree(&session, &tris, &format!("{name} pose {i}"));
             }
             let sample = *session
-                .world
+                .world()
                 .vehicles
                 .values()
                 .next()
@@ -257,7 +257,7 @@ fn the_rangefinder_reads_terrain_under_a_hovering_pitched_and_rolled_vehicle() {
                 .latest()
                 .unwrap();
             let down = sample.attitude.enu_from_frd * DVec3::Z;
-            let messages: Vec<MavMessage> = session.feed_out.drain(..).map(|m| m.message).collect();
+            let messages: Vec<MavMessage> = session.drain_feed().map(|m| m.message).collect();
             let want = analytic_cast(&tris, sample.position_enu_m, down, 40.0);
             let got = rangefinder_m(&messages);
             assert!(
@@ -282,10 +282,10 @@ fn the_rangefinder_reads_terrain_under_a_hovering_pitched_and_rolled_vehicle() {
 /// terrain held as its exact shape (a `mesh` collider; a `box` collider is the paper's box, not
 /// the ground) meet it where the analytic cast does.
 fn sensing_rays_agree(session: &Session, tris: &[[DVec3; 3]], what: &str) -> usize {
-    let pipeline = session.pipeline.as_ref().unwrap();
+    let pipeline = session.pipeline().unwrap();
     let sensing = &pipeline.vehicle(1, 1).unwrap().sensing;
     let origin = session
-        .world
+        .world()
         .vehicles
         .values()
         .next()
@@ -333,7 +333,7 @@ fn wall_session() -> Session {
 /// The collisions with the wall the session reported: (`t`, `time_of_impact`, swept).
 fn wall_collisions(session: &Session) -> Vec<(f64, f64, bool)> {
     session
-        .notable
+        .notable()
         .iter()
         .filter_map(|e| match &e.kind {
             savsim::collision::events::EventKind::Collision {
@@ -376,7 +376,7 @@ fn a_quick_reboot_is_a_new_track_whose_first_interval_is_swept() {
         );
         feed(&mut session, 108.5 + 0.1 * k as f64, &bytes);
     }
-    let seen = session.world.seen.values().next().unwrap();
+    let seen = session.world().seen.values().next().unwrap();
     assert_eq!(seen.boot_resets, 1, "{seen:?}");
     let hits = wall_collisions(&session);
     assert_eq!(hits.len(), 1, "{hits:?}");
@@ -589,8 +589,7 @@ fn hover_at(session: &mut Session, sysid: u8, at: Geodetic, t_ms: u32) -> Vec<Ma
     }
     feed(session, 10.0 + f64::from(t_ms) / 1e3, &bytes);
     session
-        .feed_out
-        .drain(..)
+        .drain_feed()
         .filter(|m| m.to.system_id == sysid)
         .map(|m| m.message)
         .collect()
@@ -635,7 +634,7 @@ fn levelled_sectors_are_level_where_the_vehicle_is() {
     let at = east_of_origin(100_000.0, 50.0);
     hover_at(&mut session, 1, at, 1000);
     let p = plane.enu_m_from_geodetic(&at);
-    let readings = session.feed.as_ref().unwrap().readings().to_vec();
+    let readings = session.feed().unwrap().readings().to_vec();
     assert_eq!(readings.len(), 9);
     for r in readings.iter().filter(|r| r.dir_enu.z.abs() < 0.5) {
         // 30 m along a level ray the height above the ellipsoid changes by the earth's
@@ -764,7 +763,7 @@ fn adsb_reports_are_read_by_their_flags_and_altitude_type() {
     feed(&mut session, 1.0, &adsb_frame(0x13, 0x03, 1));
     // QNH barometric altitude: kept, and counted apart.
     feed(&mut session, 1.0, &adsb_frame(0x14, 0x1FF, 0));
-    let traffic = &session.world.traffic;
+    let traffic = &session.world().traffic;
     assert_eq!(
         traffic.keys().copied().collect::<Vec<_>>(),
         [0x10, 0x13, 0x14]
@@ -777,7 +776,7 @@ fn adsb_reports_are_read_by_their_flags_and_altitude_type() {
     );
     assert_eq!(v(0x13), DVec3::ZERO);
     assert!(traffic[&0x14].pressure_altitude && !traffic[&0x10].pressure_altitude);
-    let rejected = &session.ingestor.stats.rejected;
+    let rejected = &session.stats().rejected;
     assert_eq!(
         rejected.get(&savsim::ingest::decode::Rejection::AdsbNoPosition),
         Some(&2)
@@ -815,7 +814,7 @@ fn one_far_future_tlog_timestamp_does_not_freeze_the_clock() {
     w.flush().unwrap();
     drop(w);
     let session = crate::common::replay_into_session(&flight, None);
-    let stats = &session.ingestor.stats;
+    let stats = &session.stats();
     eprintln!(
         "records {} outliers {} jumps {} back {} span {:?}",
         stats.tlog_records,
@@ -828,7 +827,7 @@ fn one_far_future_tlog_timestamp_does_not_freeze_the_clock() {
     let (first, last) = stats.time_span_s.unwrap();
     assert!((last - first - 9.9).abs() < 1e-6, "{first} {last}");
     let latest = session
-        .world
+        .world()
         .vehicles
         .values()
         .next()

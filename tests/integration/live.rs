@@ -269,11 +269,11 @@ fn live_udp_mirrors_the_vehicle_and_requests_rates() {
     );
     let (session, heard) = (&run.session, &heard[0]);
     // Every position sent was received and decoded (loopback loses nothing at 20 Hz).
-    let stats = &session.ingestor.stats;
+    let stats = &session.stats();
     assert!(heard.sent_positions > 20, "{heard:?}");
     assert_eq!(stats.count_of(33) as usize, heard.sent_positions);
     assert_eq!(stats.dropped_chunks, 0);
-    let track = &session.world.vehicles[&sender(7)];
+    let track = &session.world().vehicles[&sender(7)];
     let latest = track.history.latest().unwrap();
     let (lat, lon, alt) = heard.last_position.unwrap();
     let want = Geodetic::new(lat as f64 * 1e-7, lon as f64 * 1e-7, alt as f64 * 1e-3);
@@ -312,7 +312,7 @@ fn two_vehicles_on_one_udpin_link_are_each_asked_at_their_own_address() {
         assert!(h.gcs_heartbeats >= 2, "{b:?} {h:?}");
         assert!(h.interval_requests.contains_key(&33), "{b:?} {h:?}");
         assert_eq!(h.misaddressed, 0, "{b:?} {h:?}");
-        let seen = run.session.world.seen[&sender(b.sysid)];
+        let seen = run.session.world().seen[&sender(b.sysid)];
         assert_eq!(seen.positions as usize, h.sent_positions, "{b:?}");
         assert!(h.sent_positions > 10, "{b:?} {h:?}");
     }
@@ -331,14 +331,14 @@ fn a_rebooted_ardupilot_is_asked_again_and_its_sequence_restarts() {
     let h = &heard[0];
     // Streams came back after the reboot because savsim asked again.
     assert!(h.positions_after_reboot > 10, "{h:?}");
-    let stats = &run.session.ingestor.stats;
+    let stats = &run.session.stats();
     assert_eq!(stats.count_of(33) as usize, h.sent_positions);
     let seq = stats.sequence[&sender(3)];
     assert_eq!((seq.lost, seq.late), (0, 0), "{seq:?}");
     assert!(seq.restarts >= 1, "{seq:?}");
     let v = &run.report.vehicles[0];
     assert!(v.reboots + v.returns + v.re_requests >= 1, "{v:?}");
-    assert_eq!(run.session.world.seen[&sender(3)].boot_resets, 1);
+    assert_eq!(run.session.world().seen[&sender(3)].boot_resets, 1);
 }
 
 #[test]
@@ -361,7 +361,7 @@ fn a_px4_reboot_restores_the_asked_rate() {
         run.report.counts
     );
     assert_eq!(heard[0].data_stream_requests, 0);
-    let seq = run.session.ingestor.stats.sequence[&sender(4)];
+    let seq = run.session.stats().sequence[&sender(4)];
     assert_eq!((seq.lost, seq.late), (0, 0), "{seq:?}");
 }
 
@@ -377,7 +377,7 @@ fn a_forwarded_companion_is_never_asked_and_counted_apart() {
     assert_eq!(run.report.vehicles.len(), 1);
     // The companion's frames share the vehicle's sequence (one router), so as a sender of its
     // own it shows gaps: those are counted apart from the vehicle's link quality.
-    let summary = run.session.ingestor.stats.to_summary();
+    let summary = run.session.stats().to_summary();
     assert_eq!(summary.sequence.senders, 1);
     assert_eq!(summary.sequence.lost, 0);
     assert_eq!(summary.forwarded_sequence.senders, 1);
@@ -397,10 +397,10 @@ fn recording_is_a_tlog_pymavlink_reads_with_the_same_counts() {
         Duration::from_millis(2500),
         Some(&path),
     );
-    let ours = run.session.ingestor.stats.messages_by_name();
+    let ours = run.session.stats().messages_by_name();
     // savsim reads its own recording back identically.
     let again = crate::common::replay_into_session(&path, None);
-    assert_eq!(again.ingestor.stats.messages_by_name(), ours);
+    assert_eq!(again.stats().messages_by_name(), ours);
     if !have_pymavlink() {
         return;
     }
@@ -454,7 +454,7 @@ fn live_tcp_reassembles_frames_across_reads() {
         .unwrap();
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
     let run = run_live(&runtime, vec![link], Duration::from_secs(2), session, None);
-    let stats = &run.session.ingestor.stats;
+    let stats = &run.session.stats();
     assert_eq!(stats.count_of(33) as usize, sent);
     assert_eq!(stats.garbage_bytes as usize, 2 * sent);
     assert_eq!(stats.bad_crc, 0);
@@ -516,14 +516,14 @@ fn tcpout_waits_for_its_server_and_reconnects_beside_a_udp_link() {
     // Two rounds served; savsim may have connected once more before the server went away.
     assert!(run.report.connects >= 2, "{:?}", run.report);
     assert!(run.report.closes >= 2, "{:?}", run.report);
-    let seen = &run.session.world.seen;
+    let seen = &run.session.world().seen;
     for sysid in [10, 11, 20] {
         assert!(
             seen.get(&sender(sysid)).is_some_and(|s| s.positions > 5),
             "{sysid}: {seen:?}"
         );
     }
-    let stats = &run.session.ingestor.stats;
+    let stats = &run.session.stats();
     let sent = tcp_heard.lock().unwrap().sent_positions + udp_heard.lock().unwrap().sent_positions;
     assert_eq!(stats.count_of(33) as usize, sent);
 }
@@ -557,7 +557,7 @@ fn tcpin_interrupted_while_waiting_ends_cleanly() {
     )
     .unwrap();
     assert!(run.ended.is_ok());
-    assert!(run.session.interrupted);
+    assert!(run.session.interrupted());
     assert_eq!(run.report.silences, 1);
     assert!(started.elapsed() < Duration::from_secs(8));
 }

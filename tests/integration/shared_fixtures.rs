@@ -31,7 +31,7 @@ fn message_counts_equal_pymavlink_on_every_real_tlog() {
         )
         .unwrap();
         let session = crate::common::replay_into_session(&path, None);
-        let stats = &session.ingestor.stats;
+        let stats = &session.stats();
         let got = stats.messages_by_name();
         let bad_prefix = expected.bad_data.get("Bad prefix").copied().unwrap_or(0);
         let mut extra = 0;
@@ -68,6 +68,6 @@ fn bad_crc_frames_of_other_dialects_are_skipped_by_length() {
     let Some(dir) = shared_fixtures() else { return };
     let path = dir.join("tlogs/ardusub_log_tools__pymavlink_bug_2023-04-18_11-03-34.tlog");
     let session = crate::common::replay_into_session(&path, None);
-    assert_eq!(session.ingestor.stats.bad_crc, 1967);
-    assert_eq!(session.ingestor.stats.garbage_bytes, 0, "stayed aligned");
+    assert_eq!(session.stats().bad_crc, 1967);
+    assert_eq!(session.stats().garbage_bytes, 0, "stayed aligned");
 }

@@ -127,8 +127,8 @@ pub(crate) fn two_vehicles_to_the_end(
         }))
         .unwrap()
     );
-    let world = &run.session.world;
-    let end = run.session.ingestor.stats.time_span_s.unwrap().1;
+    let world = &run.session.world();
+    let end = run.session.stats().time_span_s.unwrap().1;
     for sysid in [1, 2] {
         let id = SenderId {
             system_id: sysid,
@@ -144,7 +144,7 @@ pub(crate) fn two_vehicles_to_the_end(
             "vehicle {sysid} stopped {:.1} s before the end",
             end - last
         );
-        let seq = run.session.ingestor.stats.sequence[&id];
+        let seq = run.session.stats().sequence[&id];
         assert!(
             seq.lost == 0 && seq.late <= most_late,
             "vehicle {sysid}: {seq:?}"
@@ -200,7 +200,7 @@ fn two_arducopters_on_one_udp_link_one_rebooted() {
         eprintln!("{}: {}", d.display(), tail.join(" | "));
     }
     two_vehicles_to_the_end(&run, "sitl", 0);
-    let world = &run.session.world;
+    let world = &run.session.world();
     let first = run
         .report
         .vehicles

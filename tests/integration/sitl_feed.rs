@@ -425,7 +425,7 @@ fn fly(bin: &PathBuf, with_feed: bool, speedup: f64) -> ((f64, f64, f64), u64, u
     });
     let end = flight.gcs.heard().east_north_up.unwrap();
     let run = flight.finish();
-    let totals = run.session.pipeline.as_ref().unwrap().totals.clone();
+    let totals = run.session.pipeline().unwrap().totals().clone();
     let summary = run.session.summary("live", "sitl");
     eprintln!(
         "feed {with_feed}, speedup {speedup}: ended at E {:.2} N {:.2} U {:.2}; collisions {}, near misses {}; feed {}; link feed {}",

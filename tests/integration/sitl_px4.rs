@@ -152,7 +152,7 @@ fn two_px4_sih_on_one_udp_link_one_restarted_with_a_companion() {
     // PX4 puts a few frames on the wire out of order (6 and 8 late in docs/live.md's runs);
     // none is lost on loopback, and its restart is a restart, not a hundred late frames.
     let summary = two_vehicles_to_the_end(&run, "sitl-px4", 19);
-    let world = &run.session.world;
+    let world = &run.session.world();
     // The forwarded companion was seen and never asked: only the two autopilots are routed.
     let asked: Vec<&str> = run
         .report

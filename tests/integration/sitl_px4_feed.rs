@@ -432,7 +432,7 @@ fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_witho
     let (heard, run, sent) = fly(&bin, true);
     let closest_east = heard.track.iter().map(|p| p.0).fold(f64::MAX, f64::min);
     let end = heard.position.unwrap();
-    let totals = run.session.pipeline.as_ref().unwrap().totals.clone();
+    let totals = run.session.pipeline().unwrap().totals().clone();
     let (checked, wrong) = map_against_sent(&heard, &sent);
     let summary = run.session.summary("live", "sitl-px4");
     eprintln!(
@@ -465,7 +465,7 @@ fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_witho
 
     let (heard, run, _) = fly(&bin, false);
     let end = heard.position.unwrap();
-    let totals = run.session.pipeline.as_ref().unwrap().totals.clone();
+    let totals = run.session.pipeline().unwrap().totals().clone();
     eprintln!(
         "without the feed: ended at E {:.2} N {:.2} U {:.2}; collisions {}",
         end.0, end.1, end.2, totals.collisions
@@ -517,14 +517,14 @@ fn px4_lands_when_a_scripted_airliner_sent_as_adsb_closes() {
         heard.position,
         summary["approaches"],
         summary["feed"]["adsb_echoes"],
-        run.session.world.traffic.keys().collect::<Vec<_>>()
+        run.session.world().traffic.keys().collect::<Vec<_>>()
     );
     assert!(
         landing,
         "PX4 did not land for the airliner: modes {modes:?}"
     );
     assert!(
-        run.session.world.traffic.is_empty(),
+        run.session.world().traffic.is_empty(),
         "the airliner PX4 re-streamed became traffic"
     );
     let vertical = summary["approaches"][0]["vertical_m"].as_f64().unwrap();

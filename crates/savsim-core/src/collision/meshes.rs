@@ -14,13 +14,9 @@ use parry3d::shape::TriMesh;
 use crate::collision::mesh_worker::{MeshWorker, Slot};
 use crate::scene::geometry::Geometry;
 
-/// Built meshes by geometry index.
-#[derive(Debug, Clone, Default)]
-pub struct MeshCache {
-    meshes: Vec<Option<(Arc<TriMesh>, usize)>>,
-    /// The tick at which each built mesh was last used (same index as `meshes`).
-    last_used: Vec<u64>,
-    tick: u64,
+/// What a mesh cache built, evicted and holds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MeshCounts {
     /// Meshes built so far (rebuilds after an eviction included).
     pub built: usize,
     /// Meshes built because a contact needed one that the sensing layer had not made
@@ -41,6 +37,17 @@ pub struct MeshCache {
     /// Meshes the worker failed to build (a panic in the build): built on the caller's thread
     /// instead, counted.
     pub worker_failures: usize,
+}
+
+/// Built meshes by geometry index.
+#[derive(Debug, Clone, Default)]
+pub struct MeshCache {
+    meshes: Vec<Option<(Arc<TriMesh>, usize)>>,
+    /// The tick at which each built mesh was last used (same index as `meshes`).
+    last_used: Vec<u64>,
+    tick: u64,
+    /// What it built, evicted and holds.
+    counts: MeshCounts,
     /// Most bytes the meshes may hold (`usize::MAX`: no budget).
     budget_bytes: usize,
     /// Meshes asked of the worker and not installed yet: geometry index, where the result
@@ -73,6 +80,16 @@ fn geometry_bytes(geometry: &Geometry) -> usize {
 }
 
 impl MeshCache {
+    /// What it built, evicted and holds so far.
+    pub fn counts(&self) -> &MeshCounts {
+        &self.counts
+    }
+
+    /// Count a mesh built because a contact needed one not made resident.
+    pub(crate) fn count_built_on_contact(&mut self) {
+        self.counts.built_on_contact += 1;
+    }
+
     /// A cache for `geometries` geometries.
     pub fn new(geometries: usize) -> Self {
         Self {
@@ -102,11 +119,11 @@ impl MeshCache {
             self.reserved_bytes -= reserved;
             match slot.wait() {
                 Some((mesh, took)) => {
-                    self.build_time += took;
+                    self.counts.build_time += took;
                     self.install(index, mesh);
                 }
                 // Left unbuilt: the next `get` builds it on this thread.
-                None => self.worker_failures += 1,
+                None => self.counts.worker_failures += 1,
             }
         }
     }
@@ -117,11 +134,11 @@ impl MeshCache {
             self.last_used.resize(index + 1, 0);
         }
         self.last_used[index] = self.tick;
-        self.built += 1;
-        self.triangles += mesh.num_triangles();
+        self.counts.built += 1;
+        self.counts.triangles += mesh.num_triangles();
         let bytes = trimesh_bytes(mesh.vertices().len(), mesh.num_triangles());
-        self.bytes += bytes;
-        self.peak_bytes = self.peak_bytes.max(self.bytes);
+        self.counts.bytes += bytes;
+        self.counts.peak_bytes = self.counts.peak_bytes.max(self.counts.bytes);
         self.meshes[index] = Some((mesh, bytes));
     }
 
@@ -147,7 +164,7 @@ impl MeshCache {
     /// let mut cache = MeshCache::new(1);
     /// cache.set_budget(1000);
     /// assert!(!cache.prefetch(0, &tower), "600 triangles do not fit in 1000 bytes");
-    /// assert_eq!((cache.built, cache.prefetch_refused), (0, 1));
+    /// assert_eq!((cache.counts().built, cache.counts().prefetch_refused), (0, 1));
     /// cache.set_budget(1 << 20);
     /// assert!(cache.prefetch(0, &tower), "asked of the worker");
     /// cache.install_requested();
@@ -159,7 +176,7 @@ impl MeshCache {
             return true;
         }
         let need = geometry_bytes(geometry);
-        let held = |c: &Self| c.bytes.saturating_add(c.reserved_bytes);
+        let held = |c: &Self| c.counts.bytes.saturating_add(c.reserved_bytes);
         if held(self).saturating_add(need) > self.budget_bytes {
             let room = self
                 .budget_bytes
@@ -168,7 +185,7 @@ impl MeshCache {
             self.evict_to(room);
         }
         if held(self).saturating_add(need) > self.budget_bytes {
-            self.prefetch_refused += 1;
+            self.counts.prefetch_refused += 1;
             return false;
         }
         if self.use_worker && self.worker.is_none() {
@@ -218,15 +235,15 @@ impl MeshCache {
             let (_, slot, reserved) = self.requested.remove(k);
             self.reserved_bytes -= reserved;
             if let Some((mesh, took)) = slot.wait() {
-                self.build_time += took;
+                self.counts.build_time += took;
                 self.install(index, mesh.clone());
                 return mesh;
             }
-            self.worker_failures += 1;
+            self.counts.worker_failures += 1;
         }
         let started = Instant::now();
         let mesh = Arc::new(geometry.build_trimesh());
-        self.build_time += started.elapsed();
+        self.counts.build_time += started.elapsed();
         self.install(index, mesh.clone());
         mesh
     }
@@ -243,7 +260,7 @@ impl MeshCache {
     /// `budget_bytes` are held. Returns how many went.
     pub fn evict_to(&mut self, budget_bytes: usize) -> usize {
         let mut gone = 0;
-        while self.bytes > budget_bytes {
+        while self.counts.bytes > budget_bytes {
             let oldest = self
                 .meshes
                 .iter()
@@ -253,8 +270,8 @@ impl MeshCache {
                 .map(|(i, _)| i);
             let Some(i) = oldest else { break };
             if let Some((_, bytes)) = self.meshes[i].take() {
-                self.bytes -= bytes;
-                self.evicted += 1;
+                self.counts.bytes -= bytes;
+                self.counts.evicted += 1;
                 gone += 1;
             }
         }

@@ -127,13 +127,13 @@ pub struct PipelineTotals {
 #[derive(Debug, Clone)]
 pub struct Pipeline {
     /// Settings.
-    pub config: CollisionConfig,
+    config: CollisionConfig,
     /// The static scene's octree (the sensing layer's nodes).
-    pub octree: Octree,
+    octree: Octree,
     /// The static broad phase (parry's `Bvh`): region queries and rays.
-    pub statics: StaticBroadPhase,
+    statics: StaticBroadPhase,
     /// Built triangle meshes (resident within the budget).
-    pub meshes: MeshCache,
+    meshes: MeshCache,
     /// The contact layer's exact solids.
     shapes: ExactShapes,
     /// The ground truth, in `reference` mode.
@@ -141,7 +141,7 @@ pub struct Pipeline {
     /// Per-vehicle state by (vehicle, component).
     vehicles: BTreeMap<(u16, u8), VehicleCollision>,
     /// Totals over the run.
-    pub totals: PipelineTotals,
+    totals: PipelineTotals,
     sensing: Sensing,
     contacts: Contacts,
     static_triangles: usize,
@@ -192,6 +192,36 @@ impl Pipeline {
         for o in &scene.obstacles {
             self.meshes.get(o.geometry_index, &o.geometry);
         }
+    }
+
+    /// Its settings.
+    pub fn config(&self) -> &CollisionConfig {
+        &self.config
+    }
+
+    /// The static scene's octree (the sensing layer's nodes).
+    pub fn octree(&self) -> &Octree {
+        &self.octree
+    }
+
+    /// The static broad phase (parry's `Bvh`): region queries and rays.
+    pub fn statics(&self) -> &StaticBroadPhase {
+        &self.statics
+    }
+
+    /// The built triangle meshes.
+    pub fn meshes(&self) -> &MeshCache {
+        &self.meshes
+    }
+
+    /// Build prefetched meshes on the mesh worker (the default) or on the caller's thread.
+    pub fn set_mesh_worker(&mut self, worker: bool) {
+        self.meshes.set_worker(worker);
+    }
+
+    /// Totals over the run.
+    pub fn totals(&self) -> &PipelineTotals {
+        &self.totals
     }
 
     /// True when the scene has terrain (a height field or terrain mesh).

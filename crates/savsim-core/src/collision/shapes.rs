@@ -94,7 +94,7 @@ impl ExactShapes {
             },
             GeometrySource::Mesh { .. } => {
                 if for_contact && !meshes.held_or_requested(index) {
-                    meshes.built_on_contact += 1;
+                    meshes.count_built_on_contact();
                 }
                 Body::new(Holder::Mesh(meshes.get(index, geometry)), pose)
             }
