@@ -202,7 +202,7 @@ fn fly_encounter(
     };
     let flown = encounter::fly(scene, pipeline, &encounter);
     row.record_run(
-        &flown.pipeline.totals(),
+        flown.pipeline.totals(),
         &flown.events,
         &flown.approaches,
         &flown.tick_costs,
@@ -255,13 +255,13 @@ fn replay_tlog(
     replay(path, Speed::Max, false, None, &mut session, &never).map_err(|e| e.to_string())?;
     session.finish().map_err(|e| e.to_string())?;
     let t0_s = session.stats().time_span_s.map_or(0.0, |(first, _)| first);
-    row.record_ingest(&session.stats());
+    row.record_ingest(session.stats());
     if let Some(p) = session.pipeline() {
         row.record_run(
-            &p.totals(),
-            &session.notable(),
+            p.totals(),
+            session.notable(),
             session.approaches(),
-            &session.tick_costs(),
+            session.tick_costs(),
             t0_s,
         );
     }

@@ -65,7 +65,7 @@ impl FeedKinds {
     /// assert!(FeedKinds::parse("proximity,obstacle-distance").is_err());
     /// assert!(FeedKinds::parse("lidar").is_err());
     /// ```
-    pub fn parse(list: &str) -> Result<Self, String> {
+    pub fn parse(list: &str) -> Result<Self, FeedError> {
         let mut k = FeedKinds::default();
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             match item {
@@ -74,20 +74,12 @@ impl FeedKinds {
                 "obstacle-distance" => k.obstacle_distance = true,
                 "adsb" => k.adsb = true,
                 "collision" => k.collision = true,
-                other => {
-                    return Err(format!(
-                        "unknown feed `{other}` (proximity, rangefinder, obstacle-distance, adsb, collision)"
-                    ))
-                }
+                other => return Err(FeedError::Unknown(other.into())),
             }
         }
         if k.proximity && k.obstacle_distance {
             // ArduPilot's MAVLink proximity keeps one picture: each message clears the other's.
-            return Err(
-                "`proximity` and `obstacle-distance` feed the same ArduPilot proximity \
-                        backend and clear each other's picture: choose one"
-                    .into(),
-            );
+            return Err(FeedError::ProximityAndObstacleDistance);
         }
         Ok(k)
     }
@@ -152,44 +144,58 @@ impl Default for FeedConfig {
 
 impl FeedConfig {
     /// Check the settings; the error names what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.hz.is_finite() && self.hz > 0.0 && self.hz <= 1000.0) {
-            return Err(format!("--feed-hz must be in (0, 1000], not {}", self.hz));
-        }
-        if !(self.adsb_hz.is_finite() && self.adsb_hz > 0.0 && self.adsb_hz <= 100.0) {
-            return Err(format!(
-                "the ADS-B rate must be in (0, 100], not {}",
-                self.adsb_hz
-            ));
-        }
-        if !(self.adsb_radius_m.is_finite() && (0.0..=1e6).contains(&self.adsb_radius_m)) {
-            return Err(format!(
-                "--feed-adsb-radius-m must be in [0, 1000000], not {}",
-                self.adsb_radius_m
-            ));
-        }
+    pub fn validate(&self) -> Result<(), FeedError> {
+        use savsim_core::bounds::{positive, within};
+        positive("--feed-hz", self.hz, 1000.0)?;
+        positive("the ADS-B rate", self.adsb_hz, 100.0)?;
+        within("--feed-adsb-radius-m", self.adsb_radius_m, 0.0, 1e6)?;
         let Range { min_m, max_m } = self.range;
         if !(min_m.is_finite() && max_m.is_finite() && 0.0 <= min_m && min_m < max_m) {
-            return Err(format!(
-                "the feed's range must be 0 <= min < max, not {min_m} .. {max_m} m"
-            ));
+            return Err(FeedError::RangeOrder { min_m, max_m });
         }
         if max_m > 650.0 {
-            return Err(format!(
-                "the feed's max range {max_m} m does not fit DISTANCE_SENSOR's centimetres"
-            ));
+            return Err(FeedError::RangeTooLong { max_m });
         }
-        if let Some(o) = self
+        if let Some(&o) = self
             .orientations
             .iter()
             .find(|&&o| !(o < SECTORS as u8 || o == ORIENTATION_UP))
         {
-            return Err(format!(
-                "proximity orientation {o}: 0..7 (45-degree sectors) or 24 (up); 25 (down) is `rangefinder`"
-            ));
+            return Err(FeedError::Orientation(o));
         }
         Ok(())
     }
+}
+
+/// Feed settings that are not valid.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FeedError {
+    /// A rate or a radius out of range.
+    #[error(transparent)]
+    OutOfRange(#[from] savsim_core::bounds::OutOfRange),
+    /// A range sensor's limits in the wrong order.
+    #[error("the feed's range must be 0 <= min < max, not {min_m} .. {max_m} m")]
+    RangeOrder {
+        /// Its minimum, metres.
+        min_m: f64,
+        /// Its maximum, metres.
+        max_m: f64,
+    },
+    /// A maximum range DISTANCE_SENSOR cannot carry.
+    #[error("the feed's max range {max_m} m does not fit DISTANCE_SENSOR's centimetres")]
+    RangeTooLong {
+        /// The maximum, metres.
+        max_m: f64,
+    },
+    /// A proximity orientation that is not one.
+    #[error("proximity orientation {0}: 0..7 (45-degree sectors) or 24 (up); 25 (down) is `rangefinder`")]
+    Orientation(u8),
+    /// A feed that is not one.
+    #[error("unknown feed `{0}` (proximity, rangefinder, obstacle-distance, adsb, collision)")]
+    Unknown(String),
+    /// Two feeds that cannot go together.
+    #[error("`proximity` and `obstacle-distance` feed the same ArduPilot proximity backend and clear each other's picture: choose one")]
+    ProximityAndObstacleDistance,
 }
 
 /// A message for a vehicle: who it is for, the vehicle's clock it was stamped with, and what.

@@ -63,7 +63,7 @@ fn fly_mavlink(scene: Scene, mode: Mode, a: DVec3, b: DVec3, speed_mps: f64) -> 
         feed(&mut session, s.t_s, &frames);
     }
     session.finish().unwrap();
-    owned(&session.notable())
+    owned(session.notable())
 }
 
 /// The quad's forward half-length (its nose to its reference point), metres.

@@ -204,10 +204,10 @@ fn a_session_survives_expiry_and_a_new_lower_sysid() {
     }
     session.finish().unwrap();
     assert!(session.world().expired >= 1, "vehicle 9 expired");
-    let on_1 = collisions_on(&session.notable(), 1);
+    let on_1 = collisions_on(session.notable(), 1);
     assert_eq!(on_1.len(), 1, "{on_1:?}");
     assert_eq!(on_1[0].0, "wall");
-    let on_3 = collisions_on(&session.notable(), 3);
+    let on_3 = collisions_on(session.notable(), 3);
     assert_eq!(on_3.len(), 1, "{on_3:?}");
     assert_eq!(on_3[0].0, "wall");
 }
@@ -260,7 +260,7 @@ fn two_samples_in_one_tcp_read_are_swept_apart() {
     let run = crate::common::run_live(&runtime, vec![link], Duration::from_secs(4), session, None);
     let session = run.session;
     assert_eq!(session.stats().count_of(33), 10);
-    let hits = collisions_on(&session.notable(), 1);
+    let hits = collisions_on(session.notable(), 1);
     assert_eq!(hits.len(), 1, "{hits:?}");
     assert_eq!(hits[0].0, "wall");
 }
@@ -319,7 +319,7 @@ fn a_reboot_in_the_middle_of_a_contact_starts_a_new_episode() {
         );
     }
     session.finish().unwrap();
-    let hits = collisions_on(&session.notable(), 1);
+    let hits = collisions_on(session.notable(), 1);
     assert_eq!(hits.len(), 2, "{hits:?}");
     assert!((hits[1].1 - 1003.0).abs() < 1e-6, "{hits:?}");
     let summary = session.summary("test", "frames");
@@ -358,8 +358,8 @@ fn vehicles_collide_with_each_other() {
         feed(&mut session, t, &bytes);
     }
     session.finish().unwrap();
-    let on_1 = collisions_on(&session.notable(), 1);
-    let on_2 = collisions_on(&session.notable(), 2);
+    let on_1 = collisions_on(session.notable(), 1);
+    let on_2 = collisions_on(session.notable(), 2);
     assert_eq!(on_1.len(), 1, "{on_1:?}");
     assert_eq!(on_2.len(), 1, "{on_2:?}");
     assert_eq!(on_1[0].0, "vehicle:2");

@@ -66,6 +66,17 @@ impl Mode {
     }
 }
 
+/// A sensor fan's name that is not one.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FanError {
+    /// A ray count out of range.
+    #[error("{0:?}: give 3 to 360 rays")]
+    Rays(String),
+    /// Not a fan's name.
+    #[error("{0:?}: use six, ring:N or level-ring:N")]
+    Name(String),
+}
+
 /// The sensing layer's rays: which directions it casts at each frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SensorFan {
@@ -95,16 +106,16 @@ impl SensorFan {
     /// assert!(SensorFan::parse("ring:2").is_err());
     /// assert_eq!(SensorFan::Ring { rays: 8 }.len(), 10);
     /// ```
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, FanError> {
         let count = |n: &str| match n.parse::<u16>() {
             Ok(n) if (3..=360).contains(&n) => Ok(n),
-            _ => Err(format!("{n:?}: give 3 to 360 rays")),
+            _ => Err(FanError::Rays(n.into())),
         };
         match text.split_once(':') {
             None if text == "six" => Ok(SensorFan::Axes),
             Some(("ring", n)) => Ok(SensorFan::Ring { rays: count(n)? }),
             Some(("level-ring", n)) => Ok(SensorFan::LevelRing { rays: count(n)? }),
-            _ => Err(format!("{text:?}: use six, ring:N or level-ring:N")),
+            _ => Err(FanError::Name(text.into())),
         }
     }
 

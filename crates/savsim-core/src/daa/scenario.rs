@@ -80,13 +80,46 @@ pub enum ScenarioError {
         unit: String,
     },
     /// A row that cannot be read.
-    #[error("line {line}: {message}")]
+    #[error("line {line}: {problem}")]
     Row {
         /// 1-based line number.
         line: usize,
         /// What is wrong.
-        message: String,
+        problem: RowError,
     },
+}
+
+/// What is wrong with a row of a state file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RowError {
+    /// Beyond the most rows read.
+    #[error("more than {0} rows")]
+    TooMany(usize),
+    /// A column the header has and the row does not (1-based).
+    #[error("no column {0}")]
+    NoColumn(usize),
+    /// A field that is not a number.
+    #[error("column {column}: not a number: {text:?}")]
+    NotNumber {
+        /// 1-based.
+        column: usize,
+        /// The field.
+        text: String,
+    },
+    /// A number beyond 1e12 or not finite.
+    #[error("column {column}: out of range: {text:?}")]
+    OutOfRange {
+        /// 1-based.
+        column: usize,
+        /// The field.
+        text: String,
+    },
+    /// A latitude beyond the poles.
+    #[error("latitude {0} outside +/-90 degrees")]
+    Latitude(f64),
+    /// A time field that is not one.
+    #[error("not a time: {0:?}")]
+    NotTime(String),
 }
 
 /// The columns a state needs, their index and the SI per unit of each.
@@ -145,11 +178,11 @@ pub fn parse(text: &str) -> Result<Vec<Step>, ScenarioError> {
         if rows > MAX_ROWS {
             return Err(ScenarioError::Row {
                 line,
-                message: format!("more than {MAX_ROWS} rows"),
+                problem: RowError::TooMany(MAX_ROWS),
             });
         }
         let (time_s, state) =
-            read_row(&columns, row).map_err(|message| ScenarioError::Row { line, message })?;
+            read_row(&columns, row).map_err(|problem| ScenarioError::Row { line, problem })?;
         match steps.last_mut() {
             Some(step) if step.time_s == time_s => step.aircraft.push(state),
             _ => steps.push(Step {
@@ -241,21 +274,20 @@ fn columns(headers: &[String], units: Option<&[String]>) -> Result<Columns, Scen
 }
 
 /// One row: its time and the state.
-fn read_row(c: &Columns, row: &str) -> Result<(f64, State), String> {
+fn read_row(c: &Columns, row: &str) -> Result<(f64, State), RowError> {
     let fields: Vec<&str> = split(row).collect();
-    let field = |i: usize| {
-        fields
-            .get(i)
-            .copied()
-            .ok_or_else(|| format!("no column {}", i + 1))
-    };
-    let number = |(i, si): (usize, f64)| -> Result<f64, String> {
+    let field = |i: usize| fields.get(i).copied().ok_or(RowError::NoColumn(i + 1));
+    let number = |(i, si): (usize, f64)| -> Result<f64, RowError> {
         let text = field(i)?;
-        let x: f64 = text
-            .parse()
-            .map_err(|_| format!("column {}: not a number: {text:?}", i + 1))?;
+        let x: f64 = text.parse().map_err(|_| RowError::NotNumber {
+            column: i + 1,
+            text: text.into(),
+        })?;
         if !x.is_finite() || x.abs() > 1e12 {
-            return Err(format!("column {}: out of range: {text:?}", i + 1));
+            return Err(RowError::OutOfRange {
+                column: i + 1,
+                text: text.into(),
+            });
         }
         Ok(x * si)
     };
@@ -264,7 +296,7 @@ fn read_row(c: &Columns, row: &str) -> Result<(f64, State), String> {
         let to_deg = 180.0 / std::f64::consts::PI;
         let (lat_deg, lon_deg) = (p0? * to_deg, p1? * to_deg);
         if lat_deg.abs() > 90.0 {
-            return Err(format!("latitude {lat_deg} outside +/-90 degrees"));
+            return Err(RowError::Latitude(lat_deg));
         }
         Position::Geodetic {
             lat_deg,
@@ -301,9 +333,9 @@ fn read_row(c: &Columns, row: &str) -> Result<(f64, State), String> {
 }
 
 /// A time field: seconds (in the column's unit) or `hh:mm:ss`.
-fn time(text: &str, si: f64) -> Result<f64, String> {
+fn time(text: &str, si: f64) -> Result<f64, RowError> {
     let parts: Vec<&str> = text.split(':').collect();
-    let bad = || format!("not a time: {text:?}");
+    let bad = || RowError::NotTime(text.into());
     let t = if parts.len() > 1 {
         parts
             .iter()

@@ -33,6 +33,34 @@ struct Transform {
     translate: [f64; 3],
 }
 
+/// Why a CityJSON file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum CityJsonError {
+    /// Not JSON.
+    #[error("not JSON: {0}")]
+    Json(serde_json::Error),
+    /// JSON, not CityJSON.
+    #[error("not a CityJSON file (\"type\" is not \"CityJSON\")")]
+    NotCityJson,
+    /// A malformed `transform`.
+    #[error("transform: {0}")]
+    Transform(serde_json::Error),
+    /// A member the file must have.
+    #[error("{0}")]
+    Missing(&'static str),
+    /// A vertex that is not three numbers.
+    #[error("vertex {0} is not three numbers")]
+    Vertex(usize),
+    /// A city object savsim cannot build.
+    #[error("CityObject {id:?}: {problem}")]
+    Object {
+        /// Its id.
+        id: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+}
+
 /// Parse a CityJSON document and triangulate the objects of the given types. Positions are
 /// relative to `anchor_xyz` (dataset coordinates; `None`: the bounding box centre at z = 0,
 /// so that heights stay AMSL), turned by `rotation_deg`.
@@ -41,26 +69,26 @@ pub fn buildings(
     types: &[String],
     anchor_xyz: Option<[f64; 3]>,
     rotation_deg: f64,
-) -> Result<Vec<CityBuilding>, String> {
-    let doc: Value = serde_json::from_str(text).map_err(|e| format!("not JSON: {e}"))?;
+) -> Result<Vec<CityBuilding>, CityJsonError> {
+    let doc: Value = serde_json::from_str(text).map_err(CityJsonError::Json)?;
     if doc.get("type").and_then(Value::as_str) != Some("CityJSON") {
-        return Err("not a CityJSON file (\"type\" is not \"CityJSON\")".into());
+        return Err(CityJsonError::NotCityJson);
     }
     let transform: Option<Transform> = match doc.get("transform") {
-        Some(t) => Some(serde_json::from_value(t.clone()).map_err(|e| format!("transform: {e}"))?),
+        Some(t) => Some(serde_json::from_value(t.clone()).map_err(CityJsonError::Transform)?),
         None => None,
     };
     let raw = doc
         .get("vertices")
         .and_then(Value::as_array)
-        .ok_or("no \"vertices\" array")?;
+        .ok_or(CityJsonError::Missing("no \"vertices\" array"))?;
     let mut vertices = Vec::with_capacity(raw.len());
     for (i, v) in raw.iter().enumerate() {
         let c = v
             .as_array()
             .filter(|c| c.len() == 3)
             .and_then(|c| Some([c[0].as_f64()?, c[1].as_f64()?, c[2].as_f64()?]))
-            .ok_or_else(|| format!("vertex {i} is not three numbers"))?;
+            .ok_or(CityJsonError::Vertex(i))?;
         let p = match &transform {
             Some(t) => DVec3::new(
                 c[0] * t.scale[0] + t.translate[0],
@@ -90,7 +118,7 @@ pub fn buildings(
     let objects = doc
         .get("CityObjects")
         .and_then(Value::as_object)
-        .ok_or("no \"CityObjects\"")?;
+        .ok_or(CityJsonError::Missing("no \"CityObjects\""))?;
     let mut out = Vec::new();
     let mut earcut = earcut::Earcut::new();
     for (id, object) in objects {
@@ -131,7 +159,13 @@ pub fn buildings(
                 &mut points,
                 &mut triangles,
             )
-            .map_err(|e| format!("CityObject {id:?}: {e}"))?;
+            .map_err(|index| CityJsonError::Object {
+                id: id.clone(),
+                problem: format!(
+                    "vertex index {index} out of range ({} vertices)",
+                    vertices.len()
+                ),
+            })?;
         }
         if triangles.is_empty() {
             continue;
@@ -152,7 +186,12 @@ pub fn buildings(
             }),
             // A surface with no area at all (e.g. a degenerate footprint) is not an obstacle.
             Err(crate::scene::geometry::GeometryError::Empty) => {}
-            Err(e) => return Err(format!("CityObject {id:?}: {e}")),
+            Err(e) => {
+                return Err(CityJsonError::Object {
+                    id: id.clone(),
+                    problem: e.to_string(),
+                })
+            }
         }
     }
     out.sort_by(|a, b| a.id.cmp(&b.id));
@@ -193,7 +232,7 @@ fn triangulate(
     earcut: &mut earcut::Earcut<f64>,
     points: &mut Vec<DVec3>,
     triangles: &mut Vec<[u32; 3]>,
-) -> Result<(), String> {
+) -> Result<(), usize> {
     let mut flat = Vec::new();
     let mut holes = Vec::new();
     for (k, ring) in rings.iter().enumerate() {
@@ -201,12 +240,7 @@ fn triangulate(
             holes.push(flat.len() as u32);
         }
         for &i in ring {
-            let v = vertices.get(i).ok_or_else(|| {
-                format!(
-                    "vertex index {i} out of range ({} vertices)",
-                    vertices.len()
-                )
-            })?;
+            let v = vertices.get(i).ok_or(i)?;
             flat.push(place(*v));
         }
     }

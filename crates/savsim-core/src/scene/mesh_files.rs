@@ -11,9 +11,53 @@ use crate::scene::Files;
 /// Vertices and triangles (indices into the vertices).
 pub type Mesh = (Vec<Vec3>, Vec<[u32; 3]>);
 
+/// Why a mesh file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshFileError {
+    /// The file could not be read.
+    #[error("{0}")]
+    Read(std::io::Error),
+    /// Its format's reader refused it.
+    #[error("not a valid {format} file: {message}")]
+    Decode {
+        /// The format.
+        format: &'static str,
+        /// What its reader said.
+        message: String,
+    },
+    /// A kind of file savsim does not read.
+    #[error(
+        "unsupported mesh format {extension:?} (savsim reads .obj, .stl, .gltf, .glb and .dae)"
+    )]
+    Unsupported {
+        /// The file's extension.
+        extension: String,
+    },
+    /// A glTF buffer file that could not be read.
+    #[error("buffer {uri}: {error}")]
+    Buffer {
+        /// The buffer's URI.
+        uri: String,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// Content savsim does not take.
+    #[error("{0}")]
+    Content(&'static str),
+}
+
+impl MeshFileError {
+    fn decode(format: &'static str, e: impl std::fmt::Display) -> Self {
+        MeshFileError::Decode {
+            format,
+            message: e.to_string(),
+        }
+    }
+}
+
 /// Read a mesh file (OBJ, STL, glTF/GLB or COLLADA) through `files` into vertices and
 /// triangles, in file units (COLLADA: metres, Z up).
-pub fn load_mesh_file(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
+pub fn load_mesh_file(path: &Path, files: &dyn Files) -> Result<Mesh, MeshFileError> {
     let ext = path
         .extension()
         .map(|x| x.to_string_lossy().to_ascii_lowercase())
@@ -25,7 +69,7 @@ pub fn load_mesh_file(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
                 single_index: true,
                 ..Default::default()
             };
-            let bytes = files.read(path).map_err(|e| e.to_string())?;
+            let bytes = files.read(path).map_err(MeshFileError::Read)?;
             let dir = path.parent().unwrap_or(Path::new("."));
             // Materials are not needed; an .mtl that cannot be read is not an error.
             let (obj_models, _) = tobj::load_obj_buf(&mut bytes.as_slice(), &options, |mtl| {
@@ -34,7 +78,7 @@ pub fn load_mesh_file(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
                     Err(_) => Err(tobj::LoadError::OpenFileFailed),
                 }
             })
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| MeshFileError::decode("OBJ", e))?;
             let mut vertices = Vec::new();
             let mut indices = Vec::new();
             for m in obj_models {
@@ -55,9 +99,9 @@ pub fn load_mesh_file(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
             Ok((vertices, indices))
         }
         "stl" => {
-            let bytes = files.read(path).map_err(|e| e.to_string())?;
-            let mesh =
-                stl_io::read_stl(&mut std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+            let bytes = files.read(path).map_err(MeshFileError::Read)?;
+            let mesh = stl_io::read_stl(&mut std::io::Cursor::new(bytes))
+                .map_err(|e| MeshFileError::decode("STL", e))?;
             let vertices = mesh
                 .vertices
                 .iter()
@@ -78,29 +122,35 @@ pub fn load_mesh_file(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
         }
         "gltf" | "glb" => load_gltf(path, files),
         "dae" => load_collada(path, files),
-        other => Err(format!(
-            "unsupported mesh format {other:?} (savsim reads .obj, .stl, .gltf, .glb and .dae)"
-        )),
+        other => Err(MeshFileError::Unsupported {
+            extension: other.into(),
+        }),
     }
 }
 
 /// Read every triangle of a glTF 2.0 file (.gltf with its buffers, or .glb), with node
 /// transforms applied, in file units (glTF: metres, Y up).
-fn load_gltf(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
-    let bytes = files.read(path).map_err(|e| e.to_string())?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| e.to_string())?;
+fn load_gltf(path: &Path, files: &dyn Files) -> Result<Mesh, MeshFileError> {
+    let bytes = files.read(path).map_err(MeshFileError::Read)?;
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| MeshFileError::decode("glTF", e))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or("the .glb has no binary chunk")?,
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or(MeshFileError::Content("the .glb has no binary chunk"))?,
             gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => files
                 .read(&dir.join(uri))
-                .map_err(|e| format!("buffer {uri}: {e}"))?,
+                .map_err(|error| MeshFileError::Buffer {
+                    uri: uri.into(),
+                    error,
+                })?,
             gltf::buffer::Source::Uri(_) => {
-                return Err(
-                    "embedded data: URIs are not supported; use .glb or external buffers".into(),
-                )
+                return Err(MeshFileError::Content(
+                    "embedded data: URIs are not supported; use .glb or external buffers",
+                ))
             }
         };
         buffers.push(data);
@@ -145,10 +195,10 @@ fn load_gltf(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
 /// meshes), with the visual scene's node transforms applied, converted to metres and to Z up
 /// by the file's own `<unit>` and `<up_axis>` (so `scale` and `up` need not be given for it).
 /// Read with a plain XML parser and no schema validation: real exporters' files vary.
-fn load_collada(path: &Path, files: &dyn Files) -> Result<Mesh, String> {
+fn load_collada(path: &Path, files: &dyn Files) -> Result<Mesh, MeshFileError> {
     use roxmltree::{Document, Node};
-    let text = files.read_text(path).map_err(|e| e.to_string())?;
-    let doc = Document::parse(&text).map_err(|e| e.to_string())?;
+    let text = files.read_text(path).map_err(MeshFileError::Read)?;
+    let doc = Document::parse(&text).map_err(|e| MeshFileError::decode("COLLADA", e))?;
     fn named(n: &Node<'_, '_>, name: &str) -> bool {
         n.tag_name().name() == name
     }

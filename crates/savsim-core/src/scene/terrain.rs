@@ -27,11 +27,76 @@ pub enum Elevation {
     ArduPilot(ArduPilotTerrain),
 }
 
+/// Why an elevation file could not be read or used.
+#[derive(Debug, thiserror::Error)]
+pub enum TerrainError {
+    /// The file could not be read.
+    #[error("{0}")]
+    Read(std::io::Error),
+    /// Not a kind of file savsim reads.
+    #[error("{name}: expected an SRTM .hgt, a GeoTIFF .tif or an ArduPilot .DAT file")]
+    Extension {
+        /// The file's name.
+        name: String,
+    },
+    /// An error in the file `name`.
+    #[error("{name}: {error}")]
+    Named {
+        /// The file's name.
+        name: String,
+        /// What is wrong in it.
+        error: Box<TerrainError>,
+    },
+    /// An SRTM tile whose name gives no corner.
+    #[error("{name}: an SRTM file is named after its corner, like N44W072.hgt")]
+    SrtmName {
+        /// The file's name.
+        name: String,
+    },
+    /// An SRTM tile of neither size.
+    #[error("{name}: {bytes} bytes is neither a 3 arc-second (1201 x 1201) nor a 1 arc-second (3601 x 3601) tile")]
+    SrtmSize {
+        /// The file's name.
+        name: String,
+        /// Its length.
+        bytes: usize,
+    },
+    /// A grid too small, or with the wrong number of samples.
+    #[error("a {nx} x {ny} grid needs at least 2 x 2 samples")]
+    GridSize {
+        /// Columns.
+        nx: usize,
+        /// Rows.
+        ny: usize,
+    },
+    /// The TIFF decoder's error.
+    #[error("{0}")]
+    Tiff(String),
+    /// A TIFF that is not a DEM savsim reads.
+    #[error("{0}")]
+    GeoTiff(&'static str),
+    /// An ArduPilot terrain file savsim cannot use.
+    #[error("{0}")]
+    ArduPilot(&'static str),
+    /// A point of the area the file does not cover.
+    #[error("no elevation data at {lat_deg:.6}, {lon_deg:.6} (E {east_m:.0} N {north_m:.0} m): the area is larger than the file covers")]
+    Uncovered {
+        /// Latitude, degrees.
+        lat_deg: f64,
+        /// Longitude, degrees.
+        lon_deg: f64,
+        /// East of the scene's origin, metres.
+        east_m: f64,
+        /// North of the scene's origin, metres.
+        north_m: f64,
+    },
+}
+
 impl Elevation {
     /// Read an elevation file through `files`, by its extension (`.hgt`, `.tif` or `.dat`,
     /// any case).
-    pub fn read(path: &Path, files: &dyn Files) -> Result<Elevation, String> {
-        let bytes = files.read(path).map_err(|e| e.to_string())?;
+    pub fn read(path: &Path, files: &dyn Files) -> Result<Elevation, TerrainError> {
+        let bytes = files.read(path).map_err(TerrainError::Read)?;
         let name = path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -42,13 +107,16 @@ impl Elevation {
             .unwrap_or_default();
         match ext.as_str() {
             "hgt" => parse_srtm(&name, &bytes).map(Elevation::Grid),
-            "tif" | "tiff" => parse_geotiff(&bytes)
-                .map(Elevation::Grid)
-                .map_err(|e| format!("{name}: {e}")),
+            "tif" | "tiff" => {
+                parse_geotiff(&bytes)
+                    .map(Elevation::Grid)
+                    .map_err(|e| TerrainError::Named {
+                        name,
+                        error: Box::new(e),
+                    })
+            }
             "dat" => ArduPilotTerrain::parse(&bytes).map(Elevation::ArduPilot),
-            _ => Err(format!(
-                "{name}: expected an SRTM .hgt, a GeoTIFF .tif or an ArduPilot .DAT file"
-            )),
+            _ => Err(TerrainError::Extension { name }),
         }
     }
 
@@ -105,9 +173,9 @@ impl LatLonGrid {
         (lat0_deg, lon0_deg): (f64, f64),
         (dlat_deg, dlon_deg): (f64, f64),
         mut heights_m: Vec<f32>,
-    ) -> Result<LatLonGrid, String> {
+    ) -> Result<LatLonGrid, TerrainError> {
         if nx < 2 || ny < 2 || heights_m.len() != nx * ny {
-            return Err(format!("a {nx} x {ny} grid needs at least 2 x 2 samples"));
+            return Err(TerrainError::GridSize { nx, ny });
         }
         let voids_filled = fill_voids(&mut heights_m, nx, ny);
         Ok(LatLonGrid {
@@ -157,7 +225,7 @@ pub const SRTM_VOID: i16 = -32768;
 /// assert_eq!(t.height_amsl_m(-35.5, 149.5), Some(100.0));
 /// assert_eq!(t.height_amsl_m(-34.5, 149.5), None);
 /// ```
-pub fn parse_srtm(name: &str, bytes: &[u8]) -> Result<LatLonGrid, String> {
+pub fn parse_srtm(name: &str, bytes: &[u8]) -> Result<LatLonGrid, TerrainError> {
     let upper = name.to_ascii_uppercase();
     // The corner is the first N/S dd E/W ddd in the name (`N44W072.hgt`, `srtm3_N44W072.hgt`).
     let parse_at = |i: usize| -> Option<(i32, i32)> {
@@ -176,16 +244,17 @@ pub fn parse_srtm(name: &str, bytes: &[u8]) -> Result<LatLonGrid, String> {
         };
         Some((lat, lon))
     };
-    let (lat, lon) = (0..upper.len()).find_map(parse_at).ok_or_else(|| {
-        format!("{name}: an SRTM file is named after its corner, like N44W072.hgt")
-    })?;
+    let (lat, lon) = (0..upper.len())
+        .find_map(parse_at)
+        .ok_or_else(|| TerrainError::SrtmName { name: name.into() })?;
     let size = match bytes.len() {
         n if n == 1201 * 1201 * 2 => 1201,
         n if n == 3601 * 3601 * 2 => 3601,
         n => {
-            return Err(format!(
-                "{name}: {n} bytes is neither a 3 arc-second (1201 x 1201) nor a 1 arc-second (3601 x 3601) tile"
-            ))
+            return Err(TerrainError::SrtmSize {
+                name: name.into(),
+                bytes: n,
+            })
         }
     };
     let heights_m = bytes
@@ -208,20 +277,23 @@ pub fn parse_srtm(name: &str, bytes: &[u8]) -> Result<LatLonGrid, String> {
 /// Parse a GeoTIFF DEM in geographic coordinates (longitude, latitude degrees; e.g. EPSG:4326):
 /// one band of integer or float heights, georeferenced by ModelTiepoint and ModelPixelScale,
 /// no-data from GDAL_NODATA and NaN (filled like SRTM voids).
-pub fn parse_geotiff(bytes: &[u8]) -> Result<LatLonGrid, String> {
+pub fn parse_geotiff(bytes: &[u8]) -> Result<LatLonGrid, TerrainError> {
     use tiff::decoder::{Decoder, DecodingResult};
     use tiff::tags::Tag;
-    let mut d = Decoder::new(std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
-    let (w, h) = d.dimensions().map_err(|e| e.to_string())?;
+    let tiff = |e: tiff::TiffError| TerrainError::Tiff(e.to_string());
+    let mut d = Decoder::new(std::io::Cursor::new(bytes)).map_err(tiff)?;
+    let (w, h) = d.dimensions().map_err(tiff)?;
     let (nx, ny) = (w as usize, h as usize);
-    let scale = d
-        .get_tag_f64_vec(Tag::ModelPixelScaleTag)
-        .map_err(|_| "no ModelPixelScale tag: not a georeferenced GeoTIFF".to_owned())?;
+    let scale = d.get_tag_f64_vec(Tag::ModelPixelScaleTag).map_err(|_| {
+        TerrainError::GeoTiff("no ModelPixelScale tag: not a georeferenced GeoTIFF")
+    })?;
     let tie = d
         .get_tag_f64_vec(Tag::ModelTiepointTag)
-        .map_err(|_| "no ModelTiepoint tag: not a georeferenced GeoTIFF".to_owned())?;
+        .map_err(|_| TerrainError::GeoTiff("no ModelTiepoint tag: not a georeferenced GeoTIFF"))?;
     if scale.len() < 2 || tie.len() < 6 || scale[0] <= 0.0 || scale[1] <= 0.0 {
-        return Err("ModelPixelScale / ModelTiepoint are malformed".into());
+        return Err(TerrainError::GeoTiff(
+            "ModelPixelScale / ModelTiepoint are malformed",
+        ));
     }
     let keys = d
         .get_tag_u16_vec(Tag::GeoKeyDirectoryTag)
@@ -234,7 +306,7 @@ pub fn parse_geotiff(bytes: &[u8]) -> Result<LatLonGrid, String> {
     };
     // GTModelTypeGeoKey (1024): 2 = geographic. GTRasterTypeGeoKey (1025): 1 area, 2 point.
     if key(1024).is_some_and(|t| t != 2) {
-        return Err("a projected GeoTIFF: savsim reads geographic (longitude/latitude) DEMs; reproject it to EPSG:4326".into());
+        return Err(TerrainError::GeoTiff("a projected GeoTIFF: savsim reads geographic (longitude/latitude) DEMs; reproject it to EPSG:4326"));
     }
     let centre = if key(1025) == Some(2) { 0.0 } else { 0.5 };
     let nodata: Option<f64> = match d.get_tag(Tag::GdalNodata) {
@@ -244,16 +316,22 @@ pub fn parse_geotiff(bytes: &[u8]) -> Result<LatLonGrid, String> {
             .and_then(|s| s.trim().trim_end_matches('\0').parse().ok()),
         Err(_) => None,
     };
-    let values: Vec<f64> = match d.read_image().map_err(|e| e.to_string())? {
+    let values: Vec<f64> = match d.read_image().map_err(tiff)? {
         DecodingResult::I16(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::I32(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::F64(v) => v,
-        _ => return Err("unsupported sample type (use 16/32-bit integers or floats)".into()),
+        _ => {
+            return Err(TerrainError::GeoTiff(
+                "unsupported sample type (use 16/32-bit integers or floats)",
+            ))
+        }
     };
     if values.len() != nx * ny {
-        return Err("more than one band: savsim reads single-band DEMs".into());
+        return Err(TerrainError::GeoTiff(
+            "more than one band: savsim reads single-band DEMs",
+        ));
     }
     let heights = values
         .into_iter()
@@ -342,7 +420,7 @@ fn longitude_scale(lat_deg: f64) -> f64 {
 
 impl ArduPilotTerrain {
     /// Parse the blocks of a `.DAT` file.
-    pub fn parse(bytes: &[u8]) -> Result<ArduPilotTerrain, String> {
+    pub fn parse(bytes: &[u8]) -> Result<ArduPilotTerrain, TerrainError> {
         let mut blocks = HashMap::new();
         let mut skipped_blocks = 0;
         let mut meta: Option<(u16, i32, i32)> = None;
@@ -372,7 +450,9 @@ impl ArduPilotTerrain {
             match meta {
                 None => meta = Some((spacing, lat_degrees, lon_degrees)),
                 Some(m) if m != (spacing, lat_degrees, lon_degrees) => {
-                    return Err("blocks of different spacings or degree squares in one file".into())
+                    return Err(TerrainError::ArduPilot(
+                        "blocks of different spacings or degree squares in one file",
+                    ))
                 }
                 Some(_) => {}
             }
@@ -382,8 +462,9 @@ impl ArduPilotTerrain {
                 .collect();
             blocks.insert((grid_idx_x, grid_idx_y), Block { heights_m });
         }
-        let (spacing_m, lat_degrees, lon_degrees) =
-            meta.ok_or_else(|| "no filled terrain block in the file".to_owned())?;
+        let (spacing_m, lat_degrees, lon_degrees) = meta.ok_or(TerrainError::ArduPilot(
+            "no filled terrain block in the file",
+        ))?;
         Ok(ArduPilotTerrain {
             spacing_m,
             lat_degrees,
@@ -459,7 +540,7 @@ pub fn resample(
     corner_enu_m: DVec3,
     size_m: [f64; 2],
     cell_m: f64,
-) -> Result<HeightGrid, String> {
+) -> Result<HeightGrid, TerrainError> {
     let nx = (size_m[0] / cell_m).round() as usize + 1;
     let ny = (size_m[1] / cell_m).round() as usize + 1;
     let mut heights_m = Vec::with_capacity(nx * ny);
@@ -467,12 +548,15 @@ pub fn resample(
         for ix in 0..nx {
             let p = corner_enu_m + DVec3::new(ix as f64 * cell_m, iy as f64 * cell_m, 0.0);
             let g = plane.geodetic_from_enu_m(DVec3::new(p.x, p.y, 0.0));
-            let h = elevation.height_amsl_m(g.lat_deg, g.lon_deg).ok_or_else(|| {
-                format!(
-                    "no elevation data at {:.6}, {:.6} (E {:.0} N {:.0} m): the area is larger than the file covers",
-                    g.lat_deg, g.lon_deg, p.x, p.y
-                )
-            })?;
+            let h =
+                elevation
+                    .height_amsl_m(g.lat_deg, g.lon_deg)
+                    .ok_or(TerrainError::Uncovered {
+                        lat_deg: g.lat_deg,
+                        lon_deg: g.lon_deg,
+                        east_m: p.x,
+                        north_m: p.y,
+                    })?;
             let ground = plane.enu_m_from_geodetic(&Geodetic::new(g.lat_deg, g.lon_deg, h));
             heights_m.push((ground.z - corner_enu_m.z) as f32);
         }
