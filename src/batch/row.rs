@@ -188,16 +188,16 @@ impl RunRow {
     /// Every approach, the closest of them, and whether any was an NMAC.
     fn record_approaches(&mut self, approaches: &Approaches, t0_s: f64) {
         self.approaches = approaches
-            .by_pair
-            .iter()
-            .map(|((vehicle, track), a)| ApproachRow {
-                vehicle: *vehicle,
+            .pairs()
+            .into_iter()
+            .map(|(vehicle, track, pair)| ApproachRow {
+                vehicle,
                 track: track.to_string(),
-                distance_m: a.distance_m,
-                horizontal_m: a.horizontal_m,
-                vertical_m: a.vertical_m,
-                t_s: a.t_s - t0_s,
-                nmac: a.nmac,
+                distance_m: pair.approach.distance_m,
+                horizontal_m: pair.approach.horizontal_m,
+                vertical_m: pair.approach.vertical_m,
+                t_s: pair.approach.t_s - t0_s,
+                nmac: pair.approach.nmac,
             })
             .collect();
         self.nmac = self.approaches.iter().any(|a| a.nmac);
@@ -218,7 +218,8 @@ impl RunRow {
     /// Losses of well clear over every pair: whether any, the first, their total length, and
     /// the least modified tau and separations.
     fn record_well_clear(&mut self, approaches: &Approaches, t0_s: f64) {
-        let logs = || approaches.well_clear.values();
+        let pairs = approaches.pairs();
+        let logs = || pairs.iter().map(|(_, _, pair)| &pair.well_clear);
         let episodes = || logs().flat_map(|l| l.episodes.iter());
         self.lowc = episodes().next().is_some();
         self.lowc_first_t_s = episodes().map(|e| e.start_t_s - t0_s).reduce(f64::min);

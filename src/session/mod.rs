@@ -262,7 +262,7 @@ impl Session {
         if self.pipeline.is_none() {
             return Err(Error::Usage("--feed needs --scene".into()));
         }
-        config.validate().map_err(Error::Usage)?;
+        config.validate().map_err(|e| Error::Usage(e.to_string()))?;
         self.feed = Some(Feed::new(config));
         Ok(())
     }
@@ -348,7 +348,7 @@ impl Session {
         let start = *self.flight_start_t_s.get_or_insert(current.t_s);
         let watch = traffic::Watch {
             collision: *pipeline.config(),
-            volume: self.approaches.volume,
+            volume: self.approaches.volume(),
             feed: self
                 .feed
                 .as_ref()
@@ -536,8 +536,9 @@ impl Session {
                 })
             })
             .collect();
+        let pairs = self.approaches.pairs();
         let collision = self.pipeline.as_ref().map(|p| {
-            let totals = &p.totals();
+            let totals = p.totals();
             let ticks = totals.ticks.max(1) as f64;
             let (median_us, p99_us) = self.tick_costs.percentiles_us();
             json!({
@@ -586,42 +587,44 @@ impl Session {
             "vehicles": vehicles,
             "traffic_aircraft": self.world.traffic.len(),
             "traffic_pressure_altitude": self.world.traffic.values().filter(|t| t.pressure_altitude).count(),
-            "approaches": self
-                .approaches
-                .by_pair
+            "approaches": pairs
                 .iter()
-                .map(|((vehicle, track), a)| json!({
-                    "vehicle": vehicle,
-                    "track": &**track,
-                    "distance_m": a.distance_m,
-                    "horizontal_m": a.horizontal_m,
-                    "vertical_m": a.vertical_m,
-                    "t_s": self.elapsed_s(a.t_s),
-                    "nmac": a.nmac,
-                }))
+                .map(|(vehicle, track, pair)| {
+                    let a = &pair.approach;
+                    json!({
+                        "vehicle": vehicle,
+                        "track": &***track,
+                        "distance_m": a.distance_m,
+                        "horizontal_m": a.horizontal_m,
+                        "vertical_m": a.vertical_m,
+                        "t_s": self.elapsed_s(a.t_s),
+                        "nmac": a.nmac,
+                    })
+                })
                 .collect::<Vec<_>>(),
             "well_clear": {
-                "volume": self.approaches.volume.map(|v| json!({
+                "volume": self.approaches.volume().map(|v| json!({
                     "dthr_m": v.dthr_m,
                     "zthr_m": v.zthr_m,
                     "tthr_s": v.tthr_s,
                     "tcoa_s": v.tcoa_s,
                 })),
-                "pairs": self
-                    .approaches
-                    .well_clear
+                "pairs": pairs
                     .iter()
-                    .filter(|(_, log)| !log.episodes.is_empty())
-                    .map(|((vehicle, track), log)| json!({
-                        "vehicle": vehicle,
-                        "track": &**track,
-                        "lowc_first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
-                        "lowc_duration_s": log.duration_s(),
-                        "episodes": log.episodes.len(),
-                        "min_tau_mod_s": log.min_tau_mod_s,
-                        "min_horizontal_m": log.episodes.iter().map(|e| e.min_horizontal_m).reduce(f64::min),
-                        "min_vertical_m": log.episodes.iter().map(|e| e.min_vertical_m).reduce(f64::min),
-                    }))
+                    .filter(|(_, _, pair)| !pair.well_clear.episodes.is_empty())
+                    .map(|(vehicle, track, pair)| {
+                        let log = &pair.well_clear;
+                        json!({
+                            "vehicle": vehicle,
+                            "track": &***track,
+                            "lowc_first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
+                            "lowc_duration_s": log.duration_s(),
+                            "episodes": log.episodes.len(),
+                            "min_tau_mod_s": log.min_tau_mod_s,
+                            "min_horizontal_m": log.episodes.iter().map(|e| e.min_horizontal_m).reduce(f64::min),
+                            "min_vertical_m": log.episodes.iter().map(|e| e.min_vertical_m).reduce(f64::min),
+                        })
+                    })
                     .collect::<Vec<_>>(),
             },
             "tracks_expired": self.world.expired,
@@ -672,10 +675,10 @@ pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
 fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
     match c.change {
         Change::Lost { t_s } => {
-            let episode = approaches
-                .well_clear
-                .get(&(own, c.body.clone()))
-                .and_then(|log| log.episodes.iter().rev().find(|e| e.start_t_s == t_s));
+            let episode = approaches.pair(own, &c.body).and_then(|pair| {
+                let episodes = pair.well_clear.episodes.iter();
+                episodes.rev().find(|e| e.start_t_s == t_s)
+            });
             EventKind::WellClearLost {
                 track: c.body.to_string(),
                 lost_t: t_s,

@@ -12,7 +12,7 @@
 //! keeps one per pair of tracks, and each pair's losses of well clear
 //! ([`crate::daa::episodes`]).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -85,12 +85,19 @@ impl Approach {
 /// run, and its losses of well clear.
 #[derive(Debug, Clone)]
 pub struct Approaches {
-    /// By (vehicle, body id).
-    pub by_pair: BTreeMap<(u8, Arc<str>), Approach>,
-    /// Well clear by (vehicle, body id): its episodes.
-    pub well_clear: BTreeMap<(u8, Arc<str>), PairLog>,
+    /// By vehicle, then by body id (a hash map: a fleet's tick looks up every body near it).
+    by_vehicle: BTreeMap<u8, HashMap<Arc<str>, Pair>>,
     /// The well-clear volume judged (`None`: well clear is not judged).
-    pub volume: Option<Volume>,
+    volume: Option<Volume>,
+}
+
+/// What is known of one (vehicle, moving body) pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pair {
+    /// Their closest approach so far.
+    pub approach: Approach,
+    /// Their losses of well clear (empty when well clear is not judged).
+    pub well_clear: PairLog,
 }
 
 impl Default for Approaches {
@@ -112,10 +119,35 @@ impl Approaches {
     /// No approaches yet; well clear judged with `volume` (`None`: not judged).
     pub fn with_volume(volume: Option<Volume>) -> Self {
         Self {
-            by_pair: BTreeMap::new(),
-            well_clear: BTreeMap::new(),
+            by_vehicle: BTreeMap::new(),
             volume,
         }
+    }
+
+    /// The well-clear volume judged (`None`: well clear is not judged).
+    pub fn volume(&self) -> Option<Volume> {
+        self.volume
+    }
+
+    /// Every pair, by vehicle then body id (a fixed order: what a summary lists and sums).
+    ///
+    /// ```
+    /// use savsim_core::collision::approach::Approaches;
+    /// assert!(Approaches::default().pairs().is_empty());
+    /// ```
+    pub fn pairs(&self) -> Vec<(u8, &Arc<str>, &Pair)> {
+        let mut pairs = Vec::new();
+        for (&vehicle, bodies) in &self.by_vehicle {
+            let from = pairs.len();
+            pairs.extend(bodies.iter().map(|(id, pair)| (vehicle, id, pair)));
+            pairs[from..].sort_unstable_by(|a, b| a.1.cmp(b.1));
+        }
+        pairs
+    }
+
+    /// The pair of vehicle `own` and the body `id`, if they have been seen together.
+    pub fn pair(&self, own: u8, id: &str) -> Option<&Pair> {
+        self.by_vehicle.get(&own)?.get(id)
     }
 
     /// Fold in one tick of vehicle `own` (from its `previous` sample, if any, to `current`)
@@ -132,22 +164,30 @@ impl Approaches {
     ) {
         changes.clear();
         let before = previous.unwrap_or(current);
+        let pairs = self.by_vehicle.entry(own).or_default();
         for body in bodies {
             let (rel0, rel1) = (
                 body.previous.position_enu_m - before.position_enu_m,
                 body.current.position_enu_m - current.position_enu_m,
             );
             let a = Approach::over(before.t_s, current.t_s, rel0, rel1);
-            let key = (own, body.id.clone());
-            self.by_pair
-                .entry(key.clone())
-                .and_modify(|m| *m = m.merge(a))
-                .or_insert(a);
+            let pair = match pairs.get_mut(&*body.id) {
+                Some(pair) => {
+                    pair.approach = pair.approach.merge(a);
+                    pair
+                }
+                None => pairs.entry(body.id.clone()).or_insert(Pair {
+                    approach: a,
+                    well_clear: PairLog::default(),
+                }),
+            };
             let Some(volume) = &self.volume else {
                 continue;
             };
-            let log = self.well_clear.entry(key).or_default();
-            for change in log.observe(volume, before.t_s, current.t_s, rel0, rel1) {
+            for change in pair
+                .well_clear
+                .observe(volume, before.t_s, current.t_s, rel0, rel1)
+            {
                 changes.push(WellClearChange {
                     body: body.id.clone(),
                     change,

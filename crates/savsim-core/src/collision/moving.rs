@@ -2,12 +2,14 @@
 //! phase. The caller fills a [`MovingBodies`] once per world step (a session per tick, the
 //! bench's swarm once for all its vehicles' ticks at one instant); what the stages need of it
 //! is derived once, on first use, and shared by every tick that reads it: each body's box at
-//! its pose, a key index, and, for more than a few bodies, parry's `Bvh` over the spheres
-//! each can reach in the interval. A tick then touches the bodies near it, not all of them.
+//! its pose, a key index, and, once many queries have asked about more than a few bodies,
+//! parry's `Bvh` over the spheres each can reach in the interval. A tick then touches the
+//! bodies near it, not all of them; a set that is read only a few times (a session's tick)
+//! is scanned instead of paying for an index it would hardly use.
 //!
 //! Pure and synchronous; imports no I/O.
 
-use std::cell::OnceCell;
+use std::cell::{Cell, OnceCell};
 
 use parry3d::bounding_volume::Aabb;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
@@ -15,8 +17,11 @@ use parry3d::partitioning::{Bvh, BvhBuildStrategy};
 use crate::collision::bodies::{radius_m, BodyKey, DynamicBody};
 use crate::scene::{Aabb64, Placement, Scene};
 
-/// Above this many bodies, region queries go through a `Bvh` instead of a scan.
+/// Above this many bodies, region queries go through a `Bvh` instead of a scan...
 const INDEX_ABOVE: usize = 24;
+/// ...once this many queries have been scanned (building the `Bvh` costs about as much as
+/// this many scans).
+const SCANS_BEFORE_INDEX: u32 = 8;
 
 /// The moving bodies of one tick.
 ///
@@ -49,8 +54,11 @@ struct Derived {
     reach_m: Vec<f64>,
     /// The fastest body's speed, m/s (a query's lead time grows its region by this much).
     max_speed_mps: f64,
-    /// The `Bvh` over the reach spheres' boxes (many bodies only).
-    index: Option<Bvh>,
+    /// Region queries answered so far.
+    queries: Cell<u32>,
+    /// The `Bvh` over the reach spheres' boxes, built on the query that passes
+    /// `SCANS_BEFORE_INDEX` (many bodies only).
+    index: OnceCell<Bvh>,
 }
 
 impl From<Vec<DynamicBody>> for MovingBodies {
@@ -150,7 +158,7 @@ impl MovingBodies {
                 visit(i, body);
             }
         };
-        match &d.index {
+        match d.index_for_query(&self.bodies) {
             None => (0..self.bodies.len()).for_each(consider),
             Some(bvh) => {
                 let grown = region.inflated(d.max_speed_mps * lead_s + 0.01);
@@ -198,23 +206,6 @@ impl Derived {
             .map(|b| b.speed_mps)
             .filter(|s| s.is_finite())
             .fold(0.0, f64::max);
-        let index = (bodies.len() > INDEX_ABOVE).then(|| {
-            Bvh::from_iter(
-                BvhBuildStrategy::Binned,
-                bodies
-                    .iter()
-                    .zip(&reach_m)
-                    .enumerate()
-                    .filter(|(_, (_, r))| r.is_finite())
-                    .map(|(i, (b, r))| {
-                        // Grown by a centimetre and f32's steps at its coordinates.
-                        let p = b.current.position_enu_m;
-                        let r = r + 0.01 + 4.0 * f64::from(f32::EPSILON) * p.abs().max_element();
-                        let sphere = Aabb64::around(p, glam::DVec3::splat(r));
-                        (i, Aabb::new(sphere.min.as_vec3(), sphere.max.as_vec3()))
-                    }),
-            )
-        });
         Self {
             keys,
             by_key,
@@ -222,7 +213,35 @@ impl Derived {
             aabbs,
             reach_m,
             max_speed_mps,
-            index,
+            queries: Cell::new(0),
+            index: OnceCell::new(),
         }
+    }
+
+    /// Count a query; the `Bvh` to answer it with, if one is worth having by now.
+    fn index_for_query(&self, bodies: &[DynamicBody]) -> Option<&Bvh> {
+        let asked = self.queries.get().saturating_add(1);
+        self.queries.set(asked);
+        (bodies.len() > INDEX_ABOVE && asked > SCANS_BEFORE_INDEX)
+            .then(|| self.index.get_or_init(|| self.build_index(bodies)))
+    }
+
+    /// The `Bvh` over the boxes of the spheres the bodies can reach in the interval.
+    fn build_index(&self, bodies: &[DynamicBody]) -> Bvh {
+        Bvh::from_iter(
+            BvhBuildStrategy::Binned,
+            bodies
+                .iter()
+                .zip(&self.reach_m)
+                .enumerate()
+                .filter(|(_, (_, r))| r.is_finite())
+                .map(|(i, (b, r))| {
+                    // Grown by a centimetre and f32's steps at its coordinates.
+                    let p = b.current.position_enu_m;
+                    let r = r + 0.01 + 4.0 * f64::from(f32::EPSILON) * p.abs().max_element();
+                    let sphere = Aabb64::around(p, glam::DVec3::splat(r));
+                    (i, Aabb::new(sphere.min.as_vec3(), sphere.max.as_vec3()))
+                }),
+        )
     }
 }
