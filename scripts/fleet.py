@@ -36,7 +36,11 @@ class Encoder:
         self.link = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
 
     def pack(self, message):
-        return message.pack(self.link)
+        """The frame, with this sender's next sequence number (pymavlink's send() counts it;
+        pack() alone does not)."""
+        frame = message.pack(self.link)
+        self.link.seq = (self.link.seq + 1) % 256
+        return frame
 
 
 def vehicle_id(n):

@@ -134,6 +134,8 @@ pub struct LinkReport {
     pub closes: u64,
     /// Times a link brought nothing for 5 s (each logged as a warning).
     pub silences: u64,
+    /// The most chunks that waited for the session thread at once (of `LiveOptions::queue_len`).
+    pub queue_peak: u64,
     /// Receive -> processed.
     pub latency: Option<Latency>,
     /// The closed-loop feed, when on.
@@ -240,8 +242,10 @@ impl FeedSender {
     }
 }
 
+/// A latency histogram, microseconds: 1 us to an hour at 3 significant figures (fixed bounds:
+/// `saturating_record` does not grow an auto-resizing one, it clamps to its initial range).
 fn new_histogram() -> hdrhistogram::Histogram<u64> {
-    hdrhistogram::Histogram::new(3).expect("3 significant figures is valid")
+    hdrhistogram::Histogram::new_with_bounds(1, 3_600_000_000, 3).expect("valid bounds")
 }
 
 fn latency(h: &hdrhistogram::Histogram<u64>) -> Option<Latency> {
@@ -409,8 +413,8 @@ pub fn run_links(
     }
     thread.session.set_own(vec![options.gcs, options.feed_from]);
     let deadline = options.duration.map(|d| Instant::now() + d);
-    // Per link: when it last brought anything, and whether its silence was logged.
-    let mut heard_t_s = vec![(unix_now_s(), false); endpoints.len()];
+    // Per link: whether its present silence was logged.
+    let mut silence_logged = vec![false; endpoints.len()];
     let mut silences = 0u64;
     let mut next_due_t_s = f64::NEG_INFINITY;
     loop {
@@ -423,9 +427,7 @@ pub fn run_links(
         }
         match chunks.recv_timeout(Duration::from_millis(20)) {
             Ok(chunk) => {
-                if let Some(heard) = heard_t_s.get_mut(usize::from(chunk.link)) {
-                    *heard = (chunk.t_s, false);
-                }
+                network.taken();
                 thread.process(&chunk);
                 if feeding {
                     thread.send_feed(&network, chunk.t_s);
@@ -437,8 +439,11 @@ pub fn run_links(
         let now_s = unix_now_s();
         if now_s >= next_due_t_s {
             next_due_t_s = now_s + 0.02;
-            for (index, (heard, logged)) in heard_t_s.iter_mut().enumerate() {
-                if !*logged && now_s - *heard > SILENT_LINK_S {
+            for (index, logged) in silence_logged.iter_mut().enumerate() {
+                let silent = now_s - network.last_heard_s(index as LinkId) > SILENT_LINK_S;
+                if !silent {
+                    *logged = false;
+                } else if !*logged {
                     *logged = true;
                     silences += 1;
                     tracing::warn!(
@@ -497,6 +502,7 @@ pub fn run_links(
         unprocessed_bytes,
         unsent: load(&counters.unsent),
         silences,
+        queue_peak: load(&counters.queue_peak),
         connects: load(&counters.connects),
         closes: load(&counters.closes),
         latency: latency(h),
@@ -507,4 +513,22 @@ pub fn run_links(
         report,
         ended: stopped.and(thread.result),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latencies_are_recorded_as_they_are() {
+        let mut h = new_histogram();
+        for us in [3, 40, 5_000, 2_000_000] {
+            h.saturating_record(us);
+        }
+        let l = latency(&h).unwrap();
+        assert_eq!(l.chunks, 4);
+        assert_eq!(l.p50_us, 40, "{l:?}");
+        assert!((1_999_000..=2_001_000).contains(&l.p99_us), "{l:?}");
+        assert!((1_999_000..=2_001_000).contains(&l.max_us), "{l:?}");
+    }
 }

@@ -190,9 +190,9 @@ impl RunRow {
         self.approaches = approaches
             .pairs()
             .into_iter()
-            .map(|(vehicle, track, pair)| ApproachRow {
+            .map(|(vehicle, pair)| ApproachRow {
                 vehicle,
-                track: track.to_string(),
+                track: pair.id.to_string(),
                 distance_m: pair.approach.distance_m,
                 horizontal_m: pair.approach.horizontal_m,
                 vertical_m: pair.approach.vertical_m,
@@ -219,7 +219,7 @@ impl RunRow {
     /// the least modified tau and separations.
     fn record_well_clear(&mut self, approaches: &Approaches, t0_s: f64) {
         let pairs = approaches.pairs();
-        let logs = || pairs.iter().map(|(_, _, pair)| &pair.well_clear);
+        let logs = || pairs.iter().map(|(_, pair)| &pair.well_clear);
         let episodes = || logs().flat_map(|l| l.episodes.iter());
         self.lowc = episodes().next().is_some();
         self.lowc_first_t_s = episodes().map(|e| e.start_t_s - t0_s).reduce(f64::min);

@@ -194,6 +194,10 @@ pub struct LinkCounters {
     pub connects: AtomicU64,
     /// TCP connections the peer closed.
     pub closes: AtomicU64,
+    /// Chunks queued for the session thread now (it takes one off with [`Network::taken`]).
+    pub queued: AtomicU64,
+    /// The most chunks ever queued at once.
+    pub queue_peak: AtomicU64,
 }
 
 /// Receive time now, UNIX seconds, on a monotonic clock: the system clock read once, at the
@@ -224,6 +228,8 @@ pub struct Network {
     runtime: tokio::runtime::Handle,
     /// Their counters.
     pub counters: Arc<LinkCounters>,
+    /// Per link, when it last received anything (queued or dropped): UNIX seconds' bits.
+    heard: Arc<[AtomicU64]>,
 }
 
 /// What one link task owns.
@@ -232,6 +238,7 @@ struct Task {
     chunks: SyncSender<Chunk>,
     outgoing: mpsc::Receiver<Outgoing>,
     counters: Arc<LinkCounters>,
+    heard: Arc<[AtomicU64]>,
     stop: watch::Receiver<bool>,
 }
 
@@ -246,6 +253,8 @@ impl Network {
         let (chunks, received) = sync_channel(queue_len.max(1));
         let (stop, stopped) = watch::channel(false);
         let counters = Arc::new(LinkCounters::default());
+        let started = unix_now_s().to_bits();
+        let heard: Arc<[AtomicU64]> = links.iter().map(|_| AtomicU64::new(started)).collect();
         let mut outgoing = Vec::new();
         let mut tasks = Vec::new();
         for (index, link) in links.into_iter().enumerate() {
@@ -256,6 +265,7 @@ impl Network {
                 chunks: chunks.clone(),
                 outgoing: rx,
                 counters: counters.clone(),
+                heard: heard.clone(),
                 stop: stopped.clone(),
             };
             tasks.push(runtime.spawn(async move {
@@ -276,8 +286,24 @@ impl Network {
             tasks,
             runtime: runtime.clone(),
             counters,
+            heard,
         };
         (network, received)
+    }
+
+    /// Note that the session thread took a chunk off the queue.
+    pub fn taken(&self) {
+        self.counters.queued.fetch_sub(1, Ordering::Relaxed);
+    }
+
+    /// When `link` last received anything, UNIX seconds (its start, before anything came). A
+    /// backlog of queued chunks does not make a live link look silent.
+    pub fn last_heard_s(&self, link: LinkId) -> f64 {
+        self.heard
+            .get(usize::from(link))
+            .map_or(f64::NEG_INFINITY, |t| {
+                f64::from_bits(t.load(Ordering::Relaxed))
+            })
     }
 
     /// Queue bytes for an endpoint; never waits (a full queue drops and counts).
@@ -315,16 +341,26 @@ impl Network {
 
 impl Task {
     fn forward(&self, from: Option<SocketAddr>, bytes: &[u8], kind: ChunkKind) {
+        let t_s = unix_now_s();
+        if let Some(heard) = self.heard.get(usize::from(self.link)) {
+            heard.store(t_s.to_bits(), Ordering::Relaxed);
+        }
         let chunk = Chunk {
             link: self.link,
             from,
-            t_s: unix_now_s(),
+            t_s,
             bytes: bytes.to_vec(),
             kind,
         };
+        // Counted before the send, so the taker's decrement never comes first.
+        let queued = self.counters.queued.fetch_add(1, Ordering::Relaxed) + 1;
+        self.counters
+            .queue_peak
+            .fetch_max(queued, Ordering::Relaxed);
         if let Err(TrySendError::Full(c) | TrySendError::Disconnected(c)) =
             self.chunks.try_send(chunk)
         {
+            self.counters.queued.fetch_sub(1, Ordering::Relaxed);
             self.counters.dropped_chunks.fetch_add(1, Ordering::Relaxed);
             self.counters
                 .dropped_bytes

@@ -589,11 +589,11 @@ impl Session {
             "traffic_pressure_altitude": self.world.traffic.values().filter(|t| t.pressure_altitude).count(),
             "approaches": pairs
                 .iter()
-                .map(|(vehicle, track, pair)| {
+                .map(|(vehicle, pair)| {
                     let a = &pair.approach;
                     json!({
                         "vehicle": vehicle,
-                        "track": &***track,
+                        "track": &*pair.id,
                         "distance_m": a.distance_m,
                         "horizontal_m": a.horizontal_m,
                         "vertical_m": a.vertical_m,
@@ -611,12 +611,12 @@ impl Session {
                 })),
                 "pairs": pairs
                     .iter()
-                    .filter(|(_, _, pair)| !pair.well_clear.episodes.is_empty())
-                    .map(|(vehicle, track, pair)| {
+                    .filter(|(_, pair)| !pair.well_clear.episodes.is_empty())
+                    .map(|(vehicle, pair)| {
                         let log = &pair.well_clear;
                         json!({
                             "vehicle": vehicle,
-                            "track": &***track,
+                            "track": &*pair.id,
                             "lowc_first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
                             "lowc_duration_s": log.duration_s(),
                             "episodes": log.episodes.len(),
@@ -675,7 +675,7 @@ pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
 fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
     match c.change {
         Change::Lost { t_s } => {
-            let episode = approaches.pair(own, &c.body).and_then(|pair| {
+            let episode = approaches.pair(own, c.source).and_then(|pair| {
                 let episodes = pair.well_clear.episodes.iter();
                 episodes.rev().find(|e| e.start_t_s == t_s)
             });

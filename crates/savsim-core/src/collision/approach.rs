@@ -13,11 +13,13 @@
 //! ([`crate::daa::episodes`]).
 
 use std::collections::{BTreeMap, HashMap};
+
+use foldhash::fast::RandomState;
 use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::collision::bodies::DynamicBody;
+use crate::collision::bodies::{BodySource, DynamicBody};
 use crate::daa::episodes::{Change, PairLog};
 use crate::daa::well_clear::Volume;
 use crate::world::TrackSample;
@@ -81,12 +83,14 @@ impl Approach {
     }
 }
 
-/// The closest approach of each vehicle (MAVLink system id) to each moving body (by id) over a
+/// The closest approach of each vehicle (MAVLink system id) to each moving body (by where it
+/// comes from: a scene track, a vehicle's system and component id, an ICAO address) over a
 /// run, and its losses of well clear.
 #[derive(Debug, Clone)]
 pub struct Approaches {
-    /// By vehicle, then by body id (a hash map: a fleet's tick looks up every body near it).
-    by_vehicle: BTreeMap<u8, HashMap<Arc<str>, Pair>>,
+    /// By vehicle, then by body (a hash map with a fast hash: a fleet's tick looks up every
+    /// body near it).
+    by_vehicle: BTreeMap<u8, HashMap<BodySource, Pair, RandomState>>,
     /// The well-clear volume judged (`None`: well clear is not judged).
     volume: Option<Volume>,
 }
@@ -94,6 +98,8 @@ pub struct Approaches {
 /// What is known of one (vehicle, moving body) pair.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pair {
+    /// The body's id (its label).
+    pub id: Arc<str>,
     /// Their closest approach so far.
     pub approach: Approach,
     /// Their losses of well clear (empty when well clear is not judged).
@@ -111,6 +117,8 @@ impl Default for Approaches {
 pub struct WellClearChange {
     /// The moving body's id.
     pub body: Arc<str>,
+    /// Where the moving body comes from.
+    pub source: BodySource,
     /// What changed, and when.
     pub change: Change,
 }
@@ -129,25 +137,26 @@ impl Approaches {
         self.volume
     }
 
-    /// Every pair, by vehicle then body id (a fixed order: what a summary lists and sums).
+    /// Every pair, by vehicle, then body id, then body source (a fixed order: what a summary
+    /// lists and sums).
     ///
     /// ```
     /// use savsim_core::collision::approach::Approaches;
     /// assert!(Approaches::default().pairs().is_empty());
     /// ```
-    pub fn pairs(&self) -> Vec<(u8, &Arc<str>, &Pair)> {
+    pub fn pairs(&self) -> Vec<(u8, &Pair)> {
         let mut pairs = Vec::new();
         for (&vehicle, bodies) in &self.by_vehicle {
-            let from = pairs.len();
-            pairs.extend(bodies.iter().map(|(id, pair)| (vehicle, id, pair)));
-            pairs[from..].sort_unstable_by(|a, b| a.1.cmp(b.1));
+            let mut of_vehicle: Vec<_> = bodies.iter().collect();
+            of_vehicle.sort_unstable_by(|a, b| (&a.1.id, a.0).cmp(&(&b.1.id, b.0)));
+            pairs.extend(of_vehicle.into_iter().map(|(_, pair)| (vehicle, pair)));
         }
         pairs
     }
 
-    /// The pair of vehicle `own` and the body `id`, if they have been seen together.
-    pub fn pair(&self, own: u8, id: &str) -> Option<&Pair> {
-        self.by_vehicle.get(&own)?.get(id)
+    /// The pair of vehicle `own` and the body from `source`, if they have been seen together.
+    pub fn pair(&self, own: u8, source: BodySource) -> Option<&Pair> {
+        self.by_vehicle.get(&own)?.get(&source)
     }
 
     /// Fold in one tick of vehicle `own` (from its `previous` sample, if any, to `current`)
@@ -171,16 +180,14 @@ impl Approaches {
                 body.current.position_enu_m - current.position_enu_m,
             );
             let a = Approach::over(before.t_s, current.t_s, rel0, rel1);
-            let pair = match pairs.get_mut(&*body.id) {
-                Some(pair) => {
-                    pair.approach = pair.approach.merge(a);
-                    pair
-                }
-                None => pairs.entry(body.id.clone()).or_insert(Pair {
+            let pair = pairs
+                .entry(body.key.source)
+                .and_modify(|pair| pair.approach = pair.approach.merge(a))
+                .or_insert_with(|| Pair {
+                    id: body.id.clone(),
                     approach: a,
                     well_clear: PairLog::default(),
-                }),
-            };
+                });
             let Some(volume) = &self.volume else {
                 continue;
             };
@@ -190,6 +197,7 @@ impl Approaches {
             {
                 changes.push(WellClearChange {
                     body: body.id.clone(),
+                    source: body.key.source,
                     change,
                 });
             }

@@ -47,8 +47,9 @@ struct Derived {
     by_key: Vec<u32>,
     /// Each body's place in key order (the inverse of `by_key`).
     rank: Vec<u32>,
-    /// Each body's box at its current pose, scene ENU metres.
-    aabbs: Vec<Aabb64>,
+    /// Each body's box at its current pose, scene ENU metres, computed when first asked
+    /// (most bodies near a tick are only ever distance-tested).
+    aabbs: Vec<Cell<Option<Aabb64>>>,
     /// Radius of the sphere about each body's current position that holds it over the
     /// interval (its model's radius plus how far it moved), metres.
     reach_m: Vec<f64>,
@@ -130,7 +131,22 @@ impl MovingBodies {
 
     /// Body `i`'s box at its current pose (empty for a model the scene does not have).
     pub(crate) fn aabb(&self, scene: &Scene, i: usize) -> Aabb64 {
-        self.derived(scene).aabbs[i]
+        let cell = &self.derived(scene).aabbs[i];
+        cell.get().unwrap_or_else(|| {
+            let b = &self.bodies[i];
+            let aabb = scene
+                .geometries
+                .get(b.geometry_index)
+                .map_or(Aabb64::EMPTY, |g| {
+                    Placement {
+                        position_enu_m: b.current.position_enu_m,
+                        enu_from_local: b.current.enu_from_body,
+                    }
+                    .enu_aabb(&g.local_aabb)
+                });
+            cell.set(Some(aabb));
+            aabb
+        })
     }
 
     /// Body `i`.
@@ -180,27 +196,16 @@ impl Derived {
         for (r, &i) in by_key.iter().enumerate() {
             rank[i as usize] = r as u32;
         }
-        let mut aabbs = Vec::with_capacity(bodies.len());
-        let mut reach_m = Vec::with_capacity(bodies.len());
-        for b in bodies {
-            match scene.geometries.get(b.geometry_index) {
+        let aabbs = vec![Cell::new(None); bodies.len()];
+        let reach_m = bodies
+            .iter()
+            .map(|b| match scene.geometries.get(b.geometry_index) {
                 Some(g) => {
-                    aabbs.push(
-                        Placement {
-                            position_enu_m: b.current.position_enu_m,
-                            enu_from_local: b.current.enu_from_body,
-                        }
-                        .enu_aabb(&g.local_aabb),
-                    );
-                    let moved = b.current.position_enu_m.distance(b.previous.position_enu_m);
-                    reach_m.push(radius_m(g) + moved);
+                    radius_m(g) + b.current.position_enu_m.distance(b.previous.position_enu_m)
                 }
-                None => {
-                    aabbs.push(Aabb64::EMPTY);
-                    reach_m.push(f64::INFINITY);
-                }
-            }
-        }
+                None => f64::INFINITY,
+            })
+            .collect();
         let max_speed_mps = bodies
             .iter()
             .map(|b| b.speed_mps)

@@ -116,6 +116,9 @@ impl PairLog {
             self.min_tau_mod_s = Some(self.min_tau_mod_s.map_or(tau, |m| m.min(tau)));
         }
         self.last_t_s = t1_s;
+        if !self.open() && volume.surely_clear(&rel, dt) {
+            return changes;
+        }
         match volume.interval(&rel, 0.0, dt) {
             None => self.close(t0_s, &mut changes),
             Some((a, b)) => {

@@ -169,6 +169,27 @@ impl Volume {
         (lo <= hi).then_some((lo, hi))
     }
 
+    /// True when well clear surely holds throughout `[0, dt_s]` (a cheap bound, for the many
+    /// pairs far apart): the least horizontal separation over it exceeds the largest at which
+    /// the horizontal predicate can hold (`|s|^2 + TTHR (s . v) <= DTHR^2` needs
+    /// `|s|^2 - TTHR |s| |v| <= DTHR^2`). False says nothing.
+    ///
+    /// ```
+    /// use glam::DVec3;
+    /// use savsim_core::daa::well_clear::{Relative, Volume};
+    /// let far = Relative { s_m: DVec3::new(5000.0, 0.0, 0.0), v_mps: DVec3::new(-10.0, 0.0, 0.0) };
+    /// assert!(Volume::SMALL_UAS.surely_clear(&far, 1.0));
+    /// assert!(!Volume::SMALL_UAS.surely_clear(&far, 600.0));
+    /// ```
+    pub fn surely_clear(&self, rel: &Relative, dt_s: f64) -> bool {
+        let (s, v) = (rel.s_m.truncate(), rel.v_mps.truncate());
+        let speed = v.length();
+        let tv = self.tthr_s * speed;
+        let reach = 0.5 * (tv + (tv * tv + 4.0 * self.dthr_m * self.dthr_m).sqrt());
+        let least = (s + v * (0.5 * dt_s)).length() - 0.5 * dt_s * speed;
+        least > reach
+    }
+
     /// The times (unbounded) during which the vertical predicate holds.
     fn vertical_span(&self, sz: f64, vz: f64) -> Option<(f64, f64)> {
         if vz == 0.0 {
@@ -309,6 +330,34 @@ impl Relative {
             }
         } else {
             sz.abs()
+        }
+    }
+}
+
+#[cfg(test)]
+mod bound_tests {
+    use super::*;
+    use glam::DVec3;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The cheap bound never says clear where the exact interval has a loss.
+        #[test]
+        fn surely_clear_is_never_wrong(
+            sx in -3000.0..3000.0f64, sy in -3000.0..3000.0f64, sz in -300.0..300.0f64,
+            vx in -150.0..150.0f64, vy in -150.0..150.0f64, vz in -20.0..20.0f64,
+            dt in 0.01..30.0f64, which in 0usize..4,
+        ) {
+            let volume = [
+                Volume::SMALL_UAS,
+                Volume::DO_365_PHASE_I,
+                Volume::DO_365_PHASE_II,
+                Volume::DO_365_NON_COOPERATIVE,
+            ][which];
+            let rel = Relative { s_m: DVec3::new(sx, sy, sz), v_mps: DVec3::new(vx, vy, vz) };
+            if volume.surely_clear(&rel, dt) {
+                prop_assert_eq!(volume.interval(&rel, 0.0, dt), None);
+            }
         }
     }
 }

@@ -172,7 +172,7 @@ impl History {
         if t_s <= first.t_s {
             return Some(*first);
         }
-        let i = self.samples.partition_point(|s| s.t_s <= t_s);
+        let i = self.after(t_s);
         if i >= self.samples.len() {
             return self.samples.back().copied();
         }
@@ -183,6 +183,18 @@ impl History {
         } else {
             *b
         })
+    }
+
+    /// The index of the first sample after `t_s` (the length when none is): found from the
+    /// newest end, where a tick's times nearly always are, before a binary search.
+    fn after(&self, t_s: f64) -> usize {
+        let n = self.samples.len();
+        for back in 0..n.min(4) {
+            if self.samples[n - 1 - back].t_s <= t_s {
+                return n - back;
+            }
+        }
+        self.samples.partition_point(|s| s.t_s <= t_s)
     }
 
     /// The state at `t_s`, extrapolated along the newest velocity (at most `max_ahead_s`) when
