@@ -14,9 +14,7 @@ use serde_json::json;
 
 use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{
-    BodyPose, CollisionConfig, DynamicBody, MovingBodies, Pipeline, VehicleKey,
-};
+use crate::collision::pipeline::{BodyPose, CollisionConfig, MovingBodies, Pipeline, VehicleKey};
 use crate::daa::episodes::Change;
 use crate::error::{Error, Result};
 use crate::feed::{Feed, FeedConfig, FeedMessage, FrameInput};
@@ -50,8 +48,6 @@ pub struct Session {
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     approaches: Approaches,
     dynamic: MovingBodies,
-    /// Scratch: the moving bodies the world's index found, before they are sorted.
-    found: Vec<DynamicBody>,
     /// The largest model radius in the scene (the watch range's margin), metres.
     max_model_radius_m: f64,
     /// Scratch: the well-clear changes of the tick.
@@ -127,7 +123,6 @@ impl Session {
             approaches: Approaches::default(),
             well_clear_changes: Vec::new(),
             dynamic: MovingBodies::default(),
-            found: Vec::new(),
             max_model_radius_m,
             flight_start_t_s: None,
             last_expire_t_s: f64::NEG_INFINITY,
@@ -363,7 +358,6 @@ impl Session {
         };
         traffic::fill_dynamic(
             &mut self.dynamic,
-            &mut self.found,
             &scene,
             &mut self.world,
             &watch,

@@ -98,11 +98,11 @@ impl Interval<'_> {
     }
 }
 
-/// The moving obstacles seen by vehicle `interval.own` over its interval, into `out` (`found`
-/// is scratch). Ids are shared (`Arc<str>`).
+/// The moving obstacles seen by vehicle `interval.own` over its interval, into `out`, in the
+/// order of their keys (the scene's tracks, then the vehicles, then the traffic, as
+/// [`BodyKey`] orders them). Ids are shared (`Arc<str>`).
 pub(crate) fn fill_dynamic(
     out: &mut MovingBodies,
-    found: &mut Vec<DynamicBody>,
     scene: &Scene,
     world: &mut WorldStore,
     watch: &Watch,
@@ -110,11 +110,11 @@ pub(crate) fn fill_dynamic(
 ) {
     out.clear();
     let claims = fill_scripted(out, scene, world, interval);
-    found.clear();
-    fill_nearby(found, scene, world, watch, interval, &claims);
-    // In the order of their keys, whatever order the index found them in.
-    found.sort_unstable_by_key(|b| b.key);
-    out.extend(found.drain(..));
+    fill_nearby(out, scene, world, watch, interval, &claims);
+    debug_assert!(
+        out.as_slice().is_sorted_by_key(|b| b.key),
+        "bodies out of key order"
+    );
 }
 
 /// The vehicles and aircraft the scene's tracks stand for (they are not traffic twice).
@@ -180,9 +180,9 @@ fn fill_scripted(
 }
 
 /// The other vehicles and the ADS-B traffic within the watch range of the interval, into
-/// `found`, in the order the world's index finds them.
+/// `out`, in the order of their keys (the order the world visits them in).
 fn fill_nearby(
-    found: &mut Vec<DynamicBody>,
+    out: &mut MovingBodies,
     scene: &Scene,
     world: &mut WorldStore,
     watch: &Watch,
@@ -208,7 +208,7 @@ fn fill_nearby(
             + own_radius_m
             + model_radius_m(scene, body.geometry_index);
         if own_box.distance_to_box(&body_box) <= within_m {
-            found.push(body);
+            out.push(body);
         }
     });
 }

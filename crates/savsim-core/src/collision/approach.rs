@@ -12,9 +12,7 @@
 //! keeps one per pair of tracks, and each pair's losses of well clear
 //! ([`crate::daa::episodes`]).
 
-use std::collections::{BTreeMap, HashMap};
-
-use foldhash::fast::RandomState;
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -88,9 +86,9 @@ impl Approach {
 /// run, and its losses of well clear.
 #[derive(Debug, Clone)]
 pub struct Approaches {
-    /// By vehicle, then by body (a hash map with a fast hash: a fleet's tick looks up every
-    /// body near it).
-    by_vehicle: BTreeMap<u8, HashMap<BodySource, Pair, RandomState>>,
+    /// By vehicle, then by body, sorted by source: a tick's bodies come in key order, so a
+    /// tick walks its vehicle's pairs in order.
+    by_vehicle: BTreeMap<u8, Vec<(BodySource, Pair)>>,
     /// The well-clear volume judged (`None`: well clear is not judged).
     volume: Option<Volume>,
 }
@@ -148,7 +146,7 @@ impl Approaches {
         let mut pairs = Vec::new();
         for (&vehicle, bodies) in &self.by_vehicle {
             let mut of_vehicle: Vec<_> = bodies.iter().collect();
-            of_vehicle.sort_unstable_by(|a, b| (&a.1.id, a.0).cmp(&(&b.1.id, b.0)));
+            of_vehicle.sort_by(|a, b| a.1.id.cmp(&b.1.id));
             pairs.extend(of_vehicle.into_iter().map(|(_, pair)| (vehicle, pair)));
         }
         pairs
@@ -156,13 +154,16 @@ impl Approaches {
 
     /// The pair of vehicle `own` and the body from `source`, if they have been seen together.
     pub fn pair(&self, own: u8, source: BodySource) -> Option<&Pair> {
-        self.by_vehicle.get(&own)?.get(&source)
+        let pairs = self.by_vehicle.get(&own)?;
+        let at = slot(pairs, 0, source).ok()?;
+        Some(&pairs[at].1)
     }
 
     /// Fold in one tick of vehicle `own` (from its `previous` sample, if any, to `current`)
     /// against every moving body of that interval, as the pipeline sees them; the losses and
     /// regains of well clear within it, in `changes` (cleared first). Allocates only the first
-    /// time a pair is seen.
+    /// time a pair is seen. Fastest with `bodies` in the order of their keys, as a session's
+    /// tick has them; any order gives the same answer.
     pub fn observe(
         &mut self,
         own: u8,
@@ -174,20 +175,31 @@ impl Approaches {
         changes.clear();
         let before = previous.unwrap_or(current);
         let pairs = self.by_vehicle.entry(own).or_default();
+        let mut hint = 0;
         for body in bodies {
             let (rel0, rel1) = (
                 body.previous.position_enu_m - before.position_enu_m,
                 body.current.position_enu_m - current.position_enu_m,
             );
             let a = Approach::over(before.t_s, current.t_s, rel0, rel1);
-            let pair = pairs
-                .entry(body.key.source)
-                .and_modify(|pair| pair.approach = pair.approach.merge(a))
-                .or_insert_with(|| Pair {
-                    id: body.id.clone(),
-                    approach: a,
-                    well_clear: PairLog::default(),
-                });
+            let source = body.key.source;
+            let at = match slot(pairs, hint, source) {
+                Ok(at) => {
+                    pairs[at].1.approach = pairs[at].1.approach.merge(a);
+                    at
+                }
+                Err(at) => {
+                    let pair = Pair {
+                        id: body.id.clone(),
+                        approach: a,
+                        well_clear: PairLog::default(),
+                    };
+                    pairs.insert(at, (source, pair));
+                    at
+                }
+            };
+            hint = at + 1;
+            let pair = &mut pairs[at].1;
             let Some(volume) = &self.volume else {
                 continue;
             };
@@ -203,6 +215,24 @@ impl Approaches {
             }
         }
     }
+}
+
+/// Where the pair with `source` is in `pairs` (sorted by source), or where it would go;
+/// looked for from `hint` on when `source` comes after the pair before `hint` (as the next
+/// body in key order does), else in all of them.
+fn slot(pairs: &[(BodySource, Pair)], hint: usize, source: BodySource) -> Result<usize, usize> {
+    let from = if hint > 0 && hint <= pairs.len() && pairs[hint - 1].0 < source {
+        hint
+    } else {
+        0
+    };
+    if pairs.get(from).is_some_and(|(s, _)| *s == source) {
+        return Ok(from);
+    }
+    let rest = &pairs[from..];
+    rest.binary_search_by(|(s, _)| s.cmp(&source))
+        .map(|i| from + i)
+        .map_err(|i| from + i)
 }
 
 /// The `u` in `[lo, hi]` at which `|p + d u|` is least (the earliest on a tie).
@@ -241,6 +271,98 @@ fn nmac_within(p: DVec3, d: DVec3) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::collision::bodies::{BodyKey, BodyPose};
+    use crate::geo::Geodetic;
+    use crate::scene::Kind;
+    use crate::world::Attitude;
+    use glam::DQuat;
+
+    fn sample(t_s: f64, east_m: f64) -> TrackSample {
+        TrackSample {
+            t_s,
+            time_boot_ms: 0,
+            position: Geodetic::new(0.0, 0.0, 0.0),
+            position_enu_m: DVec3::new(east_m, 0.0, 50.0),
+            velocity_enu_mps: DVec3::ZERO,
+            attitude: Attitude {
+                time_boot_ms: 0,
+                enu_from_frd: DQuat::IDENTITY,
+                body_rates_radps: DVec3::ZERO,
+            },
+        }
+    }
+
+    fn body(source: BodySource, north_m: f64) -> DynamicBody {
+        let pose = |n: f64| BodyPose {
+            position_enu_m: DVec3::new(0.0, n, 50.0),
+            enu_from_body: DQuat::IDENTITY,
+        };
+        DynamicBody {
+            key: BodyKey {
+                source,
+                generation: 0,
+            },
+            id: format!("{source:?}").into(),
+            kind: Kind::Dji,
+            threat: 45.0,
+            geometry_index: 0,
+            previous: pose(north_m),
+            current: pose(north_m - 10.0),
+            speed_mps: 10.0,
+        }
+    }
+
+    #[test]
+    fn pairs_are_the_same_in_any_order_of_bodies() {
+        // Ticks whose body sets overlap, some new each tick, one gone and back.
+        let sources: Vec<BodySource> = (0..6)
+            .map(BodySource::Scripted)
+            .chain((1..6).map(|v| BodySource::Vehicle {
+                vehicle: v,
+                component_id: 1,
+            }))
+            .chain([BodySource::Traffic(7), BodySource::Traffic(3)])
+            .collect();
+        let ticks: Vec<Vec<DynamicBody>> = (0..5)
+            .map(|k| {
+                let mut bodies: Vec<_> = sources
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| (i + k) % 3 != 0)
+                    .map(|(i, &s)| body(s, 100.0 * i as f64 - 20.0 * k as f64))
+                    .collect();
+                bodies.sort_by_key(|b| b.key);
+                bodies
+            })
+            .collect();
+        let run = |reorder: &dyn Fn(&mut Vec<DynamicBody>)| {
+            let mut approaches = Approaches::default();
+            let mut changes = Vec::new();
+            let mut all = Vec::new();
+            for (k, bodies) in ticks.iter().enumerate() {
+                let mut bodies = bodies.clone();
+                reorder(&mut bodies);
+                let (a, b) = (sample(k as f64, 0.0), sample(k as f64 + 1.0, 5.0));
+                approaches.observe(1, Some(&a), &b, &bodies, &mut changes);
+                changes.sort_by_key(|c| c.source);
+                all.append(&mut changes);
+            }
+            let pairs: Vec<_> = approaches
+                .pairs()
+                .into_iter()
+                .map(|(v, p)| (v, p.clone()))
+                .collect();
+            (pairs, all)
+        };
+        let sorted = run(&|_| {});
+        assert_eq!(sorted.0.len(), sources.len());
+        assert!(
+            !sorted.1.is_empty(),
+            "the test should see losses of well clear"
+        );
+        assert_eq!(run(&|b| b.reverse()), sorted);
+        assert_eq!(run(&|b| b.rotate_left(3)), sorted);
+    }
 
     #[test]
     fn nmac_needs_both_thresholds_at_the_same_time() {

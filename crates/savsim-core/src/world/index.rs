@@ -49,6 +49,8 @@ pub struct TrackIndex {
     bvh: Option<Bvh>,
     /// Tracks whose newest samples are outside their box (or that have none): always visited.
     moved_out: HashSet<TrackKey>,
+    /// A query's keys, sorted before they are visited (scratch).
+    hits: Vec<TrackKey>,
     /// Each entry's box, by key, to check new samples against.
     boxes: std::collections::HashMap<TrackKey, Aabb64>,
     /// The fastest speed of any track's newest sample since the build, m/s.
@@ -129,17 +131,21 @@ impl TrackIndex {
     }
 
     /// Call `visit` for every track whose box meets `region`, and for every track that left
-    /// its box since the build (a track may be visited that is nowhere near).
-    pub(crate) fn near(&self, region: &Aabb64, mut visit: impl FnMut(TrackKey)) {
+    /// its box since the build (a track may be visited that is nowhere near), each once, in
+    /// the order of their keys.
+    pub(crate) fn near(&mut self, region: &Aabb64, mut visit: impl FnMut(TrackKey)) {
+        self.hits.clear();
         if let Some(bvh) = &self.bvh {
-            for i in bvh.intersect_aabb(&to_f32(region)) {
-                let key = self.keys[i as usize];
-                if !self.moved_out.contains(&key) {
-                    visit(key);
-                }
-            }
+            let moved_out = &self.moved_out;
+            self.hits.extend(
+                bvh.intersect_aabb(&to_f32(region))
+                    .map(|i| self.keys[i as usize])
+                    .filter(|key| !moved_out.contains(key)),
+            );
         }
-        self.moved_out.iter().for_each(|&k| visit(k));
+        self.hits.extend(self.moved_out.iter().copied());
+        self.hits.sort_unstable();
+        self.hits.iter().for_each(|&k| visit(k));
     }
 }
 

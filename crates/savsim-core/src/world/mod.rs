@@ -355,7 +355,8 @@ impl WorldStore {
     /// Call `visit` with every track whose predicted position ([`History::predict`]) at some
     /// time from `since_t_s` on may lie in `region`: all of them, and perhaps others. Through
     /// the index, rebuilt first when it is stale at `now_t_s`; a scan of every track when
-    /// `since_t_s` is older than the index looks back ([`index::LOOKBACK_S`]).
+    /// `since_t_s` is older than the index looks back ([`index::LOOKBACK_S`]). The vehicles
+    /// come first, by (system id, component id), then the traffic by ICAO address.
     ///
     /// ```
     /// use savsim_core::{geo::Geodetic, scene::Aabb64, world::{Track, WorldStore, WorldConfig}};
