@@ -20,7 +20,7 @@ pub struct Cli {
 pub enum Command {
     /// Replay the bundled flight over the bundled city and print what happened.
     Demo(DemoArgs),
-    /// Replay a tlog, optionally over a scene.
+    /// Replay a tlog, a PX4 ULog or an ArduPilot DataFlash log, optionally over a scene.
     Replay(ReplayArgs),
     /// Connect to a vehicle or SITL and mirror it live, optionally over a scene.
     Live(LiveArgs),
@@ -304,7 +304,7 @@ pub struct DemoArgs {
 /// `savsim replay`.
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
-    /// The tlog to replay.
+    /// The tlog, ULog (.ulg) or DataFlash log (.bin) to replay (told apart by their first bytes).
     pub flight: PathBuf,
     /// Replay speed: a factor of real time (1 = as flown), or `max`.
     #[arg(long, default_value = "max")]

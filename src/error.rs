@@ -44,6 +44,14 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// An autopilot log that cannot be read at all.
+    #[error("{path}: {source}")]
+    Log {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: crate::ingest::ulog::UlogError,
+    },
     /// A command-line value that parses but makes no sense.
     #[error("{0}")]
     Usage(String),

@@ -1,4 +1,4 @@
-//! Replaying a tlog into a session, as fast as the machine can or paced by its timestamps.
+//! Replaying a recording (a tlog, a PX4 ULog, an ArduPilot DataFlash log) into a session, as fast as the machine can or paced by its timestamps.
 
 use std::fs::File;
 use std::path::Path;
@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result};
+use crate::ingest::flightlog::{read_dataflash, read_ulog, FlightLog, LogKind};
 use crate::ingest::tlog::TlogReader;
 use crate::session::Session;
 
@@ -37,9 +38,120 @@ impl std::str::FromStr for Speed {
 /// Longest wall-clock pause a replay makes for one gap in the recording, seconds.
 const MAX_REPLAY_PAUSE_S: f64 = 10.0;
 
-/// Replay a tlog into a session, paced by its timestamps; with `until_s`, stop at the first
-/// record more than that many seconds after the first message (the report's "+N s").
+/// Paces a replay by its source's clock: sleeps until each record is due at `speed`, with no
+/// pause longer than [`MAX_REPLAY_PAUSE_S`] for a gap.
+struct Pacer {
+    speed: Speed,
+    wall_start: Instant,
+    first_t_s: Option<f64>,
+    paused_s: f64,
+    last_t_s: f64,
+}
+
+impl Pacer {
+    fn new(speed: Speed) -> Self {
+        Self {
+            speed,
+            wall_start: Instant::now(),
+            first_t_s: None,
+            paused_s: 0.0,
+            last_t_s: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Wait until a record at `t_s` is due.
+    fn wait_for(&mut self, t_s: f64) {
+        if let Speed::Factor(factor) = self.speed {
+            let t0 = *self.first_t_s.get_or_insert(t_s);
+            if t_s - self.last_t_s > MAX_REPLAY_PAUSE_S && self.last_t_s.is_finite() {
+                self.paused_s += t_s - self.last_t_s - MAX_REPLAY_PAUSE_S;
+            }
+            let due = (t_s - t0 - self.paused_s) / factor;
+            let now = self.wall_start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64((due - now).min(MAX_REPLAY_PAUSE_S)));
+            }
+        }
+        self.last_t_s = self.last_t_s.max(t_s);
+    }
+}
+
+/// Whether a record at `t_s` is past `until_s` seconds after the first message.
+fn past(session: &Session, until_s: Option<f64>, t_s: f64) -> bool {
+    matches!((until_s, session.elapsed_s(t_s)), (Some(until_s), Some(elapsed_s)) if elapsed_s > until_s)
+}
+
+/// Replay a recording into a session, paced by its timestamps: a tlog, a PX4 ULog or an
+/// ArduPilot DataFlash log (told apart by their first bytes). With `until_s`, stop at the
+/// first record more than that many seconds after the first message (the report's "+N s").
 pub fn replay(
+    path: &Path,
+    speed: Speed,
+    progress: bool,
+    until_s: Option<f64>,
+    session: &mut Session,
+    shutdown: &AtomicBool,
+) -> Result<()> {
+    let mut head = [0u8; 16];
+    let mut file = File::open(path).map_err(|e| Error::file(path, e))?;
+    let n = read_head(&mut file, &mut head).map_err(|e| Error::file(path, e))?;
+    match LogKind::of(&head[..n]) {
+        LogKind::Tlog => replay_tlog(path, speed, progress, until_s, session, shutdown),
+        kind => {
+            let data = std::fs::read(path).map_err(|e| Error::file(path, e))?;
+            let log = match kind {
+                LogKind::Ulog => read_ulog(&data).map_err(|e| Error::Log {
+                    path: path.to_path_buf(),
+                    source: e,
+                })?,
+                _ => read_dataflash(&data),
+            };
+            replay_log(log, speed, until_s, session, shutdown)
+        }
+    }
+}
+
+/// Up to `head.len()` bytes from the start of `file`: how many were read.
+fn read_head(file: &mut File, head: &mut [u8]) -> std::io::Result<usize> {
+    use std::io::Read;
+    let mut n = 0;
+    while n < head.len() {
+        match file.read(&mut head[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n)
+}
+
+/// Replay an autopilot log's reports (already read) into a session.
+fn replay_log(
+    log: FlightLog,
+    speed: Speed,
+    until_s: Option<f64>,
+    session: &mut Session,
+    shutdown: &AtomicBool,
+) -> Result<()> {
+    let mut pacer = Pacer::new(speed);
+    session.set_log(log.summary);
+    for timed in &log.reports {
+        if shutdown.load(Ordering::Relaxed) {
+            session.set_interrupted(true);
+            break;
+        }
+        let t_s = timed.t_us as f64 * 1e-6;
+        if past(session, until_s, t_s) {
+            break;
+        }
+        pacer.wait_for(t_s);
+        let t_s = session.stats_mut().observe_time(t_s);
+        session.on_report(t_s, timed.sender, &timed.report)?;
+    }
+    Ok(())
+}
+
+/// Replay a tlog into a session.
+fn replay_tlog(
     path: &Path,
     speed: Speed,
     progress: bool,
@@ -52,10 +164,7 @@ pub fn replay(
     let bar = (progress && len > (8 << 20) && std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .then(|| indicatif::ProgressBar::new(len));
     let mut reader = TlogReader::new(file);
-    let wall_start = Instant::now();
-    let mut first_t_s: Option<f64> = None;
-    let mut paused_s = 0.0;
-    let mut last_t_s = f64::NEG_INFINITY;
+    let mut pacer = Pacer::new(speed);
     let mut n: u64 = 0;
     loop {
         if shutdown.load(Ordering::Relaxed) {
@@ -67,23 +176,10 @@ pub fn replay(
             .map_err(|e| Error::file(path, e))?;
         let Some(record) = record else { break };
         let t_s = record.timestamp_us as f64 * 1e-6;
-        if let (Some(until_s), Some(elapsed_s)) = (until_s, session.elapsed_s(t_s)) {
-            if elapsed_s > until_s {
-                break;
-            }
+        if past(session, until_s, t_s) {
+            break;
         }
-        if let Speed::Factor(factor) = speed {
-            let t0 = *first_t_s.get_or_insert(t_s);
-            if t_s - last_t_s > MAX_REPLAY_PAUSE_S && last_t_s.is_finite() {
-                paused_s += t_s - last_t_s - MAX_REPLAY_PAUSE_S;
-            }
-            let due = (t_s - t0 - paused_s) / factor;
-            let now = wall_start.elapsed().as_secs_f64();
-            if due > now {
-                std::thread::sleep(Duration::from_secs_f64((due - now).min(MAX_REPLAY_PAUSE_S)));
-            }
-        }
-        last_t_s = last_t_s.max(t_s);
+        pacer.wait_for(t_s);
         session.on_frame(t_s, &record.frame)?;
         n += 1;
         if let Some(bar) = &bar {

@@ -13,7 +13,9 @@
 //! Everything funnels into [`Ingestor::frame`], so replay and live decode identically.
 
 pub mod address;
+pub mod dataflash;
 pub mod decode;
+pub mod flightlog;
 pub mod frame;
 pub mod live;
 pub mod outbox;
@@ -21,6 +23,7 @@ pub mod stats;
 pub mod stream;
 pub mod supervisor;
 pub mod tlog;
+pub mod ulog;
 
 use decode::Report;
 use frame::RawFrame;

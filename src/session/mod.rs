@@ -57,6 +57,8 @@ pub struct Session {
     started: Instant,
     /// Set when the run was stopped by a signal.
     interrupted: bool,
+    /// What an autopilot log held, when the input is one (the summary's `log`).
+    log: Option<crate::ingest::flightlog::LogSummary>,
     /// The rerun logger, when `--rerun` is on.
     #[cfg(feature = "viz")]
     viz: Option<crate::viz::Logger>,
@@ -128,6 +130,7 @@ impl Session {
             last_expire_t_s: f64::NEG_INFINITY,
             started: Instant::now(),
             interrupted: false,
+            log: None,
             #[cfg(feature = "viz")]
             viz: None,
             ticks: 0,
@@ -182,6 +185,11 @@ impl Session {
     /// Whether the run was stopped by a signal.
     pub fn interrupted(&self) -> bool {
         self.interrupted
+    }
+
+    /// Say what the autopilot log being replayed held (the summary's `log`).
+    pub fn set_log(&mut self, log: crate::ingest::flightlog::LogSummary) {
+        self.log = Some(log);
     }
 
     /// Record whether the run was stopped by a signal.
@@ -316,9 +324,18 @@ impl Session {
                 return Ok(());
             }
         }
-        if let WorldUpdate::VehicleMoved(sender) =
-            self.world.apply(t_s, decoded.sender, &decoded.report)
-        {
+        self.on_report(t_s, decoded.sender, &decoded.report)
+    }
+
+    /// Take one report from `sender` at `t_s` (seconds on the source's clock): what a frame
+    /// decodes to, or what an autopilot log holds (`crate::ingest::flightlog`).
+    pub fn on_report(
+        &mut self,
+        t_s: f64,
+        sender: SenderId,
+        report: &crate::ingest::decode::Report,
+    ) -> Result<()> {
+        if let WorldUpdate::VehicleMoved(sender) = self.world.apply(t_s, sender, report) {
             self.tick(sender)?;
         }
         if t_s - self.last_expire_t_s >= 1.0 {
@@ -578,6 +595,7 @@ impl Session {
             "input": input,
             "scene": self.scene.as_ref().map(|s| s.name.clone()),
             "ingest": stats.to_summary(),
+            "log": self.log,
             "vehicles": vehicles,
             "traffic_aircraft": self.world.traffic.len(),
             "traffic_pressure_altitude": self.world.traffic.values().filter(|t| t.pressure_altitude).count(),

@@ -36,6 +36,8 @@
 //!   each failing before its fix.
 //! - `issue_24_daa`: well clear and alerting against values worked by hand, `savsim daa`'s
 //!   CSV, and parity with DAIDALUS's DaidalusAlerting (needs `SAVSIM_DAIDALUS`).
+//! - `issue_26_logs`: PX4 ULog and ArduPilot DataFlash logs of ../shared/fixtures/realdata
+//!   against pyulog's and pymavlink's readings of them; bad logs.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
@@ -60,6 +62,7 @@ mod ingest;
 mod issue_11_layers;
 mod issue_23_trust;
 mod issue_24_daa;
+mod issue_26_logs;
 mod live;
 mod properties;
 mod scenes;

@@ -1,0 +1,401 @@
+//! PX4 ULog files (`.ulg`): topics described by the log's own format messages, read
+//! generically.
+//!
+//! A file is a 16-byte header (`ULog` magic, version, start time) then messages, each
+//! `size: u16, type: u8, payload`. Formats (`F`) describe topics field by field (nested types
+//! and arrays included); subscriptions (`A`) bind a message id to a topic and instance; data
+//! (`D`) carries one sample. Dropouts (`O`) and data appended after a crash (the flag bits'
+//! appended offsets) are honoured as pyulog does; a message of an unknown type or cut by the
+//! end of the file is counted, and the read resumes at the next sync marker.
+
+use std::collections::HashMap;
+
+/// The first bytes of every ULog file.
+pub const MAGIC: [u8; 7] = *b"ULog\x01\x12\x35";
+const HEADER_LEN: usize = 16;
+const MSG_HEADER_LEN: usize = 3;
+const SYNC: [u8; 8] = [0x2F, 0x73, 0x13, 0x20, 0x25, 0x0C, 0xBB, 0x12];
+
+/// Why a file cannot be read as ULog at all.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UlogError {
+    /// The file does not start with ULog's magic bytes.
+    #[error("not a ULog file (no ULog magic at the start)")]
+    WrongMagic,
+}
+
+/// A field's primitive type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Primitive {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    I64,
+    U64,
+    F32,
+    F64,
+    Bool,
+    Char,
+}
+
+impl Primitive {
+    fn parse(name: &str) -> Option<Self> {
+        Some(match name {
+            "int8_t" => Primitive::I8,
+            "uint8_t" => Primitive::U8,
+            "int16_t" => Primitive::I16,
+            "uint16_t" => Primitive::U16,
+            "int32_t" => Primitive::I32,
+            "uint32_t" => Primitive::U32,
+            "int64_t" => Primitive::I64,
+            "uint64_t" => Primitive::U64,
+            "float" => Primitive::F32,
+            "double" => Primitive::F64,
+            "bool" => Primitive::Bool,
+            "char" => Primitive::Char,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Primitive::I8 | Primitive::U8 | Primitive::Bool | Primitive::Char => 1,
+            Primitive::I16 | Primitive::U16 => 2,
+            Primitive::I32 | Primitive::U32 | Primitive::F32 => 4,
+            Primitive::I64 | Primitive::U64 | Primitive::F64 => 8,
+        }
+    }
+
+    fn read(self, at: &[u8]) -> Option<f64> {
+        fn b<const N: usize>(at: &[u8]) -> Option<[u8; N]> {
+            at.get(..N)?.try_into().ok()
+        }
+        Some(match self {
+            Primitive::I8 => f64::from(*at.first()? as i8),
+            Primitive::U8 | Primitive::Bool | Primitive::Char => f64::from(*at.first()?),
+            Primitive::I16 => f64::from(i16::from_le_bytes(b(at)?)),
+            Primitive::U16 => f64::from(u16::from_le_bytes(b(at)?)),
+            Primitive::I32 => f64::from(i32::from_le_bytes(b(at)?)),
+            Primitive::U32 => f64::from(u32::from_le_bytes(b(at)?)),
+            Primitive::I64 => i64::from_le_bytes(b(at)?) as f64,
+            Primitive::U64 => u64::from_le_bytes(b(at)?) as f64,
+            Primitive::F32 => f64::from(f32::from_le_bytes(b(at)?)),
+            Primitive::F64 => f64::from_le_bytes(b(at)?),
+        })
+    }
+}
+
+/// A topic's fields flattened: `q[2]`, `gyro.x`... each at its byte offset.
+#[derive(Debug, Clone, Default)]
+pub struct Layout {
+    fields: Vec<(Box<str>, usize, Primitive)>,
+    size: usize,
+}
+
+impl Layout {
+    fn field(&self, name: &str) -> Option<(usize, Primitive)> {
+        self.fields
+            .iter()
+            .find(|(n, _, _)| &**n == name)
+            .map(|&(_, offset, kind)| (offset, kind))
+    }
+}
+
+/// One sample of a topic.
+#[derive(Debug, Clone, Copy)]
+pub struct Sample<'a> {
+    /// The topic's name.
+    pub topic: &'a str,
+    /// Its instance (`multi_id`).
+    pub instance: u8,
+    layout: &'a Layout,
+    data: &'a [u8],
+}
+
+impl Sample<'_> {
+    /// A field's value (`timestamp`, `lat`, `q[0]`...), `None` when the topic has no such
+    /// field or the sample is too short for it.
+    pub fn get(&self, field: &str) -> Option<f64> {
+        let (offset, kind) = self.layout.field(field)?;
+        kind.read(self.data.get(offset..)?)
+    }
+
+    /// The sample's time, microseconds on the log's clock.
+    pub fn timestamp_us(&self) -> Option<u64> {
+        let (offset, Primitive::U64) = self.layout.field("timestamp")? else {
+            return None;
+        };
+        Some(u64::from_le_bytes(
+            self.data.get(offset..offset + 8)?.try_into().ok()?,
+        ))
+    }
+
+    /// A `char[N]` field as text, up to its first NUL.
+    pub fn text(&self, field: &str, len: usize) -> Option<&str> {
+        let (offset, _) = self.layout.field(&format!("{field}[0]"))?;
+        let bytes = self.data.get(offset..offset + len)?;
+        let end = bytes.iter().position(|&b| b == 0).unwrap_or(len);
+        std::str::from_utf8(&bytes[..end]).ok()
+    }
+}
+
+/// What a read met besides samples.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct UlogCounts {
+    /// Data samples read.
+    pub samples: u64,
+    /// Dropouts the logger recorded (`O` messages).
+    pub dropouts: u64,
+    /// Their total length, milliseconds.
+    pub dropout_ms: u64,
+    /// Messages of an unknown type, or cut, or for an unknown subscription: each a skip to
+    /// the next sync marker or message.
+    pub corrupt: u64,
+    /// Bytes skipped looking for a sync marker.
+    pub skipped_bytes: u64,
+}
+
+/// A subscription: a message id bound to a topic's instance.
+#[derive(Debug, Clone)]
+struct Subscription {
+    topic: Box<str>,
+    instance: u8,
+}
+
+/// Reads the samples of a ULog file held in memory.
+pub struct UlogReader<'a> {
+    data: &'a [u8],
+    offset: usize,
+    /// Raw format texts by topic name (resolved into layouts on first use).
+    formats: HashMap<Box<str>, Box<str>>,
+    layouts: HashMap<Box<str>, Layout>,
+    subscriptions: HashMap<u16, Subscription>,
+    parameters: HashMap<Box<str>, f64>,
+    /// Where appended data starts (from the flag bits), ascending; passed ones removed.
+    appended: Vec<usize>,
+    /// The header's start time, microseconds.
+    start_us: u64,
+    counts: UlogCounts,
+}
+
+impl<'a> UlogReader<'a> {
+    /// A reader over `data`, or why it is not ULog.
+    pub fn new(data: &'a [u8]) -> Result<Self, UlogError> {
+        if data.len() < HEADER_LEN || data[..7] != MAGIC {
+            return Err(UlogError::WrongMagic);
+        }
+        let start_us =
+            u64::from_le_bytes(data[8..16].try_into().map_err(|_| UlogError::WrongMagic)?);
+        Ok(Self {
+            data,
+            offset: HEADER_LEN,
+            formats: HashMap::new(),
+            layouts: HashMap::new(),
+            subscriptions: HashMap::new(),
+            parameters: HashMap::new(),
+            appended: Vec::new(),
+            start_us,
+            counts: UlogCounts::default(),
+        })
+    }
+
+    /// What the read has met so far.
+    pub fn counts(&self) -> UlogCounts {
+        self.counts
+    }
+
+    /// The header's start time, microseconds on the log's clock.
+    pub fn start_us(&self) -> u64 {
+        self.start_us
+    }
+
+    /// A numeric parameter's value as last read (initial or changed).
+    pub fn parameter(&self, name: &str) -> Option<f64> {
+        self.parameters.get(name).copied()
+    }
+
+    /// The next data sample, or `None` at the end of the file.
+    pub fn next_sample(&mut self) -> Option<Sample<'_>> {
+        loop {
+            let (kind, start, end) = self.next_message()?;
+            if kind != b'D' {
+                self.take(kind, start, end);
+                continue;
+            }
+            let payload = &self.data[start..end];
+            let Some(id) = payload.get(..2).map(|b| u16::from_le_bytes([b[0], b[1]])) else {
+                self.counts.corrupt += 1;
+                continue;
+            };
+            let Some(sub) = self.subscriptions.get(&id) else {
+                self.counts.corrupt += 1;
+                continue;
+            };
+            if !self.layouts.contains_key(&*sub.topic) {
+                let topic = sub.topic.clone();
+                let layout = self.resolve(&topic, 0).unwrap_or_default();
+                self.layouts.insert(topic, layout);
+            }
+            self.counts.samples += 1;
+            let sub = &self.subscriptions[&id];
+            let layout = &self.layouts[&*sub.topic];
+            return Some(Sample {
+                topic: &sub.topic,
+                instance: sub.instance,
+                layout,
+                data: &payload[2..],
+            });
+        }
+    }
+
+    /// The next whole message: its type and payload range. Skips to the next appended section
+    /// when a message would cross into it, and to the next sync marker after a corrupt one.
+    fn next_message(&mut self) -> Option<(u8, usize, usize)> {
+        loop {
+            let header = self.data.get(self.offset..self.offset + MSG_HEADER_LEN)?;
+            let size = usize::from(u16::from_le_bytes([header[0], header[1]]));
+            let kind = header[2];
+            let (start, end) = (
+                self.offset + MSG_HEADER_LEN,
+                self.offset + MSG_HEADER_LEN + size,
+            );
+            if let Some(&next) = self.appended.first() {
+                if end > next && self.offset < next {
+                    self.offset = next;
+                    self.appended.remove(0);
+                    continue;
+                }
+            }
+            if end > self.data.len() || !b"BFIMPQADLCSOR".contains(&kind) {
+                self.counts.corrupt += 1;
+                self.resync();
+                continue;
+            }
+            self.offset = end;
+            return Some((kind, start, end));
+        }
+    }
+
+    /// After a corrupt message: on to just past the next sync marker (or the end).
+    fn resync(&mut self) {
+        let from = self.offset + 1;
+        let found = self
+            .data
+            .get(from..)
+            .and_then(|rest| rest.windows(SYNC.len()).position(|w| w == SYNC));
+        let next = found.map_or(self.data.len(), |at| from + at + SYNC.len());
+        self.counts.skipped_bytes += (next - self.offset) as u64;
+        self.offset = next;
+    }
+
+    /// Take in a message that is not data.
+    fn take(&mut self, kind: u8, start: usize, end: usize) {
+        let payload = &self.data[start..end];
+        match kind {
+            b'B' => self.take_flags(payload),
+            b'F' => {
+                if let Some((name, fields)) = std::str::from_utf8(payload)
+                    .ok()
+                    .and_then(|s| s.split_once(':'))
+                {
+                    self.formats.insert(name.into(), fields.into());
+                    self.layouts.clear();
+                }
+            }
+            b'A' if payload.len() > 3 => {
+                let id = u16::from_le_bytes([payload[1], payload[2]]);
+                let topic = String::from_utf8_lossy(&payload[3..]);
+                let topic = topic.trim_end_matches('\0');
+                self.subscriptions.insert(
+                    id,
+                    Subscription {
+                        topic: topic.into(),
+                        instance: payload[0],
+                    },
+                );
+            }
+            b'P' => self.take_parameter(payload),
+            b'O' if payload.len() >= 2 => {
+                self.counts.dropouts += 1;
+                self.counts.dropout_ms += u64::from(u16::from_le_bytes([payload[0], payload[1]]));
+            }
+            _ => {}
+        }
+    }
+
+    fn take_flags(&mut self, payload: &[u8]) {
+        if payload.len() < 40 || payload[8] & 1 == 0 {
+            return;
+        }
+        self.appended = payload[16..40]
+            .chunks_exact(8)
+            .filter_map(|b| b.try_into().ok().map(u64::from_le_bytes))
+            .filter(|&at| at > 0)
+            .filter_map(|at| usize::try_from(at).ok())
+            .filter(|&at| at > self.offset)
+            .collect();
+        self.appended.sort_unstable();
+    }
+
+    fn take_parameter(&mut self, payload: &[u8]) {
+        let Some((&key_len, rest)) = payload.split_first() else {
+            return;
+        };
+        let Some((key, value)) = rest.split_at_checked(usize::from(key_len)) else {
+            return;
+        };
+        let Some((kind, name)) = std::str::from_utf8(key)
+            .ok()
+            .and_then(|k| k.split_once(' '))
+        else {
+            return;
+        };
+        let value = match kind {
+            "int32_t" => Primitive::I32.read(value),
+            "float" => Primitive::F32.read(value),
+            _ => None,
+        };
+        if let Some(value) = value {
+            self.parameters.insert(name.into(), value);
+        }
+    }
+
+    /// The flattened layout of `topic` from its format (nested types resolved; `None` for a
+    /// type with no format, or nesting deeper than any PX4 message).
+    fn resolve(&self, topic: &str, depth: usize) -> Option<Layout> {
+        if depth > 8 {
+            return None;
+        }
+        let format = self.formats.get(topic)?;
+        let mut layout = Layout::default();
+        for field in format.split(';').filter(|f| !f.is_empty()) {
+            let (kind, name) = field.split_once(' ')?;
+            let (kind, count, array) = match kind.split_once('[') {
+                Some((k, n)) => (k, n.trim_end_matches(']').parse::<usize>().ok()?, true),
+                None => (kind, 1, false),
+            };
+            for i in 0..count {
+                let name = if array {
+                    format!("{name}[{i}]")
+                } else {
+                    name.to_string()
+                };
+                if let Some(p) = Primitive::parse(kind) {
+                    layout.fields.push((name.into(), layout.size, p));
+                    layout.size += p.size();
+                } else {
+                    let nested = self.resolve(kind, depth + 1)?;
+                    for (n, offset, p) in &nested.fields {
+                        let full = format!("{name}.{n}");
+                        layout.fields.push((full.into(), layout.size + offset, *p));
+                    }
+                    layout.size += nested.size;
+                }
+            }
+        }
+        Some(layout)
+    }
+}
