@@ -224,3 +224,34 @@ fn bad_logs_get_an_error_or_a_counted_skip() {
     let log = read_dataflash(&df);
     assert_eq!(log.summary.dataflash.expect("counts").skipped_bytes, 4096);
 }
+
+#[test]
+fn real_logs_cut_and_corrupted_anywhere_read_without_a_panic() {
+    let mut files = realdata("ulog");
+    files.extend(realdata("dataflash"));
+    for (path, _) in files {
+        let data = std::fs::read(&path).expect("log");
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = |n: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as usize
+        };
+        for _ in 0..12 {
+            let mut bad = data[..next(data.len())].to_vec();
+            for _ in 0..64 {
+                if !bad.is_empty() {
+                    let at = next(bad.len());
+                    bad[at] ^= 1 << next(8);
+                }
+            }
+            match read_ulog(&bad) {
+                Ok(log) => assert!(log.reports.windows(2).all(|w| w[0].t_us <= w[1].t_us)),
+                Err(_) => {
+                    let _ = read_dataflash(&bad);
+                }
+            }
+        }
+    }
+}
