@@ -4,13 +4,16 @@
 //! - [`decode`]: frames to typed reports in SI units.
 //! - [`stats`]: counts of everything seen, for `--summary-json`.
 //! - [`tlog`]: tlog reading (with resync) and writing.
+//! - [`ulog`], [`dataflash`]: PX4 ULog and ArduPilot DataFlash files, read generically.
+//! - [`flightlog`]: those logs to the same reports, in time order (they skip the framer).
 //! - [`stream`]: datagrams and byte streams (UDP, TCP) through the same framer.
 //! - [`address`]: `--connect` addresses.
 //! - [`live`]: tokio sockets: chunks in, addressed bytes out.
 //! - [`outbox`]: what savsim sends, encoded as one identity.
 //! - [`supervisor`]: per-vehicle routes, stream requests and their supervision (pure).
 //!
-//! Everything funnels into [`Ingestor::frame`], so replay and live decode identically.
+//! Every MAVLink frame funnels into [`Ingestor::frame`], so replay and live decode identically;
+//! autopilot logs join at the reports (`Session::on_report`).
 
 pub mod address;
 pub mod dataflash;
