@@ -1,6 +1,7 @@
 //! Replaying a recording (a tlog, a PX4 ULog, an ArduPilot DataFlash log) into a session, as fast as the machine can or paced by its timestamps.
 
 use std::fs::File;
+use std::io::{Read, Seek};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -76,9 +77,31 @@ impl Pacer {
     }
 }
 
-/// Whether a record at `t_s` is past `until_s` seconds after the first message.
-fn past(session: &Session, until_s: Option<f64>, t_s: f64) -> bool {
-    matches!((until_s, session.elapsed_s(t_s)), (Some(until_s), Some(elapsed_s)) if elapsed_s > until_s)
+/// When a replay stops before the end of its recording.
+struct Stop<'a> {
+    /// Seconds after the first message (`--until-s`).
+    until_s: Option<f64>,
+    /// Set by a signal.
+    shutdown: &'a AtomicBool,
+}
+
+impl Stop<'_> {
+    /// Whether a record at `t_s` is to be taken: not after a signal (the session is marked
+    /// interrupted) nor past `until_s`. When it is, waits until it is due.
+    fn admit(&self, session: &mut Session, pacer: &mut Pacer, t_s: f64) -> bool {
+        if self.shutdown.load(Ordering::Relaxed) {
+            session.set_interrupted(true);
+            return false;
+        }
+        let past = matches!(
+            (self.until_s, session.elapsed_s(t_s)),
+            (Some(until_s), Some(elapsed_s)) if elapsed_s > until_s
+        );
+        if !past {
+            pacer.wait_for(t_s);
+        }
+        !past
+    }
 }
 
 /// Replay a recording into a session, paced by its timestamps: a tlog, a PX4 ULog or an
@@ -92,58 +115,41 @@ pub fn replay(
     session: &mut Session,
     shutdown: &AtomicBool,
 ) -> Result<()> {
-    let mut head = [0u8; 16];
+    let stop = Stop { until_s, shutdown };
     let mut file = File::open(path).map_err(|e| Error::file(path, e))?;
-    let n = read_head(&mut file, &mut head).map_err(|e| Error::file(path, e))?;
-    match LogKind::of(&head[..n]) {
-        LogKind::Tlog => replay_tlog(path, speed, progress, until_s, session, shutdown),
-        kind => {
-            let data = std::fs::read(path).map_err(|e| Error::file(path, e))?;
-            let log = match kind {
-                LogKind::Ulog => read_ulog(&data).map_err(|e| Error::Log {
-                    path: path.to_path_buf(),
-                    source: e,
-                })?,
-                _ => read_dataflash(&data),
-            };
-            replay_log(log, speed, until_s, session, shutdown)
-        }
+    let mut head = Vec::with_capacity(16);
+    let kind = file
+        .by_ref()
+        .take(16)
+        .read_to_end(&mut head)
+        .and_then(|_| file.rewind())
+        .map(|()| LogKind::of(&head))
+        .map_err(|e| Error::file(path, e))?;
+    if kind == LogKind::Tlog {
+        return replay_tlog(path, file, speed, progress, session, &stop);
     }
-}
-
-/// Up to `head.len()` bytes from the start of `file`: how many were read.
-fn read_head(file: &mut File, head: &mut [u8]) -> std::io::Result<usize> {
-    use std::io::Read;
-    let mut n = 0;
-    while n < head.len() {
-        match file.read(&mut head[n..])? {
-            0 => break,
-            k => n += k,
-        }
-    }
-    Ok(n)
+    let mut data = Vec::new();
+    file.read_to_end(&mut data)
+        .map_err(|e| Error::file(path, e))?;
+    let log = match kind {
+        LogKind::Ulog => read_ulog(&data).map_err(|e| Error::Log {
+            path: path.to_path_buf(),
+            source: e,
+        })?,
+        _ => read_dataflash(&data),
+    };
+    replay_log(log, speed, session, &stop)
 }
 
 /// Replay an autopilot log's reports (already read) into a session.
-fn replay_log(
-    log: FlightLog,
-    speed: Speed,
-    until_s: Option<f64>,
-    session: &mut Session,
-    shutdown: &AtomicBool,
-) -> Result<()> {
+fn replay_log(log: FlightLog, speed: Speed, session: &mut Session, stop: &Stop) -> Result<()> {
     let mut pacer = Pacer::new(speed);
     session.set_log(log.summary);
     for timed in &log.reports {
-        if shutdown.load(Ordering::Relaxed) {
-            session.set_interrupted(true);
-            break;
-        }
         let t_s = timed.t_us as f64 * 1e-6;
-        if past(session, until_s, t_s) {
+        if !stop.admit(session, &mut pacer, t_s) {
             break;
         }
-        pacer.wait_for(t_s);
         let t_s = session.stats_mut().observe_time(t_s);
         session.on_report(t_s, timed.sender, &timed.report)?;
     }
@@ -153,13 +159,12 @@ fn replay_log(
 /// Replay a tlog into a session.
 fn replay_tlog(
     path: &Path,
+    file: File,
     speed: Speed,
     progress: bool,
-    until_s: Option<f64>,
     session: &mut Session,
-    shutdown: &AtomicBool,
+    stop: &Stop,
 ) -> Result<()> {
-    let file = File::open(path).map_err(|e| Error::file(path, e))?;
     let len = file.metadata().map(|m| m.len()).unwrap_or(0);
     let bar = (progress && len > (8 << 20) && std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .then(|| indicatif::ProgressBar::new(len));
@@ -167,19 +172,14 @@ fn replay_tlog(
     let mut pacer = Pacer::new(speed);
     let mut n: u64 = 0;
     loop {
-        if shutdown.load(Ordering::Relaxed) {
-            session.set_interrupted(true);
-            break;
-        }
         let record = reader
             .next_record(session.stats_mut())
             .map_err(|e| Error::file(path, e))?;
         let Some(record) = record else { break };
         let t_s = record.timestamp_us as f64 * 1e-6;
-        if past(session, until_s, t_s) {
+        if !stop.admit(session, &mut pacer, t_s) {
             break;
         }
-        pacer.wait_for(t_s);
         session.on_frame(t_s, &record.frame)?;
         n += 1;
         if let Some(bar) = &bar {

@@ -201,8 +201,10 @@ pub fn read_ulog(data: &[u8]) -> Result<FlightLog, UlogError> {
                 positions.report(&f, None)
             }
             "vehicle_attitude" if s.instance == 0 => {
-                let q = |i| s.get(&format!("q[{i}]"));
-                let (Some(w), Some(x), Some(y), Some(z)) = (q(0), q(1), q(2), q(3)) else {
+                let q = |i: &str| s.get(i);
+                let (Some(w), Some(x), Some(y), Some(z)) =
+                    (q("q[0]"), q("q[1]"), q("q[2]"), q("q[3]"))
+                else {
                     continue;
                 };
                 let (yaw, pitch, roll) = DQuat::from_xyzw(x, y, z, w)

@@ -22,6 +22,9 @@ pub enum UlogError {
     /// The file does not start with ULog's magic bytes.
     #[error("not a ULog file (no ULog magic at the start)")]
     WrongMagic,
+    /// The file ends inside the 16-byte header.
+    #[error("ULog file cut inside its 16-byte header")]
+    CutHeader,
 }
 
 /// A field's primitive type.
@@ -184,11 +187,11 @@ pub struct UlogReader<'a> {
 impl<'a> UlogReader<'a> {
     /// A reader over `data`, or why it is not ULog.
     pub fn new(data: &'a [u8]) -> Result<Self, UlogError> {
-        if data.len() < HEADER_LEN || data[..7] != MAGIC {
+        if !data.starts_with(&MAGIC) {
             return Err(UlogError::WrongMagic);
         }
-        let start_us =
-            u64::from_le_bytes(data[8..16].try_into().map_err(|_| UlogError::WrongMagic)?);
+        let start = data.get(8..HEADER_LEN).ok_or(UlogError::CutHeader)?;
+        let start_us = u64::from_le_bytes(start.try_into().map_err(|_| UlogError::CutHeader)?);
         Ok(Self {
             data,
             offset: HEADER_LEN,

@@ -133,6 +133,18 @@ fn close(a: [f64; 3], b: [f64; 3]) -> bool {
     (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9 && (a[2] - b[2]).abs() < 1e-4
 }
 
+/// The log's first and last positions are the reference's `first` and `last`, read with the
+/// reference's names for latitude, longitude and altitude.
+fn assert_ends(log: &FlightLog, position: &Value, keys: [&str; 3], path: &std::path::Path) {
+    let at = |k: &str| keys.map(|key| position[k][key].as_f64().expect(key));
+    let (first, last) = ends(log).expect("positions");
+    assert!(
+        close(first, at("first")) && close(last, at("last")),
+        "{}: {first:?} {last:?}",
+        path.display()
+    );
+}
+
 #[test]
 fn flights_in_logs_are_where_the_independent_readers_put_them() {
     for (path, reference) in realdata("ulog") {
@@ -163,20 +175,7 @@ fn flights_in_logs_are_where_the_independent_readers_put_them() {
         );
         let all = s.positions + s.positions_without_fix;
         assert_eq!(Some(all), position["count"].as_u64(), "{}", path.display());
-        let at = |k: &str| {
-            let p = &position[k];
-            [
-                p["lat_deg"].as_f64().unwrap(),
-                p["lon_deg"].as_f64().unwrap(),
-                p["alt_m"].as_f64().unwrap(),
-            ]
-        };
-        let (first, last) = ends(&log).expect("positions");
-        assert!(
-            close(first, at("first")) && close(last, at("last")),
-            "{}: {first:?} {last:?}",
-            path.display()
-        );
+        assert_ends(&log, position, ["lat_deg", "lon_deg", "alt_m"], &path);
     }
     for (path, reference) in realdata("dataflash") {
         let log = read_dataflash(&std::fs::read(&path).expect("log"));
@@ -191,26 +190,17 @@ fn flights_in_logs_are_where_the_independent_readers_put_them() {
             "{}",
             path.display()
         );
-        let at = |k: &str| {
-            let p = &position[k];
-            [
-                p["Lat"].as_f64().unwrap(),
-                p["Lng"].as_f64().unwrap(),
-                p["Alt"].as_f64().unwrap(),
-            ]
-        };
-        let (first, last) = ends(&log).expect("positions");
-        assert!(
-            close(first, at("first")) && close(last, at("last")),
-            "{}: {first:?} {last:?}",
-            path.display()
-        );
+        assert_ends(&log, position, ["Lat", "Lng", "Alt"], &path);
     }
 }
 
 #[test]
 fn bad_logs_get_an_error_or_a_counted_skip() {
     assert!(UlogReader::new(b"ULo").is_err());
+    assert_eq!(
+        UlogReader::new(b"ULog\x01\x12\x35\x01").err(),
+        Some(savsim::ingest::ulog::UlogError::CutHeader)
+    );
     assert!(read_ulog(b"not a ulog file at all").is_err());
     // Garbage after a valid header, and every cut of a small DataFlash log: no panic.
     let mut ulog = b"ULog\x01\x12\x35\x01".to_vec();
