@@ -39,6 +39,84 @@ pub enum Command {
     /// row per time step and intruder, in the columns, order and units of DAIDALUS's
     /// DaidalusAlerting (docs/daa.md).
     Daa(DaaArgs),
+    /// Closed-loop studies: each row starts its own SITL autopilot, flies its plan with
+    /// savsim's feed and scene, and is scored; `study summarize` gives the risk ratios,
+    /// `study gen` writes obstacle-approach pairs (docs/study.md).
+    Study(StudyArgs),
+}
+
+/// `savsim study`.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct StudyArgs {
+    /// Summarize or generate instead of running.
+    #[command(subcommand)]
+    pub command: Option<StudyCommand>,
+    /// The manifest: .csv, .toml (`[[run]]` tables) or .json (docs/study.md).
+    #[arg(required = true)]
+    pub manifest: Option<PathBuf>,
+    /// The directory shard files (and each row's SITL folder, under work/) go to.
+    #[arg(long, required = true)]
+    pub out: Option<PathBuf>,
+    /// SITLs at once (default 1).
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// SITL speedup for rows that name none.
+    #[arg(long, default_value_t = 1.0)]
+    pub speedup: f64,
+    /// Run one shard: `K/N`, or `N` with K from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Run the shard even if its file exists (replacing it).
+    #[arg(long)]
+    pub force: bool,
+    /// ArduCopter SITL binary (default: SAVSIM_ARDUCOPTER); defaults files from
+    /// SAVSIM_ARDUCOPTER_DEFAULTS (comma-separated).
+    #[arg(long)]
+    pub arducopter: Option<PathBuf>,
+    /// PX4 SITL binary (default: SAVSIM_PX4). Not flown yet: its rows are errors.
+    #[arg(long)]
+    pub px4: Option<PathBuf>,
+    /// Keep each row's SITL folder (eeprom, logs, console) under OUT/work (default: removed
+    /// after a row that flew).
+    #[arg(long)]
+    pub keep_work: bool,
+    /// Run without a network namespace even where one can be made (SITL then binds its TCP
+    /// ports on every interface).
+    #[arg(long)]
+    pub no_netns: bool,
+}
+
+/// `savsim study ...` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum StudyCommand {
+    /// Per variant: outcome counts and weighted collision, NMAC and loss-of-well-clear rates;
+    /// each variant's ratios against the nominal one over the pairs flown under both, with
+    /// 95% bootstrap intervals.
+    Summarize {
+        /// The directory of shard files.
+        dir: PathBuf,
+        /// The variant the others are compared with.
+        #[arg(long, default_value = "nominal")]
+        nominal: String,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write obstacle-approach pairs: a box of random size, offset and yaw across a straight
+    /// path flown at a random speed and heading, each as `nominal` (no feed, avoidance off)
+    /// and `mitigated` (the feed, ArduCopter's proximity avoidance on).
+    Gen {
+        /// How many pairs.
+        #[arg(long)]
+        n: usize,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Where the manifest and its scenes go (created).
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// `savsim daa`.

@@ -21,5 +21,6 @@ pub mod replay;
 pub mod scene;
 pub mod session;
 pub mod signals;
+pub mod study;
 #[cfg(feature = "viz")]
 pub mod viz;

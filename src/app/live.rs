@@ -50,6 +50,26 @@ pub struct LiveOptions {
     /// Record every frame the feed sends (its heartbeats too) to this tlog, stamped with the
     /// time it was handed to the link (`--feed-out`). Default none.
     pub feed_out: Option<PathBuf>,
+    /// Raised when the session first counts a collision (`savsim study` ends a row there).
+    /// Default none.
+    pub collided: Option<Flag>,
+}
+
+/// A flag shared between threads; two are equal when they are the same flag.
+#[derive(Debug, Clone, Default)]
+pub struct Flag(pub Arc<AtomicBool>);
+
+impl PartialEq for Flag {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl Flag {
+    /// Whether it was raised.
+    pub fn is_raised(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
 }
 
 impl Default for LiveOptions {
@@ -62,6 +82,7 @@ impl Default for LiveOptions {
             queue_len: 65_536,
             feed_from: FEED_FROM,
             feed_out: None,
+            collided: None,
         }
     }
 }
@@ -431,6 +452,15 @@ pub fn run_links(
                 thread.process(&chunk);
                 if feeding {
                     thread.send_feed(&network, chunk.t_s);
+                }
+                if let Some(flag) = &options.collided {
+                    let hit = thread
+                        .session
+                        .pipeline()
+                        .is_some_and(|p| p.totals().collisions > 0);
+                    if hit {
+                        flag.0.store(true, Ordering::Relaxed);
+                    }
                 }
             }
             Err(RecvTimeoutError::Timeout) => {}

@@ -148,6 +148,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Bench(args) => bench_command(&args),
         Command::Batch(args) => crate::batch::command::run(&args),
         Command::Daa(args) => crate::daa_csv::command(&args),
+        Command::Study(args) => crate::study::command::run(&args, shutdown),
         Command::Scene(SceneCommand::Gen { kind, seed, out }) => {
             let text = match kind {
                 SceneKind::City => gen::city(seed, gen::DEFAULT_ORIGIN),

@@ -112,37 +112,52 @@ pub fn is_tlog_path(track: &str) -> bool {
 /// The TOML form: `[[run]]` tables.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct TomlManifest {
-    #[serde(default)]
-    run: Vec<Run>,
+struct TomlManifest<T> {
+    #[serde(default = "Vec::new")]
+    run: Vec<T>,
 }
 
 /// Read a manifest file (`.csv`, `.toml` or `.json` by its extension); paths in it become
 /// relative to its directory.
 pub fn load(path: &Path) -> Result<Vec<Run>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
-    let bad = |why: String| Error::Usage(format!("manifest {}: {why}", path.display()));
-    let runs = match path.extension().and_then(|e| e.to_str()) {
-        Some("csv") => parse_csv(text.as_bytes()).map_err(|e| bad(e.to_string()))?,
-        Some("toml") => {
-            toml::from_str::<TomlManifest>(&text)
-                .map_err(|e| bad(e.to_string()))?
-                .run
-        }
-        Some("json") => parse_json(&text).map_err(|e| bad(e.to_string()))?,
-        _ => return Err(bad("give a .csv, .toml or .json file".into())),
-    };
-    let base: PathBuf = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let (runs, base) = read_rows::<Run>(path)?;
     Ok(runs.into_iter().map(|r| r.anchored(&base)).collect())
 }
 
-/// Runs from CSV with a header row; an empty cell is an absent value.
-pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<Run>, csv::Error> {
+/// The rows of a manifest file of any row type (`batch`'s runs, `study`'s rows): CSV with a
+/// header row, TOML `[[run]]` tables or a JSON array, by the file's extension; and the
+/// directory its relative paths are relative to.
+pub fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<(Vec<T>, PathBuf)> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let bad = |why: String| Error::Usage(format!("manifest {}: {why}", path.display()));
+    let rows = match path.extension().and_then(|e| e.to_str()) {
+        Some("csv") => csv_rows(text.as_bytes()).map_err(|e| bad(e.to_string()))?,
+        Some("toml") => {
+            toml::from_str::<TomlManifest<T>>(&text)
+                .map_err(|e| bad(e.to_string()))?
+                .run
+        }
+        Some("json") => serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?,
+        _ => return Err(bad("give a .csv, .toml or .json file".into())),
+    };
+    let base: PathBuf = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    Ok((rows, base))
+}
+
+/// Rows from CSV with a header row; an empty cell is an absent value.
+fn csv_rows<T: serde::de::DeserializeOwned>(
+    bytes: &[u8],
+) -> std::result::Result<Vec<T>, csv::Error> {
     csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(bytes)
         .deserialize()
         .collect()
+}
+
+/// Runs from CSV with a header row; an empty cell is an absent value.
+pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<Run>, csv::Error> {
+    csv_rows(bytes)
 }
 
 /// Runs from a JSON array of objects (what the Python package sends).

@@ -25,6 +25,17 @@ pub struct Outcomes {
 
 /// Read every `*.parquet` in `dir`.
 pub fn read_dir(dir: &Path) -> Result<Outcomes> {
+    let mut all = Outcomes::default();
+    all.files = for_each_batch(dir, |batch, path| read_batch(batch, path, &mut all))?;
+    Ok(all)
+}
+
+/// Call `f` on every record batch of every `*.parquet` file in `dir` (in name order); the
+/// files read. No such file is an error.
+pub(crate) fn for_each_batch(
+    dir: &Path,
+    mut f: impl FnMut(&RecordBatch, &Path) -> Result<()>,
+) -> Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| Error::file(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -37,7 +48,6 @@ pub fn read_dir(dir: &Path) -> Result<Outcomes> {
             dir.display()
         )));
     }
-    let mut all = Outcomes::default();
     for path in &files {
         let bad = |e: parquet::errors::ParquetError| Error::file(path, std::io::Error::other(e));
         let file = File::open(path).map_err(|e| Error::file(path, e))?;
@@ -47,16 +57,19 @@ pub fn read_dir(dir: &Path) -> Result<Outcomes> {
             .map_err(bad)?;
         for batch in reader {
             let batch = batch.map_err(|e| Error::file(path, std::io::Error::other(e)))?;
-            read_batch(&batch, path, &mut all)?;
+            f(&batch, path)?;
         }
     }
-    all.files = files;
-    Ok(all)
+    Ok(files)
 }
 
 /// Column `name` of `batch` as an array of type `T`; an error naming it when it is missing or
 /// of another type.
-fn column<'a, T: 'static>(batch: &'a RecordBatch, name: &str, path: &Path) -> Result<&'a T> {
+pub(crate) fn column<'a, T: 'static>(
+    batch: &'a RecordBatch,
+    name: &str,
+    path: &Path,
+) -> Result<&'a T> {
     batch
         .column_by_name(name)
         .and_then(|c| c.as_any().downcast_ref::<T>())
@@ -74,6 +87,7 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Outcomes) -> Result<()
     );
     let w = column::<Float64Array>(batch, "w", path)?;
     let (nmac, lowc) = (bools("nmac")?, bools("lowc")?);
+    let collisions = column::<arrow_array::UInt64Array>(batch, "collisions", path)?;
     for i in 0..batch.num_rows() {
         if error.is_valid(i) {
             all.failed += 1;
@@ -92,6 +106,7 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Outcomes) -> Result<()
             weight: if w.is_valid(i) { w.value(i) } else { 1.0 },
             nmac: nmac.value(i),
             lowc: lowc.value(i),
+            collision: collisions.value(i) > 0,
         });
     }
     Ok(())

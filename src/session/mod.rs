@@ -141,6 +141,20 @@ impl Session {
         })
     }
 
+    /// Vehicles' samples keep their own clock's time (`WorldConfig::vehicle_clock`): scripted
+    /// traffic then moves on the vehicle's clock at any speedup. Set before the first frame
+    /// (it starts the world again).
+    pub fn use_vehicle_clock(&mut self) {
+        let origin = self.world.plane().origin();
+        self.world = WorldStore::new(
+            origin,
+            WorldConfig {
+                vehicle_clock: true,
+                ..WorldConfig::default()
+            },
+        );
+    }
+
     /// What decoding counted.
     pub fn stats(&self) -> &crate::ingest::stats::IngestStats {
         &self.ingestor.stats

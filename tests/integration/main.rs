@@ -38,6 +38,9 @@
 //!   CSV, and parity with DAIDALUS's DaidalusAlerting (needs `SAVSIM_DAIDALUS`).
 //! - `issue_26_logs`: PX4 ULog and ArduPilot DataFlash logs of ../shared/fixtures/realdata
 //!   against pyulog's and pymavlink's readings of them; bad logs.
+//! - `study`: `savsim study`: the generator's boxes across their paths, bad rows, the results
+//!   table's risk ratios; obstacle-approach pairs on ArduCopter SITL (needs
+//!   `SAVSIM_ARDUCOPTER`).
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
@@ -71,6 +74,7 @@ mod sitl;
 mod sitl_feed;
 mod sitl_px4;
 mod sitl_px4_feed;
+mod study;
 mod supervisor;
 mod terrain;
 #[cfg(feature = "viz")]

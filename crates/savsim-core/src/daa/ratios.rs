@@ -22,6 +22,8 @@ pub struct Outcome {
     pub nmac: bool,
     /// Whether it lost well clear.
     pub lowc: bool,
+    /// Whether it collided (with anything: an obstacle, terrain or a moving body).
+    pub collision: bool,
 }
 
 /// A value and its 95% interval (`None` ends when the bootstrap cannot give them).
@@ -46,6 +48,8 @@ pub struct VariantRates {
     pub nmac_rate: Estimate,
     /// Weighted loss-of-well-clear rate.
     pub lowc_rate: Estimate,
+    /// Weighted collision rate.
+    pub collision_rate: Estimate,
 }
 
 /// One variant against the nominal one, over the pairs flown under both.
@@ -59,6 +63,8 @@ pub struct VariantRatios {
     pub nmac_ratio: Estimate,
     /// P(LoWC | variant) / P(LoWC | nominal).
     pub lowc_ratio: Estimate,
+    /// P(collision | variant) / P(collision | nominal).
+    pub collision_ratio: Estimate,
 }
 
 /// Bootstrap resamples.
@@ -68,7 +74,8 @@ const SEED: u64 = 0x5a75_1a7e;
 /// A weighted rate over rows: sum(w * event) / sum(w).
 fn rate(rows: &[Weighted]) -> Option<f64> {
     let total: f64 = rows.iter().map(|r| r.0).sum();
-    let hits: f64 = rows.iter().filter(|r| r.1).map(|r| r.0).sum();
+    // + 0.0: an empty sum of floats is -0.0.
+    let hits: f64 = rows.iter().filter(|r| r.1).map(|r| r.0).sum::<f64>() + 0.0;
     (total > 0.0).then(|| hits / total)
 }
 
@@ -78,7 +85,7 @@ type Weighted = (f64, bool);
 /// A ratio over pairs (the variant's, the nominal's): sum(w * event | variant) /
 /// sum(w * event | nominal).
 fn ratio(pairs: &[(Weighted, Weighted)]) -> Option<f64> {
-    let num: f64 = pairs.iter().filter(|p| p.0 .1).map(|p| p.0 .0).sum();
+    let num: f64 = pairs.iter().filter(|p| p.0 .1).map(|p| p.0 .0).sum::<f64>() + 0.0;
     let den: f64 = pairs.iter().filter(|p| p.1 .1).map(|p| p.1 .0).sum();
     (den > 0.0).then(|| num / den)
 }
@@ -125,7 +132,7 @@ fn estimate<T: Clone>(items: &[T], stat: impl Fn(&[T]) -> Option<f64>) -> Estima
 /// ```
 /// use savsim_core::daa::ratios::{rates, Outcome};
 /// let o = |pair: &str, variant: &str, nmac: bool| Outcome {
-///     pair: pair.into(), variant: variant.into(), weight: 1.0, nmac, lowc: nmac,
+///     pair: pair.into(), variant: variant.into(), weight: 1.0, nmac, lowc: nmac, collision: false,
 /// };
 /// let r = rates(&[o("a", "nominal", true), o("b", "nominal", false)]);
 /// assert_eq!(r[0].nmac_rate.value, Some(0.5));
@@ -139,11 +146,13 @@ pub fn rates(outcomes: &[Outcome]) -> Vec<VariantRates> {
         .map(|(variant, rows)| {
             let nmac: Vec<Weighted> = rows.iter().map(|o| (o.weight, o.nmac)).collect();
             let lowc: Vec<Weighted> = rows.iter().map(|o| (o.weight, o.lowc)).collect();
+            let collision: Vec<Weighted> = rows.iter().map(|o| (o.weight, o.collision)).collect();
             VariantRates {
                 variant: variant.into(),
                 encounters: rows.len(),
                 nmac_rate: estimate(&nmac, rate),
                 lowc_rate: estimate(&lowc, rate),
+                collision_rate: estimate(&collision, rate),
             }
         })
         .collect()
@@ -154,7 +163,7 @@ pub fn rates(outcomes: &[Outcome]) -> Vec<VariantRates> {
 /// ```
 /// use savsim_core::daa::ratios::{ratios, Outcome};
 /// let o = |pair: &str, variant: &str, nmac: bool| Outcome {
-///     pair: pair.into(), variant: variant.into(), weight: 1.0, nmac, lowc: false,
+///     pair: pair.into(), variant: variant.into(), weight: 1.0, nmac, lowc: false, collision: false,
 /// };
 /// // 4 NMACs unmitigated, 1 mitigated: ratio 0.25.
 /// let mut all = Vec::new();
@@ -198,6 +207,7 @@ pub fn ratios(outcomes: &[Outcome], nominal: &str) -> Vec<VariantRatios> {
                 pairs: both.len(),
                 nmac_ratio: estimate(&of(|o| o.nmac), ratio),
                 lowc_ratio: estimate(&of(|o| o.lowc), ratio),
+                collision_ratio: estimate(&of(|o| o.collision), ratio),
             }
         })
         .collect()

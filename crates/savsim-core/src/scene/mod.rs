@@ -422,6 +422,24 @@ impl Scene {
             .unwrap_or(0)
     }
 
+    /// Add a scripted track of `kind` (the kind's model; linear between `waypoints`, held at
+    /// the ends), e.g. a study row's intruder. False, and nothing added, when `id` is taken.
+    pub fn push_track(&mut self, id: &str, kind: Kind, waypoints: Vec<Waypoint>) -> bool {
+        if self.dynamic.iter().any(|d| &*d.id == id) {
+            return false;
+        }
+        let geometry_index = self.kind_model(kind);
+        self.dynamic.push(DynamicObstacle {
+            id: id.into(),
+            kind,
+            threat: self.threat_of(kind),
+            geometry: self.geometries[geometry_index].clone(),
+            geometry_index,
+            source: DynamicSource::Waypoints(waypoints),
+        });
+        true
+    }
+
     /// Height (ENU up, metres) of the highest terrain surface at (east, north), if any terrain
     /// lies there. A scan of the terrain patches, for set-up code; the collision core asks its
     /// octree instead.

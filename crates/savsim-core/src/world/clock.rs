@@ -106,6 +106,8 @@ pub struct ClockMap {
     /// `t = offset + rate x vehicle_s`.
     offset_s: f64,
     bins: VecDeque<Bin>,
+    /// Whether the map runs at the vehicle's own rate ([`ClockMap::own_rate`]).
+    own_rate: bool,
 }
 
 impl ClockMap {
@@ -118,7 +120,34 @@ impl ClockMap {
             rate: prior_rate.clamp(RATE_RANGE.0, RATE_RANGE.1),
             offset_s: f64::INFINITY,
             bins: VecDeque::with_capacity(BINS + 1),
+            own_rate: false,
         }
+    }
+
+    /// A map for a new boot that keeps the vehicle's own time: `t = offset + vehicle_s`, the
+    /// offset fixed by the boot's first stamp (mapped to its arrival). A second of the
+    /// vehicle's clock is a second of session time at any speedup or drift, so that scripted
+    /// traffic and intruders move on the vehicle's clock (`savsim study`: one vehicle per
+    /// session). Times may run ahead of arrival; they never go back.
+    ///
+    /// ```
+    /// use savsim_core::world::clock::ClockMap;
+    /// // A SITL at speedup 10: 100 ms of its clock every 10 ms of arrival.
+    /// let mut clock = ClockMap::own_rate();
+    /// let first = clock.map(5_000, 20.0).0;
+    /// let later = clock.map(15_000, 21.0).0;
+    /// assert_eq!((first, later), (20.0, 30.0));
+    /// ```
+    pub fn own_rate() -> Self {
+        Self {
+            own_rate: true,
+            ..Self::new(1.0)
+        }
+    }
+
+    /// Whether this map keeps the vehicle's own time ([`ClockMap::own_rate`]).
+    pub fn is_own_rate(&self) -> bool {
+        self.own_rate
     }
 
     /// Wall seconds per second of the vehicle's clock: 1 / the speedup.
@@ -141,6 +170,14 @@ impl ClockMap {
         };
         self.last_boot_ms = Some((time_boot_ms, unwrapped_ms));
         let vehicle_s = unwrapped_ms as f64 / 1000.0;
+        if self.own_rate {
+            if !self.offset_s.is_finite() {
+                self.offset_s = receive_t_s - vehicle_s;
+            }
+            let t_s = (self.offset_s + vehicle_s).max(self.last_t_s + 1e-6);
+            self.last_t_s = t_s;
+            return (t_s, false);
+        }
         self.observe(vehicle_s, receive_t_s);
         let fitted = self.offset_s + self.rate * vehicle_s;
         let pulled = fitted > receive_t_s + PULL_COUNTED_S;

@@ -30,6 +30,10 @@ pub struct WorldConfig {
     pub stale_after_s: f64,
     /// Samples of history kept per track for interpolation. Default 64.
     pub history_len: usize,
+    /// Vehicles' samples keep their own clock's time ([`clock::ClockMap::own_rate`]) instead
+    /// of being mapped onto the receive clock at the rate they arrive. Default false; `savsim
+    /// study` sets it (one vehicle per session, traffic on its clock).
+    pub vehicle_clock: bool,
 }
 
 impl Default for WorldConfig {
@@ -37,6 +41,7 @@ impl Default for WorldConfig {
         Self {
             stale_after_s: 10.0,
             history_len: 64,
+            vehicle_clock: false,
         }
     }
 }
@@ -492,6 +497,7 @@ impl WorldStore {
     fn vehicle(&mut self, sender: SenderId, t_s: f64) -> &mut VehicleTrack {
         let seen = &mut self.seen;
         let next = &mut self.next_generation;
+        let own_rate = self.config.vehicle_clock;
         self.vehicles.entry(sender).or_insert_with(|| {
             if let Some(before) = seen.get_mut(&sender) {
                 before.returns += 1;
@@ -507,7 +513,11 @@ impl WorldStore {
                 history: History::default(),
                 last_heard_t_s: t_s,
                 boot_resets: 0,
-                clock: clock::ClockMap::new(1.0),
+                clock: if own_rate {
+                    clock::ClockMap::own_rate()
+                } else {
+                    clock::ClockMap::new(1.0)
+                },
                 positions: 0,
             }
         })
@@ -556,7 +566,11 @@ impl WorldStore {
             track.boot_resets += 1;
             track.history.clear();
             track.generation = generation;
-            track.clock = clock::ClockMap::new(track.clock.rate());
+            track.clock = if track.clock.is_own_rate() {
+                clock::ClockMap::own_rate()
+            } else {
+                clock::ClockMap::new(track.clock.rate())
+            };
         }
         let (t_s, reanchored) = track.clock.map(p.time_boot_ms, receive_t_s);
         let velocity_enu_mps = plane.enu_vector_from_ned_at(&p.position, p.velocity_ned_mps);

@@ -1,0 +1,258 @@
+//! `savsim study` on the command line: the network namespace, the manifest, the shard, the
+//! rows, the shard's file; `study summarize` and `study gen`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use crate::batch::shard::Shard;
+use crate::cli::{StudyArgs, StudyCommand};
+use crate::error::{Error, Result};
+use crate::study::manifest;
+use crate::study::result::{Outcome, StudyResult};
+use crate::study::run::{Setup, SPEEDUP_RANGE};
+use crate::study::sitl::ArduCopter;
+
+/// Set in the environment of a study that runs inside its own network namespace.
+pub const INSIDE_NETNS: &str = "SAVSIM_STUDY_NETNS";
+/// The most SITLs at once.
+pub const MAX_JOBS: usize = 64;
+
+/// Run `savsim study ...`.
+pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
+    match &args.command {
+        Some(StudyCommand::Summarize { dir, nominal, json }) => {
+            let all = crate::study::summarize::read_dir(dir)?;
+            if *json {
+                let value = crate::study::summarize::summary_json(&all, nominal);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&value).unwrap_or_default()
+                );
+            } else {
+                print!("{}", crate::study::summarize::summary_text(&all, nominal));
+            }
+            return Ok(());
+        }
+        Some(StudyCommand::Gen { n, seed, out }) => return gen(*n, *seed, out),
+        None => {}
+    }
+    let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
+        return Err(Error::Usage("give a manifest and --out DIR".into()));
+    };
+    if !(1..=MAX_JOBS).contains(&args.jobs) {
+        return Err(Error::Usage(format!(
+            "--jobs {}: give 1 to {MAX_JOBS}",
+            args.jobs
+        )));
+    }
+    if !(SPEEDUP_RANGE.0..=SPEEDUP_RANGE.1).contains(&args.speedup) {
+        return Err(Error::Usage(format!(
+            "--speedup {}: give {} to {}",
+            args.speedup, SPEEDUP_RANGE.0, SPEEDUP_RANGE.1
+        )));
+    }
+    let rows = manifest::load(manifest_path)?;
+    let shard = Shard::from_args(args.shard.as_deref(), |v| std::env::var(v).ok())?;
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
+    let path = out.join(shard.file_name());
+    if path.exists() && !args.force {
+        eprintln!(
+            "study: shard {}/{} is done ({} exists): skipped",
+            shard.index,
+            shard.count,
+            path.display()
+        );
+        return Ok(());
+    }
+    if !args.no_netns && std::env::var_os(INSIDE_NETNS).is_none() {
+        if let Some(status) = in_own_namespace(&shutdown)? {
+            return status;
+        }
+    }
+    let range = shard.rows(rows.len());
+    // Absolute: each SITL runs in its own folder and reads its files from there.
+    let work = std::fs::canonicalize(out)
+        .map_err(|e| Error::file(out, e))?
+        .join("work");
+    let setup = Setup::new(
+        &rows[range.clone()],
+        arducopter(args.arducopter.as_deref()),
+        args.speedup,
+        work.clone(),
+        shutdown.clone(),
+    );
+    let total = range.len();
+    let finished = std::sync::atomic::AtomicUsize::new(0);
+    let on_done = |r: &StudyResult| {
+        let k = finished.fetch_add(1, Ordering::Relaxed) + 1;
+        eprintln!(
+            "study: {k}/{total} {}: {}{} ({:.1} s of its clock in {:.1} s)",
+            r.row_id,
+            r.outcome.name(),
+            r.error
+                .as_deref()
+                .map(|e| format!(": {e}"))
+                .unwrap_or_default(),
+            r.sim_s,
+            r.wall_s
+        );
+        if !args.keep_work && r.outcome != Outcome::Error {
+            let _ = std::fs::remove_dir_all(
+                work.join(crate::study::run::folder_name(r.index, &r.row_id)),
+            );
+        }
+    };
+    let results = crate::study::run_rows(
+        &rows[range.clone()],
+        range.start,
+        args.jobs,
+        &setup,
+        &on_done,
+    );
+    if shutdown.load(Ordering::Relaxed) {
+        return Err(Error::Usage(
+            "study: stopped by a signal; the shard was not written (run it again)".into(),
+        ));
+    }
+    let metadata = [
+        ("savsim_version", env!("CARGO_PKG_VERSION").to_string()),
+        ("study_manifest", manifest_path.display().to_string()),
+        ("study_shard", format!("{}/{}", shard.index, shard.count)),
+        ("study_speedup", args.speedup.to_string()),
+        ("study_jobs", args.jobs.to_string()),
+        (
+            "study_arducopter",
+            setup
+                .arducopter
+                .as_ref()
+                .map(|a| a.binary.display().to_string())
+                .unwrap_or_default(),
+        ),
+    ];
+    crate::study::table::write_atomic(&results, &metadata, &path)?;
+    print!("{}", report(&results, &path));
+    Ok(())
+}
+
+/// ArduCopter from `--arducopter` or `SAVSIM_ARDUCOPTER`, with `SAVSIM_ARDUCOPTER_DEFAULTS`.
+fn arducopter(flag: Option<&Path>) -> Option<ArduCopter> {
+    let binary = flag
+        .map(Path::to_path_buf)
+        .or_else(|| std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from))?;
+    let defaults: Vec<PathBuf> = std::env::var("SAVSIM_ARDUCOPTER_DEFAULTS")
+        .map(|d| {
+            d.split(',')
+                .filter(|p| !p.is_empty())
+                .map(PathBuf::from)
+                .collect()
+        })
+        .unwrap_or_default();
+    // Absolute: each SITL runs in its own folder.
+    let absolute = |p: PathBuf| std::fs::canonicalize(&p).unwrap_or(p);
+    Some(ArduCopter {
+        binary: absolute(binary),
+        defaults: defaults.into_iter().map(absolute).collect(),
+    })
+}
+
+/// Run this same command again inside a network namespace of its own with only loopback up
+/// (`unshare -n`, as root; else `unshare -rn`, a user namespace), and return its ending.
+/// `None` when no namespace can be made here: the study runs in this process.
+fn in_own_namespace(shutdown: &AtomicBool) -> Result<Option<Result<()>>> {
+    let exe = std::env::current_exe().map_err(|e| Error::file("the savsim executable", e))?;
+    for flags in ["-n", "-rn"] {
+        let works = Command::new("unshare")
+            .args([flags, "true"])
+            .status()
+            .is_ok_and(|s| s.success());
+        if !works {
+            continue;
+        }
+        let mut child = Command::new("unshare")
+            .args([flags, "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
+            .arg(&exe)
+            .args(std::env::args_os().skip(1))
+            .env(INSIDE_NETNS, "1")
+            .spawn()
+            .map_err(|e| Error::file("unshare", e))?;
+        let status = wait_forwarding(&mut child, shutdown)?;
+        return Ok(Some(if status.success() {
+            Ok(())
+        } else {
+            Err(Error::Usage(format!(
+                "study: the run in its network namespace ended with {status}"
+            )))
+        }));
+    }
+    eprintln!(
+        "study: no network namespace can be made here (`unshare -n`): SITL binds its TCP ports \
+         on every interface"
+    );
+    Ok(None)
+}
+
+/// Wait for the study in its namespace (the same process as `unshare`: it execs), passing a
+/// signal that stopped this one on to it as SIGTERM.
+fn wait_forwarding(
+    child: &mut std::process::Child,
+    shutdown: &AtomicBool,
+) -> Result<std::process::ExitStatus> {
+    let mut forwarded = false;
+    loop {
+        if let Some(status) = child.try_wait().map_err(|e| Error::file("unshare", e))? {
+            return Ok(status);
+        }
+        if shutdown.load(Ordering::Relaxed) && !forwarded {
+            forwarded = true;
+            let _ = Command::new("kill")
+                .args(["-TERM", &child.id().to_string()])
+                .status();
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}
+
+/// What a shard found, for a person at a terminal.
+fn report(results: &[StudyResult], path: &Path) -> String {
+    let count = |o: Outcome| results.iter().filter(|r| r.outcome == o).count();
+    let mut text = format!(
+        "{} rows: {} collision, {} nmac, {} soft_fail, {} pass, {} error; written to {}\n",
+        results.len(),
+        count(Outcome::Collision),
+        count(Outcome::Nmac),
+        count(Outcome::SoftFail),
+        count(Outcome::Pass),
+        count(Outcome::Error),
+        path.display()
+    );
+    for r in results.iter().filter(|r| r.error.is_some()).take(10) {
+        text += &format!("  {}: {}\n", r.row_id, r.error.as_deref().unwrap_or(""));
+    }
+    text
+}
+
+/// `study gen`: the manifest `study.csv` and one scene per pair in `out`.
+fn gen(n: usize, seed: u64, out: &Path) -> Result<()> {
+    if n == 0 || n > 1_000_000 {
+        return Err(Error::Usage(format!("--n {n}: give 1 to 1000000")));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
+    let approaches = crate::study::gen::approaches(n, seed);
+    for a in &approaches {
+        let path = out.join(&a.scene_file);
+        std::fs::write(&path, &a.scene_toml).map_err(|e| Error::file(&path, e))?;
+    }
+    let rows: Vec<_> = approaches.into_iter().flat_map(|a| a.rows).collect();
+    let path = out.join("study.csv");
+    let file = std::fs::File::create(&path).map_err(|e| Error::file(&path, e))?;
+    manifest::write_csv(&rows, std::io::BufWriter::new(file))
+        .map_err(|e| Error::file(&path, std::io::Error::other(e)))?;
+    println!(
+        "{} rows ({n} pairs) written to {}",
+        rows.len(),
+        path.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! `savsim study gen`: obstacle approaches in the UAV Testing Competition's style. Pair `k`:
+//! a box of random size across a straight path from home, at a random distance, lateral
+//! offset and yaw, flown at a random speed and heading at 20 m; a `nominal` row (no feed, no
+//! proximity sensor, avoidance off) and a `mitigated` row (`--feed proximity`, ArduCopter's
+//! proximity avoidance stopping 3 m short). Deterministic for a seed.
+//!
+//! | drawn | range |
+//! |---|---|
+//! | heading | 0-360 degrees |
+//! | speed | 3-8 m/s |
+//! | box width across, depth along the path | 6-20 m, 4-12 m |
+//! | box height | 40-60 m (the path, at 20 m, cannot pass over it) |
+//! | box yaw against the path | -30 to +30 degrees |
+//! | distance from home to the box's near face | 30-50 m |
+//! | lateral offset of the box's centre | within a quarter of its width (the path hits it) |
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::study::manifest::StudyRow;
+
+/// The height the paths are flown at, metres above home.
+pub const PATH_UP_M: f64 = 20.0;
+/// ArduCopter's parameters for the mitigated rows: MAVLink proximity, no low-pass filter,
+/// proximity avoidance that stops 3 m short.
+pub const MITIGATED_PARAMS: &str =
+    "PRX1_TYPE=2;PRX_FILT=0;AVOID_ENABLE=3;AVOID_BEHAVE=1;AVOID_MARGIN=3";
+/// The nominal rows': avoidance off.
+pub const NOMINAL_PARAMS: &str = "AVOID_ENABLE=0";
+
+/// One generated approach: its scene's text and its two rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Approach {
+    /// The scene file's name.
+    pub scene_file: String,
+    /// The scene (TOML).
+    pub scene_toml: String,
+    /// `nominal` and `mitigated`.
+    pub rows: [StudyRow; 2],
+}
+
+/// `n` approaches from `seed`; rows name their scene as `scene_file` (relative to the
+/// manifest).
+///
+/// ```
+/// let a = savsim::study::gen::approaches(3, 7);
+/// assert_eq!(a.len(), 3);
+/// assert_eq!(a, savsim::study::gen::approaches(3, 7));
+/// assert_eq!(a[0].rows[1].variant.as_deref(), Some("mitigated"));
+/// ```
+pub fn approaches(n: usize, seed: u64) -> Vec<Approach> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n).map(|k| approach(k, seed, &mut rng)).collect()
+}
+
+fn approach(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> Approach {
+    let heading_deg: f64 = rng.random_range(0.0..360.0);
+    let speed_mps: f64 = rng.random_range(3.0..8.0);
+    let (width_m, depth_m, height_m): (f64, f64, f64) = (
+        rng.random_range(6.0..20.0),
+        rng.random_range(4.0..12.0),
+        rng.random_range(40.0..60.0),
+    );
+    let yaw_off_deg: f64 = rng.random_range(-30.0..30.0);
+    let near_m: f64 = rng.random_range(30.0..50.0);
+    let lateral_m: f64 = rng.random_range(-0.25..0.25) * width_m;
+    // Unit vectors along the path and to its right, ENU (heading clockwise from north).
+    let (s, c) = heading_deg.to_radians().sin_cos();
+    let (along, right) = ([s, c], [c, -s]);
+    let centre_along = near_m + depth_m / 2.0;
+    let centre = [
+        along[0] * centre_along + right[0] * lateral_m,
+        along[1] * centre_along + right[1] * lateral_m,
+    ];
+    // The scene's yaw is counter-clockwise from east; the box's x (east) side is `depth`
+    // along the path: the path's direction is 90 - heading degrees from east.
+    let yaw_deg = 90.0 - heading_deg + yaw_off_deg;
+    let id = format!("approach-{k:05}");
+    let scene_file = format!("{id}.toml");
+    let o = crate::scene::gen::DEFAULT_ORIGIN;
+    let scene_toml = format!(
+        "# savsim study gen --seed {seed}: pair {k}\n[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n\n\
+         [[obstacle]]\nid = \"box\"\nkind = \"building\"\nshape = {{ box = [{depth_m:.2}, {width_m:.2}, {height_m:.2}] }}\n\
+         position_enu_m = [{:.2}, {:.2}, 0.0]\nyaw_deg = {yaw_deg:.2}\n",
+        o.lat_deg, o.lon_deg, o.alt_m, centre[0], centre[1]
+    );
+    // Fly on 25 m past the box's far side.
+    let leg_s = (near_m + depth_m + 25.0) / speed_mps;
+    let plan = format!(
+        "takeoff {PATH_UP_M}; velocity {:.3} {:.3} 0 {leg_s:.1}",
+        along[0] * speed_mps,
+        along[1] * speed_mps
+    );
+    let row = |variant: &str, params: &str, feed: Option<&str>| StudyRow {
+        id: Some(format!("{id}-{variant}")),
+        scene: Some(scene_file.clone()),
+        autopilot: Some("arducopter".into()),
+        variant: Some(variant.into()),
+        pair: Some(id.clone()),
+        params: Some(params.into()),
+        feed: feed.map(str::to_string),
+        plan: Some(plan.clone()),
+        duration_s: Some((90.0 + leg_s).ceil()),
+        seed: Some(seed),
+        ..StudyRow::default()
+    };
+    Approach {
+        scene_file: scene_file.clone(),
+        scene_toml,
+        rows: [
+            row("nominal", NOMINAL_PARAMS, None),
+            row("mitigated", MITIGATED_PARAMS, Some("proximity")),
+        ],
+    }
+}

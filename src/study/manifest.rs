@@ -1,0 +1,133 @@
+//! A study's rows, read from CSV, TOML (`[[run]]`) or JSON like `batch`'s manifests; unknown
+//! columns are errors. A row's meaning (its plan, parameters, feed, intruder) is checked when
+//! it runs, so that one bad row becomes a row with its error and the rest still run.
+//!
+//! ```
+//! let csv = "id,scene,autopilot,variant,pair,params,feed,plan\n\
+//!            a-1,box.toml,arducopter,mitigated,a,PRX1_TYPE=2;AVOID_ENABLE=3,proximity,takeoff 20;velocity 0 5 0 20\n";
+//! let rows = savsim::study::manifest::parse_csv(csv.as_bytes()).unwrap();
+//! assert_eq!(rows[0].feed.as_deref(), Some("proximity"));
+//! assert!(savsim::study::manifest::parse_csv(b"id,colour\na,red\n").is_err());
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::Result;
+
+/// One row of a study, as the manifest wrote it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudyRow {
+    /// Name in the results (default: `row-<index>`).
+    pub id: Option<String>,
+    /// A scene file (default: open air around the default home).
+    pub scene: Option<String>,
+    /// `arducopter` (default) or `px4`.
+    pub autopilot: Option<String>,
+    /// The variant the row flies (`nominal`, `mitigated`...).
+    pub variant: Option<String>,
+    /// The encounter the row is one variant of.
+    pub pair: Option<String>,
+    /// Autopilot parameters, `NAME=VALUE;...`, set before arming.
+    pub params: Option<String>,
+    /// The feed, as `--feed` (`proximity`, `obstacle-distance`, `adsb`...); none by default.
+    pub feed: Option<String>,
+    /// The flight plan (`study::plan`).
+    pub plan: Option<String>,
+    /// An intruder's track, waypoints `"t_s e_m n_m u_m; ..."` in the scene's ENU frame, `t_s`
+    /// on the vehicle's clock from its first position.
+    pub intruder: Option<String>,
+    /// The intruder's kind (default `dji`).
+    pub intruder_kind: Option<String>,
+    /// The row's length, seconds of the vehicle's clock from its first position (default 120).
+    pub duration_s: Option<f64>,
+    /// The SITL speedup (default: `--speedup`, else 1).
+    pub speedup: Option<f64>,
+    /// Carried to the results (a generator's seed).
+    pub seed: Option<u64>,
+    /// Fly the row this many times (default 1), as `ID#0`, `ID#1`, ...
+    pub repeat: Option<u32>,
+    /// End the row at its first collision (default true).
+    pub stop_on_collision: Option<bool>,
+    /// The encounter's importance weight (default 1).
+    pub w: Option<f64>,
+}
+
+impl StudyRow {
+    /// The row's id: its own, or `row-<index>`.
+    pub fn id_or(&self, index: usize) -> String {
+        self.id.clone().unwrap_or_else(|| format!("row-{index}"))
+    }
+
+    /// The same row with its scene path made relative to `base` (a manifest's directory).
+    pub fn anchored(mut self, base: &Path) -> Self {
+        if let Some(path) = self.scene.as_mut().filter(|p| !p.is_empty()) {
+            if Path::new(path.as_str()).is_relative() {
+                *path = base.join(&*path).to_string_lossy().into_owned();
+            }
+        }
+        self
+    }
+}
+
+/// Read a study manifest (`.csv`, `.toml` or `.json`); scene paths become relative to its
+/// directory; rows with `repeat` are expanded (`ID#k`).
+pub fn load(path: &Path) -> Result<Vec<StudyRow>> {
+    let (rows, base): (Vec<StudyRow>, PathBuf) = crate::batch::manifest::read_rows(path)?;
+    Ok(expand(
+        rows.into_iter().map(|r| r.anchored(&base)).collect(),
+    ))
+}
+
+/// Rows from CSV with a header row; an empty cell is an absent value (not expanded).
+pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<StudyRow>, csv::Error> {
+    csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(bytes)
+        .deserialize()
+        .collect()
+}
+
+/// Each row `repeat` times (at most 10,000), as `ID#0`, `ID#1`, ...; a row without `repeat`
+/// (or with 1) once, as it is; a row with `repeat = 0` not at all.
+///
+/// ```
+/// use savsim::study::manifest::{expand, StudyRow};
+/// let row = StudyRow { id: Some("a".into()), repeat: Some(2), ..StudyRow::default() };
+/// let ids: Vec<_> = expand(vec![row]).into_iter().map(|r| r.id.unwrap()).collect();
+/// assert_eq!(ids, ["a#0", "a#1"]);
+/// ```
+pub fn expand(rows: Vec<StudyRow>) -> Vec<StudyRow> {
+    let mut out = Vec::with_capacity(rows.len());
+    for (index, row) in rows.into_iter().enumerate() {
+        match row.repeat {
+            None | Some(1) => out.push(row),
+            Some(n) => {
+                let id = row.id_or(index);
+                for k in 0..n.min(10_000) {
+                    out.push(StudyRow {
+                        id: Some(format!("{id}#{k}")),
+                        pair: row.pair.as_ref().map(|p| format!("{p}#{k}")),
+                        ..row.clone()
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Write rows as CSV (what `study gen` writes).
+pub fn write_csv(
+    rows: &[StudyRow],
+    out: impl std::io::Write,
+) -> std::result::Result<(), csv::Error> {
+    let mut w = csv::Writer::from_writer(out);
+    for r in rows {
+        w.serialize(r)?;
+    }
+    w.flush()?;
+    Ok(())
+}

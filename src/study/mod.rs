@@ -1,0 +1,65 @@
+//! `savsim study`: closed-loop studies. Each row starts its own SITL autopilot, flies its
+//! plan through savsim's scene with savsim's feed as the vehicle's sensors, and is scored;
+//! rows run `--jobs` at a time, each job on its own SITL instance (its own ports).
+//!
+//! - [`manifest`]: the rows, from CSV, TOML or JSON.
+//! - [`plan`]: a row's flight plan and parameters.
+//! - [`sitl`]: starting and stopping one SITL.
+//! - [`pilot`]: the ground station that flies the plan, on the vehicle's clock.
+//! - [`fly`]: the plan, leg by leg.
+//! - [`run`](mod@run): one row, its failure kept as its row's error.
+//! - [`result`]: what a row's result holds; [`table`]: results as Parquet.
+//! - [`summarize`]: risk ratios from a study's shards; [`gen`]: obstacle-approach pairs.
+//! - [`command`]: `savsim study` on the command line.
+
+pub mod command;
+pub mod fly;
+pub mod gen;
+pub mod manifest;
+pub mod pilot;
+pub mod plan;
+pub mod result;
+pub mod run;
+pub mod sitl;
+pub mod summarize;
+pub mod table;
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use manifest::StudyRow;
+use result::StudyResult;
+use run::Setup;
+
+/// Run `rows` (rows `first_index..` of the manifest) `jobs` at a time, job `k` on SITL
+/// instance `k`, calling `on_done` after each; results in manifest order.
+pub fn run_rows(
+    rows: &[StudyRow],
+    first_index: usize,
+    jobs: usize,
+    setup: &Setup,
+    on_done: &(dyn Fn(&StudyResult) + Sync),
+) -> Vec<StudyResult> {
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<Option<StudyResult>>> = Mutex::new(vec![None; rows.len()]);
+    std::thread::scope(|scope| {
+        for job in 0..jobs.clamp(1, rows.len().max(1)) {
+            let (next, done) = (&next, &done);
+            scope.spawn(move || loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(row) = rows.get(i) else { return };
+                let result = run::run_row(first_index + i, row, job as u16, setup);
+                on_done(&result);
+                if let Ok(mut done) = done.lock() {
+                    done[i] = Some(result);
+                }
+            });
+        }
+    });
+    done.into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| r.unwrap_or_else(|| StudyResult::of_inputs(first_index + i, &rows[i])))
+        .collect()
+}

@@ -1,0 +1,475 @@
+//! The study's pilot: a ground station on the autopilot's second serial port (ArduCopter
+//! SITL's SERIAL1, TCP) that arms the vehicle and flies a row's plan, and hears what the
+//! autopilot does (modes, COLLISION, STATUSTEXT, its version).
+//!
+//! Every decision is taken on the vehicle's own clock: the pilot acts at each
+//! GLOBAL_POSITION_INT the vehicle sends (asked at [`POSITION_HZ`] of its clock), so a row
+//! flies the same at any speedup. Targets are velocities (GUIDED's velocity targets are what
+//! ArduCopter's proximity avoidance acts on, docs/closed-loop.md), re-sent at every position.
+
+use std::io::Write;
+use std::net::TcpStream;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavState, MavType,
+    PositionTargetTypemask, COMMAND_LONG_DATA, HEARTBEAT_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
+};
+
+use crate::geo::{Geodetic, LocalTangentPlane};
+use crate::ingest::outbox::Outbox;
+use crate::ingest::stats::SenderId;
+use crate::study::plan::Leg;
+
+/// Positions asked for on the pilot's link, Hz of the vehicle's clock.
+pub const POSITION_HZ: f64 = 20.0;
+/// The pilot's identity: a ground station's system, a component no common GCS uses
+/// (MAV_COMP_ID_USER1).
+pub const PILOT: SenderId = SenderId {
+    system_id: 254,
+    component_id: 25,
+};
+/// A goto is done within this distance of its point, metres.
+pub const GOTO_DONE_M: f64 = 1.0;
+/// A takeoff is done within this height of its target, metres.
+pub const TAKEOFF_DONE_M: f64 = 1.0;
+
+/// ArduCopter's flight modes (custom_mode) that a study reads.
+pub mod mode {
+    /// GUIDED.
+    pub const GUIDED: u32 = 4;
+    /// LAND.
+    pub const LAND: u32 = 9;
+    /// AVOID_ADSB.
+    pub const AVOID_ADSB: u32 = 19;
+}
+
+/// ArduCopter's name of flight mode `custom_mode`.
+pub fn arducopter_mode_name(custom_mode: u32) -> String {
+    const NAMES: [&str; 28] = [
+        "STABILIZE",
+        "ACRO",
+        "ALT_HOLD",
+        "AUTO",
+        "GUIDED",
+        "LOITER",
+        "RTL",
+        "CIRCLE",
+        "",
+        "LAND",
+        "",
+        "DRIFT",
+        "",
+        "SPORT",
+        "FLIP",
+        "AUTOTUNE",
+        "POSHOLD",
+        "BRAKE",
+        "THROW",
+        "AVOID_ADSB",
+        "GUIDED_NOGPS",
+        "SMART_RTL",
+        "FLOWHOLD",
+        "FOLLOW",
+        "ZIGZAG",
+        "SYSTEMID",
+        "AUTOROTATE",
+        "AUTO_RTL",
+    ];
+    match NAMES.get(custom_mode as usize) {
+        Some(name) if !name.is_empty() => (*name).to_string(),
+        _ => format!("MODE{custom_mode}"),
+    }
+}
+
+/// One position of the vehicle, as the pilot heard it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fix {
+    /// The vehicle's clock, ms.
+    pub time_boot_ms: u32,
+    /// Scene ENU, metres.
+    pub enu_m: DVec3,
+    /// Velocity, scene ENU m/s.
+    pub velocity_enu_mps: DVec3,
+}
+
+/// What the autopilot said, apart from its positions.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Heard {
+    /// Armed at its last heartbeat.
+    pub armed: bool,
+    /// Its mode at its last heartbeat (custom_mode).
+    pub mode: Option<u32>,
+    /// Every mode it entered, in order, with its clock then (ms; of the last position).
+    pub modes: Vec<(u32, u32)>,
+    /// COLLISION messages it sent: its clock (ms), threat id, action, threat level.
+    pub collisions: Vec<(u32, u32, u8, u8)>,
+    /// STATUSTEXT: its clock (ms), severity, text.
+    pub texts: Vec<(u32, u8, String)>,
+    /// AUTOPILOT_VERSION: `major.minor.patch (git hash)`.
+    pub version: Option<String>,
+    /// Its clock at the last position, ms.
+    pub time_boot_ms: u32,
+}
+
+/// What the reader thread passes on.
+pub enum Heard1 {
+    /// A position.
+    Fix(Fix),
+    /// Anything else that changed [`Heard`].
+    Other,
+}
+
+/// Why the pilot stopped short of its plan.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PilotError {
+    /// The autopilot's port never answered.
+    #[error("the autopilot's port {port} never answered within {waited_s:.0} s: {why}")]
+    NoPort {
+        /// The TCP port.
+        port: u16,
+        /// Wall seconds waited.
+        waited_s: f64,
+        /// The last connection error.
+        why: String,
+    },
+    /// The autopilot sent nothing for too long (it hung or died).
+    #[error("the autopilot sent no position for {silent_s:.0} s of wall time")]
+    Silent {
+        /// Wall seconds of silence.
+        silent_s: f64,
+    },
+    /// It would not arm.
+    #[error("the autopilot did not arm within {waited_s:.0} s of its clock; it said: {texts}")]
+    NoArm {
+        /// Vehicle seconds waited.
+        waited_s: f64,
+        /// Its last messages.
+        texts: String,
+    },
+    /// Writing to its port failed.
+    #[error("sending to the autopilot failed: {0}")]
+    Send(String),
+}
+
+/// The pilot's side of the link: the writer; the reader thread feeds `fixes`.
+pub struct Pilot {
+    stream: TcpStream,
+    outbox: Outbox,
+    target: SenderId,
+    /// Positions (and other news) from the reader thread.
+    news: Receiver<Heard1>,
+    /// What the autopilot said.
+    pub heard: std::sync::Arc<std::sync::Mutex<Heard>>,
+    /// The last position.
+    pub fix: Option<Fix>,
+    last_heartbeat_ms: Option<u32>,
+    /// How long the autopilot may be silent before the row is an error (wall clock).
+    pub silence_limit: Duration,
+}
+
+impl Pilot {
+    /// Connect to the autopilot `target` on TCP `port` of 127.0.0.1, retrying for `within`
+    /// (SITL opens its ports a moment after it starts); positions are mapped into `plane`.
+    pub fn connect(
+        port: u16,
+        target: SenderId,
+        plane: LocalTangentPlane,
+        within: Duration,
+    ) -> Result<Pilot, PilotError> {
+        let started = Instant::now();
+        let stream = loop {
+            match TcpStream::connect(("127.0.0.1", port)) {
+                Ok(s) => break s,
+                Err(e) if started.elapsed() >= within => {
+                    return Err(PilotError::NoPort {
+                        port,
+                        waited_s: within.as_secs_f64(),
+                        why: e.to_string(),
+                    })
+                }
+                Err(_) => std::thread::sleep(Duration::from_millis(100)),
+            }
+        };
+        let _ = stream.set_nodelay(true);
+        let reader = stream
+            .try_clone()
+            .map_err(|e| PilotError::Send(e.to_string()))?;
+        let heard = std::sync::Arc::new(std::sync::Mutex::new(Heard::default()));
+        let (tx, news) = std::sync::mpsc::channel();
+        let into = heard.clone();
+        std::thread::Builder::new()
+            .name("savsim-pilot".into())
+            .spawn(move || read_autopilot(reader, target, plane, &into, &tx))
+            .map_err(|e| PilotError::Send(e.to_string()))?;
+        Ok(Pilot {
+            stream,
+            outbox: Outbox::new(PILOT),
+            target,
+            news,
+            heard,
+            fix: None,
+            last_heartbeat_ms: None,
+            silence_limit: Duration::from_secs(30),
+        })
+    }
+
+    /// A copy of what the autopilot said.
+    pub fn heard(&self) -> Heard {
+        self.heard.lock().map(|h| h.clone()).unwrap_or_default()
+    }
+
+    /// Send `message` to the autopilot.
+    pub fn send(&mut self, message: &MavMessage) -> Result<(), PilotError> {
+        let bytes = self.outbox.encode(message);
+        self.stream
+            .write_all(&bytes)
+            .map_err(|e| PilotError::Send(e.to_string()))
+    }
+
+    /// COMMAND_LONG `command` with `p` to the autopilot.
+    pub fn command(&mut self, command: MavCmd, p: [f32; 7]) -> Result<(), PilotError> {
+        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            param1: p[0],
+            param2: p[1],
+            param3: p[2],
+            param4: p[3],
+            param5: p[4],
+            param6: p[5],
+            param7: p[6],
+            command,
+            target_system: self.target.system_id,
+            target_component: self.target.component_id,
+            confirmation: 0,
+        }))
+    }
+
+    /// Wait for the next position (at most `silence_limit` of wall time), answering with a
+    /// heartbeat once a second of the vehicle's clock. `Ok(None)`: `stop` was set.
+    pub fn next_fix(&mut self, stop: &dyn Fn() -> bool) -> Result<Option<Fix>, PilotError> {
+        let started = Instant::now();
+        let mut asked = started;
+        loop {
+            if stop() {
+                return Ok(None);
+            }
+            match self.news.recv_timeout(Duration::from_millis(50)) {
+                Ok(Heard1::Fix(fix)) => {
+                    self.fix = Some(fix);
+                    self.heartbeat_due(fix.time_boot_ms)?;
+                    return Ok(Some(fix));
+                }
+                Ok(Heard1::Other) | Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Err(PilotError::Silent {
+                        silent_s: started.elapsed().as_secs_f64(),
+                    })
+                }
+            }
+            if started.elapsed() > self.silence_limit {
+                return Err(PilotError::Silent {
+                    silent_s: started.elapsed().as_secs_f64(),
+                });
+            }
+            if self.fix.is_none() && asked.elapsed() > Duration::from_secs(1) {
+                // Before the first position: keep asking for them, once a wall second.
+                asked = Instant::now();
+                self.ask_positions()?;
+            }
+        }
+    }
+
+    /// Ask for positions at [`POSITION_HZ`] and for AUTOPILOT_VERSION; send a heartbeat.
+    pub fn ask_positions(&mut self) -> Result<(), PilotError> {
+        self.heartbeat()?;
+        let interval_us = (1e6 / POSITION_HZ) as f32;
+        self.command(
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+            [33.0, interval_us, 0.0, 0.0, 0.0, 0.0, 0.0],
+        )?;
+        self.command(
+            MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            [148.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        )
+    }
+
+    fn heartbeat_due(&mut self, now_ms: u32) -> Result<(), PilotError> {
+        let due = self
+            .last_heartbeat_ms
+            .is_none_or(|last| now_ms.wrapping_sub(last) >= 1000);
+        if due {
+            self.last_heartbeat_ms = Some(now_ms);
+            self.heartbeat()?;
+        }
+        Ok(())
+    }
+
+    fn heartbeat(&mut self) -> Result<(), PilotError> {
+        self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_GCS,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+        }))
+    }
+
+    /// A velocity target, scene ENU m/s (GUIDED; re-sent at every position: ArduCopter drops a
+    /// velocity target after 3 s).
+    pub fn velocity(&mut self, enu_mps: DVec3) -> Result<(), PilotError> {
+        // Velocities only: position, acceleration, yaw and yaw rate ignored.
+        let velocity_only = 0b0000_1101_1100_0111;
+        self.send(&MavMessage::SET_POSITION_TARGET_LOCAL_NED(
+            SET_POSITION_TARGET_LOCAL_NED_DATA {
+                time_boot_ms: 0,
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                vx: enu_mps.y as f32,
+                vy: enu_mps.x as f32,
+                vz: -enu_mps.z as f32,
+                afx: 0.0,
+                afy: 0.0,
+                afz: 0.0,
+                yaw: 0.0,
+                yaw_rate: 0.0,
+                type_mask: PositionTargetTypemask::from_bits_truncate(velocity_only),
+                target_system: self.target.system_id,
+                target_component: self.target.component_id,
+                coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+            },
+        ))
+    }
+}
+
+/// The velocity a `goto` commands from `at` towards `to` at `speed_mps`, slowing within two
+/// seconds of the point (at most half the distance per second), scene ENU m/s.
+///
+/// ```
+/// use glam::DVec3;
+/// let v = savsim::study::pilot::goto_velocity(DVec3::ZERO, DVec3::new(100.0, 0.0, 0.0), 5.0);
+/// assert_eq!(v, DVec3::new(5.0, 0.0, 0.0));
+/// let near = savsim::study::pilot::goto_velocity(DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), 5.0);
+/// assert_eq!(near, DVec3::new(1.0, 0.0, 0.0));
+/// ```
+pub fn goto_velocity(at: DVec3, to: DVec3, speed_mps: f64) -> DVec3 {
+    let away = to - at;
+    let distance = away.length();
+    if distance < 1e-6 {
+        return DVec3::ZERO;
+    }
+    away / distance * speed_mps.min(0.5 * distance)
+}
+
+/// Whether `leg` is done at `fix`, given where and when it began (a takeoff's height is
+/// above where it began: home).
+pub fn leg_done(leg: &Leg, fix: &Fix, began: &Fix, heard: &Heard) -> bool {
+    let elapsed_s = f64::from(fix.time_boot_ms.wrapping_sub(began.time_boot_ms)) / 1000.0;
+    match *leg {
+        Leg::Takeoff { up_m } => fix.enu_m.z - began.enu_m.z >= up_m - TAKEOFF_DONE_M,
+        Leg::Goto { enu_m, .. } => fix.enu_m.distance(DVec3::from(enu_m)) <= GOTO_DONE_M,
+        Leg::Velocity { seconds, .. } | Leg::Hold { seconds } => elapsed_s >= seconds,
+        Leg::Land => !heard.armed && elapsed_s > 1.0,
+    }
+}
+
+/// The reader thread: every message from `target` into `heard`, positions (in `plane`) also
+/// to `tx`. Ends when the connection closes or the pilot is gone.
+fn read_autopilot(
+    stream: TcpStream,
+    target: SenderId,
+    plane: LocalTangentPlane,
+    heard: &std::sync::Mutex<Heard>,
+    tx: &std::sync::mpsc::Sender<Heard1>,
+) {
+    let mut reader = mavlink::MavlinkReader::new(stream);
+    loop {
+        let (header, message) = match reader.read_any_message::<MavMessage>() {
+            Ok(m) => m,
+            Err(mavlink::error::MessageReadError::Io(_)) => return,
+            Err(_) => continue,
+        };
+        if header.system_id != u32::from(target.system_id) {
+            continue;
+        }
+        let news = match message {
+            MavMessage::GLOBAL_POSITION_INT(p) if header.component_id == target.component_id => {
+                let at = Geodetic::new(
+                    f64::from(p.lat) * 1e-7,
+                    f64::from(p.lon) * 1e-7,
+                    f64::from(p.alt) * 1e-3,
+                );
+                let ned =
+                    glam::DVec3::new(f64::from(p.vx), f64::from(p.vy), f64::from(p.vz)) * 0.01;
+                if let Ok(mut h) = heard.lock() {
+                    h.time_boot_ms = p.time_boot_ms;
+                }
+                Heard1::Fix(Fix {
+                    time_boot_ms: p.time_boot_ms,
+                    enu_m: plane.enu_m_from_geodetic(&at),
+                    velocity_enu_mps: DVec3::new(ned.y, ned.x, -ned.z),
+                })
+            }
+            other => {
+                if let Ok(mut h) = heard.lock() {
+                    hear(&mut h, header.component_id == target.component_id, other);
+                }
+                Heard1::Other
+            }
+        };
+        if tx.send(news).is_err() {
+            return;
+        }
+    }
+}
+
+/// Take one message other than a position into `heard`.
+fn hear(heard: &mut Heard, from_autopilot: bool, message: MavMessage) {
+    let now = heard.time_boot_ms;
+    match message {
+        MavMessage::HEARTBEAT(hb) if from_autopilot => {
+            heard.armed = hb
+                .base_mode
+                .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+            if heard.mode != Some(hb.custom_mode) {
+                heard.mode = Some(hb.custom_mode);
+                heard.modes.push((now, hb.custom_mode));
+            }
+        }
+        MavMessage::COLLISION(c) => {
+            heard
+                .collisions
+                .push((now, c.id, c.action as u8, c.threat_level as u8));
+        }
+        MavMessage::STATUSTEXT(t) => {
+            let text = t
+                .text
+                .to_str()
+                .unwrap_or("?")
+                .trim_end_matches('\0')
+                .to_owned();
+            if heard.texts.len() < 1000 {
+                heard.texts.push((now, t.severity as u8, text));
+            }
+        }
+        MavMessage::AUTOPILOT_VERSION(v) => {
+            let s = v.flight_sw_version;
+            let hash: String = v
+                .flight_custom_version
+                .iter()
+                .take_while(|b| **b != 0)
+                .map(|b| char::from(*b))
+                .collect();
+            heard.version = Some(format!(
+                "{}.{}.{} ({hash})",
+                s >> 24,
+                (s >> 16) & 0xff,
+                (s >> 8) & 0xff
+            ));
+        }
+        _ => {}
+    }
+}

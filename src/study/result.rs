@@ -1,0 +1,172 @@
+//! One study row's result: its inputs, its outcome, what savsim measured (as a batch row
+//! does), and what the autopilot did.
+
+use serde::Serialize;
+
+use crate::batch::manifest::Run;
+use crate::batch::row::RunRow;
+use crate::collision::events::{Event, EventKind};
+use crate::study::manifest::StudyRow;
+
+/// Closest approach to an obstacle below this without a collision is a soft fail, metres (the
+/// UAV Testing Competition's mark).
+pub const SOFT_FAIL_M: f64 = 1.5;
+
+/// How a row ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// It hit something.
+    Collision,
+    /// No collision; an NMAC with a moving body.
+    Nmac,
+    /// Neither; within [`SOFT_FAIL_M`] of an obstacle.
+    SoftFail,
+    /// None of those.
+    Pass,
+    /// The row could not be flown (bad input, a SITL that did not boot, hung or died).
+    Error,
+}
+
+impl Outcome {
+    /// Its name in the results.
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Collision => "collision",
+            Outcome::Nmac => "nmac",
+            Outcome::SoftFail => "soft_fail",
+            Outcome::Pass => "pass",
+            Outcome::Error => "error",
+        }
+    }
+}
+
+/// The closest a row came to one obstacle (within the near-miss band, 10 m).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ObstacleApproach {
+    /// The obstacle's id.
+    pub obstacle: String,
+    /// Least distance, metres (0 at a collision).
+    pub closest_m: f64,
+}
+
+/// What the autopilot did, as it said over MAVLink.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct AutopilotDid {
+    /// The modes it entered, in order, by name (ArduCopter's).
+    pub modes: Vec<String>,
+    /// COLLISION messages it sent.
+    pub collision_messages: u64,
+    /// Its STATUSTEXT about avoidance (avoid, ADS-B, proximity, obstacle, fence), in order.
+    pub avoidance_texts: Vec<String>,
+    /// When it first acted, seconds of its clock after its first position: AVOID_ADSB
+    /// entered, a COLLISION sent, or (proximity avoidance, which says nothing) its speed along
+    /// the commanded velocity fell under half of it after reaching 80% of it.
+    pub first_acted_t_s: Option<f64>,
+    /// AUTOPILOT_VERSION: `major.minor.patch (git hash)`.
+    pub version: Option<String>,
+}
+
+/// One row of a study's results.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StudyResult {
+    /// The row's position in the (expanded) manifest, from 0.
+    pub index: u64,
+    /// Its id.
+    pub row_id: String,
+    /// The row as the manifest gave it (the scene path anchored).
+    pub inputs: StudyRow,
+    /// The autopilot flown.
+    pub autopilot: String,
+    /// The speedup asked of SITL.
+    pub speedup: f64,
+    /// How it ended.
+    pub outcome: Outcome,
+    /// Why it failed, when `outcome` is `error`.
+    pub error: Option<String>,
+    /// What savsim measured, as a batch row (collisions, near misses, NMAC, closest
+    /// approaches to moving bodies, well clear), times on the vehicle's clock.
+    pub measured: RunRow,
+    /// The closest approach to each obstacle within the near-miss band.
+    pub obstacles: Vec<ObstacleApproach>,
+    /// The closest of them, metres.
+    pub closest_obstacle_m: Option<f64>,
+    /// Legs of the plan flown to their end.
+    pub legs_completed: u64,
+    /// Whether every leg was.
+    pub plan_completed: bool,
+    /// What the autopilot did.
+    pub autopilot_did: AutopilotDid,
+    /// Feed frames sent to the vehicle.
+    pub feed_frames: u64,
+    /// Seconds of the vehicle's clock from its first position to its last.
+    pub sim_s: f64,
+    /// Wall seconds of the row, SITL's start and stop included (measured).
+    pub wall_s: f64,
+    /// `sim_s` over the wall seconds it took (measured).
+    pub achieved_speedup: f64,
+}
+
+impl StudyResult {
+    /// A result with `row`'s inputs and nothing flown yet.
+    pub fn of_inputs(index: usize, row: &StudyRow) -> Self {
+        StudyResult {
+            index: index as u64,
+            row_id: row.id_or(index),
+            inputs: row.clone(),
+            autopilot: row.autopilot.clone().unwrap_or_else(|| "arducopter".into()),
+            speedup: 0.0,
+            outcome: Outcome::Error,
+            error: None,
+            measured: RunRow::of_inputs(index, &Run::default(), "exact"),
+            obstacles: Vec::new(),
+            closest_obstacle_m: None,
+            legs_completed: 0,
+            plan_completed: false,
+            autopilot_did: AutopilotDid::default(),
+            feed_frames: 0,
+            sim_s: 0.0,
+            wall_s: 0.0,
+            achieved_speedup: 0.0,
+        }
+    }
+
+    /// The closest approach to each obstacle, from the run's collisions (0 m) and near misses.
+    pub fn record_obstacles(&mut self, events: &[Event]) {
+        let mut closest: Vec<ObstacleApproach> = Vec::new();
+        for e in events {
+            let (obstacle, m) = match &e.kind {
+                EventKind::Collision { obstacle, .. } => (obstacle, 0.0),
+                EventKind::NearMiss {
+                    obstacle,
+                    closest_m,
+                    ..
+                } => (obstacle, *closest_m),
+                _ => continue,
+            };
+            match closest.iter_mut().find(|c| &c.obstacle == obstacle) {
+                Some(c) => c.closest_m = c.closest_m.min(m),
+                None => closest.push(ObstacleApproach {
+                    obstacle: obstacle.clone(),
+                    closest_m: m,
+                }),
+            }
+        }
+        closest.sort_by(|a, b| a.obstacle.cmp(&b.obstacle));
+        self.closest_obstacle_m = closest.iter().map(|c| c.closest_m).reduce(f64::min);
+        self.obstacles = closest;
+    }
+
+    /// The outcome of a row that flew: collision, else NMAC, else soft fail, else pass.
+    pub fn judge(&mut self) {
+        self.outcome = if self.measured.collisions > 0 {
+            Outcome::Collision
+        } else if self.measured.nmac {
+            Outcome::Nmac
+        } else if self.closest_obstacle_m.is_some_and(|m| m < SOFT_FAIL_M) {
+            Outcome::SoftFail
+        } else {
+            Outcome::Pass
+        };
+    }
+}

@@ -1,0 +1,486 @@
+//! One study row, end to end: its inputs checked, its scene (with its intruder) loaded, its
+//! SITL started on its own instance and folder, savsim's session on SITL's SERIAL0 with the
+//! row's feed, the pilot flying the plan on SERIAL1, and everything stopped at the end. Any
+//! failure (a bad column, a SITL that does not boot, hangs or dies, even a bug) becomes the
+//! row's `error`; the study goes on.
+
+use std::collections::HashMap;
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crate::app::live::{run_links, Flag, LiveOptions, LiveRun};
+use crate::collision::approach::Approaches;
+use crate::collision::pipeline::CollisionConfig;
+use crate::daa::well_clear::Volume;
+use crate::feed::{FeedConfig, FeedKinds};
+use crate::geo::{Geodetic, LocalTangentPlane};
+use crate::ingest::address::ConnectAddress;
+use crate::ingest::live::Link;
+use crate::ingest::stats::SenderId;
+use crate::scene::{self, Kind, Scene, Waypoint};
+use crate::session::Session;
+use crate::study::fly::{fly, Flown};
+use crate::study::manifest::StudyRow;
+use crate::study::pilot::{arducopter_mode_name, mode, Heard, Pilot, PilotError};
+use crate::study::plan::{self, Leg, PlanError};
+use crate::study::result::{AutopilotDid, Outcome, StudyResult};
+use crate::study::sitl::{ArduCopter, Start};
+use savsim_core::bounds::MAX_DURATION_S;
+
+/// A row's default length, seconds of the vehicle's clock.
+pub const DEFAULT_DURATION_S: f64 = 120.0;
+/// The speedups a row may ask of SITL.
+pub const SPEEDUP_RANGE: (f64, f64) = (0.1, 1000.0);
+/// The autopilot's identity (SITL's default SYSID_THISMAV 1, the autopilot component).
+const AUTOPILOT: SenderId = SenderId {
+    system_id: 1,
+    component_id: 1,
+};
+
+/// Why a row could not be flown.
+#[derive(Debug, thiserror::Error)]
+pub enum RowError {
+    /// A column's value.
+    #[error("{column}: {why}")]
+    Input {
+        /// The column.
+        column: &'static str,
+        /// What is wrong.
+        why: String,
+    },
+    /// The plan.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// The autopilot's binary is not there.
+    #[error("{0}")]
+    NoAutopilot(String),
+    /// SITL could not start, or ended by itself.
+    #[error("SITL: {0}")]
+    Sitl(String),
+    /// The pilot.
+    #[error("{0}")]
+    Pilot(#[from] PilotError),
+    /// savsim's side (the scene, the session, the link).
+    #[error("savsim: {0}")]
+    Savsim(String),
+}
+
+fn input(column: &'static str, why: impl Into<String>) -> RowError {
+    RowError::Input {
+        column,
+        why: why.into(),
+    }
+}
+
+/// What every row of a study shares.
+pub struct Setup {
+    /// ArduCopter SITL, when given.
+    pub arducopter: Option<ArduCopter>,
+    /// The speedup for rows that name none.
+    pub speedup: f64,
+    /// Where each row's SITL folder is made (`DIR/work/<row id>`).
+    pub work: PathBuf,
+    /// Raised by a signal: every row stops and its SITL with it.
+    pub stop: Arc<AtomicBool>,
+    scenes: HashMap<String, Result<Arc<Scene>, String>>,
+    open_air: Arc<Scene>,
+}
+
+impl Setup {
+    /// The setup for `rows`: each scene they name loaded once.
+    pub fn new(
+        rows: &[StudyRow],
+        arducopter: Option<ArduCopter>,
+        speedup: f64,
+        work: PathBuf,
+        stop: Arc<AtomicBool>,
+    ) -> Self {
+        let mut scenes = HashMap::new();
+        for path in rows.iter().filter_map(|r| r.scene.as_deref()) {
+            if !path.is_empty() && !scenes.contains_key(path) {
+                let loaded = scene::load(Path::new(path))
+                    .map(Arc::new)
+                    .map_err(|e| e.to_string());
+                scenes.insert(path.to_owned(), loaded);
+            }
+        }
+        Setup {
+            arducopter,
+            speedup,
+            work,
+            stop,
+            scenes,
+            open_air: Arc::new(crate::batch::run::open_air()),
+        }
+    }
+
+    fn scene(&self, path: Option<&str>) -> Result<Arc<Scene>, RowError> {
+        match path.filter(|p| !p.is_empty()) {
+            None => Ok(self.open_air.clone()),
+            Some(p) => self
+                .scenes
+                .get(p)
+                .cloned()
+                .unwrap_or_else(|| Err("not loaded".into()))
+                .map_err(|why| input("scene", format!("{p}: {why}"))),
+        }
+    }
+}
+
+/// A row's columns, checked.
+struct Checked {
+    legs: Vec<Leg>,
+    params: Vec<(String, f64)>,
+    feed: Option<FeedKinds>,
+    intruder: Option<(Kind, Vec<Waypoint>)>,
+    duration_s: f64,
+    speedup: f64,
+    stop_on_collision: bool,
+}
+
+fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
+    match row.autopilot.as_deref().unwrap_or("arducopter") {
+        "arducopter" => {}
+        "px4" => {
+            return Err(input(
+                "autopilot",
+                "px4 rows are not flown by this savsim yet (ArduCopter only; docs/study.md)",
+            ))
+        }
+        other => {
+            return Err(input(
+                "autopilot",
+                format!("{other:?}: give arducopter or px4"),
+            ))
+        }
+    }
+    let legs = plan::parse(row.plan.as_deref().unwrap_or_default())?;
+    let params = plan::parse_params(row.params.as_deref().unwrap_or_default())
+        .map_err(|why| input("params", why))?;
+    let feed = row
+        .feed
+        .as_deref()
+        .filter(|f| !f.trim().is_empty())
+        .map(|f| FeedKinds::parse(f).map_err(|e| input("feed", format!("{f}: {e}"))))
+        .transpose()?;
+    let kind = match row.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
+        None => Kind::Dji,
+        Some(k) => Kind::from_name(k).ok_or_else(|| input("intruder_kind", format!("{k:?}")))?,
+    };
+    let intruder = row
+        .intruder
+        .as_deref()
+        .filter(|t| !t.trim().is_empty())
+        .map(|t| crate::batch::encounter::parse_waypoints(t).map_err(|why| input("intruder", why)))
+        .transpose()?
+        .map(|w| (kind, w));
+    let duration_s = row.duration_s.unwrap_or(DEFAULT_DURATION_S);
+    if !(duration_s > 0.0 && duration_s <= MAX_DURATION_S) {
+        return Err(input(
+            "duration_s",
+            format!("{duration_s}: give more than 0 and at most {MAX_DURATION_S} s"),
+        ));
+    }
+    let speedup = row.speedup.unwrap_or(default_speedup);
+    if !(SPEEDUP_RANGE.0..=SPEEDUP_RANGE.1).contains(&speedup) {
+        return Err(input(
+            "speedup",
+            format!("{speedup}: give {} to {}", SPEEDUP_RANGE.0, SPEEDUP_RANGE.1),
+        ));
+    }
+    if let Some(w) = row.w.filter(|w| !(w.is_finite() && *w >= 0.0)) {
+        return Err(input("w", format!("{w}: give a finite weight >= 0")));
+    }
+    Ok(Checked {
+        legs,
+        params,
+        feed,
+        intruder,
+        duration_s,
+        speedup,
+        stop_on_collision: row.stop_on_collision.unwrap_or(true),
+    })
+}
+
+/// Fly row `index` on SITL instance `instance`.
+pub fn run_row(index: usize, row: &StudyRow, instance: u16, setup: &Setup) -> StudyResult {
+    let started = Instant::now();
+    let mut result = StudyResult::of_inputs(index, row);
+    let flown = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        fly_row(row, instance, setup, &mut result)
+    }));
+    let error = match flown {
+        Ok(Ok(())) => None,
+        Ok(Err(e)) => Some(e.to_string()),
+        Err(panic) => Some(format!(
+            "savsim failed on this row (a bug; please report it): {}",
+            panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("panic")
+        )),
+    };
+    result.wall_s = started.elapsed().as_secs_f64();
+    result.achieved_speedup = if result.wall_s > 0.0 {
+        result.sim_s / result.wall_s
+    } else {
+        0.0
+    };
+    match error {
+        Some(e) => {
+            result.error = Some(e);
+            result.outcome = Outcome::Error;
+        }
+        None => result.judge(),
+    }
+    result
+}
+
+/// The session for a row: its scene, on the vehicle's clock, small-UAS well clear, its feed.
+fn session_for(scene: Arc<Scene>, feed: Option<FeedKinds>) -> Result<Session, RowError> {
+    let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
+    let mut session =
+        Session::new(Some(scene), CollisionConfig::default(), None).map_err(savsim)?;
+    session.use_vehicle_clock();
+    session.set_approaches(Approaches::with_volume(Some(Volume::SMALL_UAS)));
+    if let Some(kinds) = feed {
+        session
+            .start_feed(FeedConfig {
+                kinds,
+                ..FeedConfig::default()
+            })
+            .map_err(savsim)?;
+    }
+    Ok(session)
+}
+
+/// The row's scene, with its intruder as a scripted track `intruder`.
+fn scene_for(row: &StudyRow, checked: &Checked, setup: &Setup) -> Result<Arc<Scene>, RowError> {
+    let scene = setup.scene(row.scene.as_deref())?;
+    let Some((kind, waypoints)) = &checked.intruder else {
+        return Ok(scene);
+    };
+    let mut with = (*scene).clone();
+    if !with.push_track("intruder", *kind, waypoints.clone()) {
+        return Err(input(
+            "intruder",
+            "the scene has a track named intruder already",
+        ));
+    }
+    Ok(Arc::new(with))
+}
+
+/// Home: the scene's origin, on its ground there.
+fn home_of(scene: &Scene) -> Geodetic {
+    let ground_m = scene.ground_height_enu_m(0.0, 0.0).unwrap_or(0.0);
+    LocalTangentPlane::new(scene.origin).geodetic_from_enu_m(glam::DVec3::new(0.0, 0.0, ground_m))
+}
+
+fn fly_row(
+    row: &StudyRow,
+    instance: u16,
+    setup: &Setup,
+    result: &mut StudyResult,
+) -> Result<(), RowError> {
+    let checked = check(row, setup.speedup)?;
+    result.speedup = checked.speedup;
+    let arducopter = setup.arducopter.as_ref().ok_or_else(|| {
+        RowError::NoAutopilot(
+            "no ArduCopter SITL: give --arducopter PATH or set SAVSIM_ARDUCOPTER".into(),
+        )
+    })?;
+    let scene = scene_for(row, &checked, setup)?;
+    let session = session_for(scene.clone(), checked.feed)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .map_err(|e| RowError::Savsim(format!("start the network runtime: {e}")))?;
+    let address = ConnectAddress::UdpIn(
+        "127.0.0.1:0"
+            .parse::<std::net::SocketAddr>()
+            .map_err(|e| RowError::Savsim(e.to_string()))?
+            .into(),
+    );
+    let link = runtime
+        .block_on(Link::open(&address))
+        .map_err(|e| RowError::Savsim(e.to_string()))?;
+    let port = link
+        .local_addr()
+        .map(|a| a.port())
+        .ok_or_else(|| RowError::Savsim("the row's UDP link has no port".into()))?;
+    let dir = setup.work.join(folder_name(result.index, &result.row_id));
+    let serial0 = format!("udpclient:127.0.0.1:{port}");
+    let mut sitl = arducopter
+        .start(&Start {
+            instance,
+            home: home_of(&scene),
+            home_yaw_deg: 0.0,
+            speedup: checked.speedup,
+            serial0: &serial0,
+            params: &checked.params,
+            dir: &dir,
+        })
+        .map_err(|e| RowError::Sitl(format!("start {}: {e}", arducopter.binary.display())))?;
+    // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
+    let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
+    let shutdown = Arc::new(AtomicBool::new(false));
+    let collided = Flag::default();
+    let options = LiveOptions {
+        duration: Some(wall_limit),
+        collided: Some(collided.clone()),
+        ..LiveOptions::default()
+    };
+    let live = {
+        let shutdown = shutdown.clone();
+        std::thread::Builder::new()
+            .name("savsim-study-session".into())
+            .spawn(move || {
+                let handle = runtime.handle().clone();
+                let run = run_links(&handle, vec![link], &options, session, None, shutdown);
+                drop(runtime);
+                run
+            })
+            .map_err(|e| RowError::Savsim(e.to_string()))?
+    };
+    let plane = LocalTangentPlane::new(scene.origin);
+    let started = Instant::now();
+    let flight = connect_pilot(&mut sitl, plane)?
+        .map(|mut pilot| {
+            let stop = || {
+                setup.stop.load(Ordering::Relaxed)
+                    || (checked.stop_on_collision && collided.is_raised())
+                    || started.elapsed() > wall_limit
+            };
+            let flown = fly(&mut pilot, &checked.legs, checked.duration_s, &stop);
+            flown.map(|f| (f, pilot.heard()))
+        })
+        .and_then(|flown| flown);
+    shutdown.store(true, Ordering::Relaxed);
+    let run = live
+        .join()
+        .map_err(|_| RowError::Savsim("the session thread failed".into()))?
+        .map_err(|e| RowError::Savsim(e.to_string()))?;
+    let exited = sitl.exited();
+    let tail = sitl.log_tail(5);
+    drop(sitl);
+    let (flown, heard) = flight.map_err(|e| match exited {
+        Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
+        None => RowError::Pilot(e),
+    })?;
+    record(result, run, &flown, &heard, checked.legs.len())
+}
+
+/// The pilot on `sitl`'s port, within a minute; an error at once if SITL ends first.
+fn connect_pilot(
+    sitl: &mut crate::study::sitl::Sitl,
+    plane: LocalTangentPlane,
+) -> Result<Result<Pilot, PilotError>, RowError> {
+    let started = Instant::now();
+    loop {
+        if let Some(status) = sitl.exited() {
+            return Err(RowError::Sitl(format!(
+                "ended by itself ({status}): {}",
+                sitl.log_tail(3)
+            )));
+        }
+        let within = Duration::from_millis(500);
+        match Pilot::connect(sitl.pilot_port, AUTOPILOT, plane, within) {
+            Ok(pilot) => return Ok(Ok(pilot)),
+            Err(e) if started.elapsed() > Duration::from_secs(60) => return Ok(Err(e)),
+            Err(_) => {}
+        }
+    }
+}
+
+/// Fill in what the session measured and what the autopilot did.
+fn record(
+    result: &mut StudyResult,
+    mut run: LiveRun,
+    flown: &Flown,
+    heard: &Heard,
+    legs: usize,
+) -> Result<(), RowError> {
+    run.ended.map_err(|e| RowError::Savsim(e.to_string()))?;
+    run.session
+        .finish()
+        .map_err(|e| RowError::Savsim(e.to_string()))?;
+    let session = &run.session;
+    if let Some(pipeline) = session.pipeline() {
+        let t0_s = -session.elapsed_s(0.0).unwrap_or(0.0);
+        result.measured.record_run(
+            pipeline.totals(),
+            session.notable(),
+            session.approaches(),
+            session.tick_costs(),
+            t0_s,
+        );
+    }
+    result.record_obstacles(session.notable());
+    result.feed_frames = session
+        .feed()
+        .map_or(0, |f| f.counts().map(|(_, c)| c.frames).sum());
+    result.legs_completed = flown.legs_completed as u64;
+    result.plan_completed = flown.legs_completed == legs;
+    result.sim_s = f64::from(flown.last_ms.wrapping_sub(flown.first_ms)) / 1000.0;
+    result.autopilot_did = did(heard, flown);
+    Ok(())
+}
+
+/// What the autopilot did, from what it said.
+fn did(heard: &Heard, flown: &Flown) -> AutopilotDid {
+    let since = |ms: u32| f64::from(ms.wrapping_sub(flown.first_ms)) / 1000.0;
+    let avoid_mode = heard
+        .modes
+        .iter()
+        .find(|(_, m)| *m == mode::AVOID_ADSB)
+        .map(|(t, _)| since(*t));
+    let collision = heard.collisions.first().map(|c| since(c.0));
+    let first_acted_t_s = [avoid_mode, collision, flown.slowed_t_s]
+        .into_iter()
+        .flatten()
+        .reduce(f64::min);
+    let about_avoidance = |t: &str| {
+        let t = t.to_ascii_lowercase();
+        ["avoid", "adsb", "proximity", "obstacle", "fence"]
+            .iter()
+            .any(|w| t.contains(w))
+    };
+    AutopilotDid {
+        modes: heard
+            .modes
+            .iter()
+            .map(|(_, m)| arducopter_mode_name(*m))
+            .collect(),
+        collision_messages: heard.collisions.len() as u64,
+        avoidance_texts: heard
+            .texts
+            .iter()
+            .filter(|t| about_avoidance(&t.2))
+            .map(|t| t.2.clone())
+            .collect(),
+        first_acted_t_s,
+        version: heard.version.clone(),
+    }
+}
+
+/// Row `index`'s folder name: its index, then its id's letters, digits, `-`, `_` and `#`
+/// (anything else `_`), so that no id names a folder outside the study's.
+pub fn folder_name(index: u64, id: &str) -> String {
+    let id: String = id
+        .chars()
+        .take(64)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_#".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    format!("{index:06}-{id}")
+}

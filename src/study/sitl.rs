@@ -1,0 +1,143 @@
+//! Starting and stopping one SITL autopilot for a study row: its own instance number (and so
+//! its own ports), its own working folder, home at the scene's origin, killed when dropped.
+//!
+//! ArduCopter SITL (`arducopter`, built from ArduPilot's sources; savsim neither bundles nor
+//! builds it): `-I N` opens SERIAL0 on TCP 5760 + 10 N, SERIAL1 on 5762 + 10 N and SERIAL2 on
+//! 5763 + 10 N, and its RC input on UDP 5501 + 10 N. savsim's session takes SERIAL0
+//! (`--serial0 udpclient:127.0.0.1:PORT`, to the row's own UDP link), the pilot SERIAL1.
+//! SITL binds its TCP ports on every interface: `savsim study` runs inside a network
+//! namespace of its own where the machine allows (`study::run`).
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+use crate::geo::Geodetic;
+
+/// SITL's SERIAL1 TCP port for instance `instance`.
+pub fn serial1_port(instance: u16) -> u16 {
+    5762 + 10 * instance
+}
+
+/// How to start ArduCopter SITL.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArduCopter {
+    /// The `arducopter` binary.
+    pub binary: PathBuf,
+    /// Defaults files read before the row's parameters (e.g. ArduPilot's
+    /// Tools/autotest/default_params/copter.parm).
+    pub defaults: Vec<PathBuf>,
+}
+
+/// One row's SITL: the process (killed and waited for when dropped) and where it lives.
+#[derive(Debug)]
+pub struct Sitl {
+    child: Child,
+    /// Its working folder (its eeprom, logs and `sitl.log`).
+    pub dir: PathBuf,
+    /// The pilot's TCP port (SERIAL1).
+    pub pilot_port: u16,
+}
+
+impl Sitl {
+    /// Whether the process has ended, and how.
+    pub fn exited(&mut self) -> Option<std::process::ExitStatus> {
+        self.child.try_wait().ok().flatten()
+    }
+
+    /// The last `lines` lines of its console output.
+    pub fn log_tail(&self, lines: usize) -> String {
+        let text = std::fs::read_to_string(self.dir.join("sitl.log")).unwrap_or_default();
+        let tail: Vec<&str> = text.lines().rev().take(lines).collect();
+        tail.into_iter().rev().collect::<Vec<_>>().join(" | ")
+    }
+}
+
+impl Drop for Sitl {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Where and how one row's ArduCopter runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Start<'a> {
+    /// The instance number (`-I`): its ports.
+    pub instance: u16,
+    /// Home: the scene's origin, on its ground.
+    pub home: Geodetic,
+    /// Heading at home, degrees clockwise from north.
+    pub home_yaw_deg: f64,
+    /// SITL's speedup.
+    pub speedup: f64,
+    /// SERIAL0, e.g. `udpclient:127.0.0.1:PORT`.
+    pub serial0: &'a str,
+    /// The row's parameters, `(NAME, VALUE)`, written to a defaults file after the others.
+    pub params: &'a [(String, f64)],
+    /// The row's working folder (created).
+    pub dir: &'a Path,
+}
+
+impl ArduCopter {
+    /// Start SITL for one row (a fresh eeprom: `--wipe`). Its console goes to `sitl.log` in
+    /// the row's folder. Under Linux it is started through `setpriv --pdeathsig KILL` where
+    /// that exists, so that it dies with the thread that started it even if savsim is killed.
+    pub fn start(&self, start: &Start<'_>) -> std::io::Result<Sitl> {
+        std::fs::create_dir_all(start.dir)?;
+        let row_parm = start.dir.join("row.parm");
+        let text: String = start
+            .params
+            .iter()
+            .map(|(name, value)| format!("{name} {value}\n"))
+            .collect();
+        std::fs::write(&row_parm, text)?;
+        let mut defaults: Vec<String> = self
+            .defaults
+            .iter()
+            .map(|p| p.to_string_lossy().into_owned())
+            .collect();
+        defaults.push(row_parm.to_string_lossy().into_owned());
+        let home = format!(
+            "{:.7},{:.7},{:.2},{:.1}",
+            start.home.lat_deg, start.home.lon_deg, start.home.alt_m, start.home_yaw_deg
+        );
+        let mut command = match pdeathsig() {
+            Some(setpriv) => {
+                let mut c = Command::new(setpriv);
+                c.args(["--pdeathsig", "KILL", "--"]).arg(&self.binary);
+                c
+            }
+            None => Command::new(&self.binary),
+        };
+        command
+            .current_dir(start.dir)
+            .args(["--model", "+", "--wipe"])
+            .args(["--speedup", &start.speedup.to_string()])
+            .args(["-I", &start.instance.to_string()])
+            .args(["--home", &home])
+            .args(["--serial0", start.serial0])
+            .args(["--defaults", &defaults.join(",")])
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(start.dir.join("sitl.log"))?)
+            .stderr(Stdio::null());
+        Ok(Sitl {
+            child: command.spawn()?,
+            dir: start.dir.to_path_buf(),
+            pilot_port: serial1_port(start.instance),
+        })
+    }
+}
+
+/// `setpriv`, when it is there and can set a parent-death signal.
+fn pdeathsig() -> Option<&'static str> {
+    static FOUND: std::sync::OnceLock<Option<&'static str>> = std::sync::OnceLock::new();
+    *FOUND.get_or_init(|| {
+        let ok = Command::new("setpriv")
+            .args(["--pdeathsig", "KILL", "--", "true"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        ok.then_some("setpriv")
+    })
+}

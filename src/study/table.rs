@@ -1,0 +1,195 @@
+//! A study's results as Parquet (snappy), one row per study row, in manifest order; each
+//! shard one file, written whole or not at all. `obstacles` is a list of structs; the rest is
+//! flat. The file's metadata holds savsim's version and the study's configuration.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use arrow_array::{
+    ArrayRef, BooleanArray, Float64Array, ListArray, RecordBatch, StringArray, StructArray,
+    UInt64Array,
+};
+use arrow_buffer::OffsetBuffer;
+use arrow_schema::{DataType, Field, Fields, Schema};
+use parquet::arrow::ArrowWriter;
+use parquet::basic::Compression;
+use parquet::file::metadata::KeyValue;
+use parquet::file::properties::WriterProperties;
+
+use crate::error::{Error, Result};
+use crate::study::result::StudyResult;
+
+type Rows<'a> = &'a [StudyResult];
+
+fn strings<'a>(rows: Rows<'a>, f: impl Fn(&'a StudyResult) -> Option<String>) -> ArrayRef {
+    Arc::new(rows.iter().map(f).collect::<StringArray>())
+}
+
+fn floats(rows: Rows<'_>, f: impl Fn(&StudyResult) -> Option<f64>) -> ArrayRef {
+    Arc::new(rows.iter().map(f).collect::<Float64Array>())
+}
+
+fn counts(rows: Rows<'_>, f: impl Fn(&StudyResult) -> Option<u64>) -> ArrayRef {
+    Arc::new(rows.iter().map(f).collect::<UInt64Array>())
+}
+
+fn bools(rows: Rows<'_>, f: impl Fn(&StudyResult) -> bool) -> ArrayRef {
+    Arc::new(rows.iter().map(|r| Some(f(r))).collect::<BooleanArray>())
+}
+
+fn obstacle_fields() -> Fields {
+    Fields::from(vec![
+        Field::new("obstacle", DataType::Utf8, false),
+        Field::new("closest_m", DataType::Float64, false),
+    ])
+}
+
+fn obstacles(rows: Rows<'_>) -> ArrayRef {
+    let all: Vec<_> = rows.iter().flat_map(|r| &r.obstacles).collect();
+    let children: Vec<ArrayRef> = vec![
+        Arc::new(
+            all.iter()
+                .map(|o| Some(o.obstacle.as_str()))
+                .collect::<StringArray>(),
+        ),
+        Arc::new(
+            all.iter()
+                .map(|o| Some(o.closest_m))
+                .collect::<Float64Array>(),
+        ),
+    ];
+    let values = StructArray::new(obstacle_fields(), children, None);
+    let item = Arc::new(Field::new(
+        "item",
+        DataType::Struct(obstacle_fields()),
+        false,
+    ));
+    let offsets = OffsetBuffer::from_lengths(rows.iter().map(|r| r.obstacles.len()));
+    Arc::new(ListArray::new(item, offsets, Arc::new(values), None))
+}
+
+/// The inputs' columns.
+fn input_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
+    let text = |f: fn(&StudyResult) -> Option<&String>| strings(rows, move |r| f(r).cloned());
+    vec![
+        ("index", counts(rows, |r| Some(r.index))),
+        ("row_id", strings(rows, |r| Some(r.row_id.clone()))),
+        ("scene", text(|r| r.inputs.scene.as_ref())),
+        ("autopilot", strings(rows, |r| Some(r.autopilot.clone()))),
+        ("variant", text(|r| r.inputs.variant.as_ref())),
+        ("pair", text(|r| r.inputs.pair.as_ref())),
+        ("params", text(|r| r.inputs.params.as_ref())),
+        ("feed", text(|r| r.inputs.feed.as_ref())),
+        ("plan", text(|r| r.inputs.plan.as_ref())),
+        ("intruder", text(|r| r.inputs.intruder.as_ref())),
+        ("intruder_kind", text(|r| r.inputs.intruder_kind.as_ref())),
+        ("duration_s", floats(rows, |r| r.inputs.duration_s)),
+        ("speedup", floats(rows, |r| Some(r.speedup))),
+        ("seed", counts(rows, |r| r.inputs.seed)),
+        ("w", floats(rows, |r| r.inputs.w)),
+    ]
+}
+
+/// What was measured and what the autopilot did.
+fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
+    fn m(r: &StudyResult) -> &crate::batch::row::RunRow {
+        &r.measured
+    }
+    vec![
+        ("outcome", strings(rows, |r| Some(r.outcome.name().into()))),
+        ("error", strings(rows, |r| r.error.clone())),
+        ("collisions", counts(rows, |r| Some(m(r).collisions))),
+        (
+            "first_collision_t_s",
+            floats(rows, |r| m(r).first_collision_t_s),
+        ),
+        (
+            "first_collision_obstacle",
+            strings(rows, |r| m(r).first_collision_obstacle.clone()),
+        ),
+        ("near_misses", counts(rows, |r| Some(m(r).near_misses))),
+        ("closest_obstacle_m", floats(rows, |r| r.closest_obstacle_m)),
+        ("obstacles", obstacles(rows)),
+        ("nmac", bools(rows, |r| m(r).nmac)),
+        ("cpa_m", floats(rows, |r| m(r).cpa_m)),
+        ("cpa_horizontal_m", floats(rows, |r| m(r).cpa_horizontal_m)),
+        ("cpa_vertical_m", floats(rows, |r| m(r).cpa_vertical_m)),
+        ("cpa_t_s", floats(rows, |r| m(r).cpa_t_s)),
+        ("cpa_track", strings(rows, |r| m(r).cpa_track.clone())),
+        ("lowc", bools(rows, |r| m(r).lowc)),
+        ("lowc_first_t_s", floats(rows, |r| m(r).lowc_first_t_s)),
+        (
+            "lowc_duration_s",
+            floats(rows, |r| Some(m(r).lowc_duration_s)),
+        ),
+        ("min_taumod_s", floats(rows, |r| m(r).min_taumod_s)),
+        ("legs_completed", counts(rows, |r| Some(r.legs_completed))),
+        ("plan_completed", bools(rows, |r| r.plan_completed)),
+        (
+            "modes",
+            strings(rows, |r| Some(r.autopilot_did.modes.join(","))),
+        ),
+        (
+            "autopilot_collisions",
+            counts(rows, |r| Some(r.autopilot_did.collision_messages)),
+        ),
+        (
+            "avoidance_texts",
+            strings(rows, |r| Some(r.autopilot_did.avoidance_texts.join(" | "))),
+        ),
+        (
+            "first_acted_t_s",
+            floats(rows, |r| r.autopilot_did.first_acted_t_s),
+        ),
+        (
+            "autopilot_version",
+            strings(rows, |r| r.autopilot_did.version.clone()),
+        ),
+        ("feed_frames", counts(rows, |r| Some(r.feed_frames))),
+        ("sim_s", floats(rows, |r| Some(r.sim_s))),
+        ("wall_s", floats(rows, |r| Some(r.wall_s))),
+        (
+            "achieved_speedup",
+            floats(rows, |r| Some(r.achieved_speedup)),
+        ),
+    ]
+}
+
+/// The results as one record batch (the full schema when there are no rows).
+pub fn record_batch(rows: &[StudyResult]) -> RecordBatch {
+    let columns: Vec<(&str, ArrayRef)> = input_columns(rows)
+        .into_iter()
+        .chain(result_columns(rows))
+        .collect();
+    let fields: Vec<Field> = columns
+        .iter()
+        .map(|(name, a)| Field::new(*name, a.data_type().clone(), true))
+        .collect();
+    RecordBatch::try_new(
+        Arc::new(Schema::new(fields)),
+        columns.into_iter().map(|(_, a)| a).collect(),
+    )
+    .expect("the columns match the schema")
+}
+
+/// Write the results to `path` atomically, with `metadata` (key, value) in the file.
+pub fn write_atomic(rows: &[StudyResult], metadata: &[(&str, String)], path: &Path) -> Result<()> {
+    let tmp = path.with_extension("parquet.tmp");
+    let batch = record_batch(rows);
+    let properties = WriterProperties::builder()
+        .set_compression(Compression::SNAPPY)
+        .set_key_value_metadata(Some(
+            metadata
+                .iter()
+                .map(|(k, v)| KeyValue::new((*k).to_string(), v.clone()))
+                .collect(),
+        ))
+        .build();
+    let io = |e: parquet::errors::ParquetError| Error::file(&tmp, std::io::Error::other(e));
+    let file = std::fs::File::create(&tmp).map_err(|e| Error::file(&tmp, e))?;
+    let mut writer = ArrowWriter::try_new(file, batch.schema(), Some(properties)).map_err(io)?;
+    writer.write(&batch).map_err(io)?;
+    let file = writer.into_inner().map_err(io)?;
+    file.sync_all().map_err(|e| Error::file(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
+}

@@ -1,0 +1,253 @@
+//! `savsim study`: the generator's geometry checked by a point-in-box test written here, the
+//! manifest's and rows' errors, the results table and its risk ratios, and (with
+//! `SAVSIM_ARDUCOPTER`) obstacle-approach pairs flown by ArduCopter SITL.
+
+use std::path::Path;
+use std::process::Command;
+
+use savsim::study::manifest::StudyRow;
+use savsim::study::result::{Outcome, StudyResult};
+
+fn savsim() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_savsim"));
+    c.current_dir(crate::common::root());
+    c
+}
+
+/// Whether ENU point `p` (east, north) at height `u` is inside a box of `size` (x along the
+/// box's own east axis before its yaw, y, height) with its base centre at `c`, turned `yaw_deg`
+/// counter-clockwise from east.
+fn inside_box(p: [f64; 2], u: f64, c: [f64; 2], size: [f64; 3], yaw_deg: f64) -> bool {
+    let (s, k) = yaw_deg.to_radians().sin_cos();
+    let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+    // Into the box's frame: turn back by its yaw.
+    let (x, y) = (k * dx + s * dy, -s * dx + k * dy);
+    x.abs() <= size[0] / 2.0 && y.abs() <= size[1] / 2.0 && (0.0..=size[2]).contains(&u)
+}
+
+/// The numbers after `key = [` on the line that has it.
+fn numbers_after(text: &str, key: &str) -> Vec<f64> {
+    let line = text.lines().find(|l| l.contains(key)).unwrap();
+    let after = &line[line.find(key).unwrap() + key.len()..];
+    after
+        .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn study_gen_puts_every_box_across_its_path_and_the_scenes_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = savsim()
+        .args(["study", "gen", "--n", "25", "--seed", "3", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = savsim::study::manifest::load(&dir.path().join("study.csv")).unwrap();
+    assert_eq!(rows.len(), 50);
+    for pair in rows.chunks(2) {
+        let (nominal, mitigated) = (&pair[0], &pair[1]);
+        assert_eq!(nominal.pair, mitigated.pair);
+        assert_eq!(nominal.plan, mitigated.plan);
+        assert_eq!(nominal.feed, None);
+        assert_eq!(mitigated.feed.as_deref(), Some("proximity"));
+        let scene_path = nominal.scene.as_deref().unwrap();
+        savsim::scene::load(Path::new(scene_path)).unwrap();
+        let text = std::fs::read_to_string(scene_path).unwrap();
+        let size = numbers_after(&text, "box = [");
+        let at = numbers_after(&text, "position_enu_m = [");
+        let yaw = numbers_after(&text, "yaw_deg = ")[0];
+        let legs = savsim::study::plan::parse(nominal.plan.as_deref().unwrap()).unwrap();
+        let savsim::study::plan::Leg::Velocity { enu_mps, seconds } = legs[1] else {
+            panic!("{legs:?}")
+        };
+        // March along the path at 20 m from home, 10 cm at a time.
+        let steps = (seconds * 10.0 * enu_mps[0].hypot(enu_mps[1])) as usize;
+        let speed = enu_mps[0].hypot(enu_mps[1]);
+        let first_inside = (0..steps).find(|i| {
+            let d = *i as f64 * 0.1;
+            let p = [enu_mps[0] / speed * d, enu_mps[1] / speed * d];
+            inside_box(p, 20.0, [at[0], at[1]], [size[0], size[1], size[2]], yaw)
+        });
+        let d = first_inside.expect("the path enters the box") as f64 * 0.1;
+        assert!((20.0..=60.0).contains(&d), "{scene_path}: enters at {d} m");
+        let flown_m = seconds * speed;
+        assert!(
+            flown_m > d + 10.0,
+            "{scene_path}: the leg ends {flown_m} m out"
+        );
+    }
+}
+
+#[test]
+fn a_study_without_sitl_writes_each_row_with_its_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        "id,autopilot,plan,duration_s,params,feed\n\
+         good,arducopter,takeoff 20; hold 5,60,AVOID_ENABLE=0,\n\
+         badplan,,takeoff 20; jump 3,,,\n\
+         who,inav,takeoff 20,,,\n\
+         long,,takeoff 20,1e300,,\n\
+         badparam,,takeoff 20,,AVOID ENABLE=1,\n\
+         badfeed,,takeoff 20,,,sonar\n",
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = savsim()
+        .args(["study", "--no-netns", "--out"])
+        .arg(&out_dir)
+        .arg(&manifest)
+        .env_remove("SAVSIM_ARDUCOPTER")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("6 rows: 0 collision, 0 nmac, 0 soft_fail, 0 pass, 6 error"),
+        "{stdout}"
+    );
+    for (id, says) in [
+        ("good", "no ArduCopter SITL"),
+        ("badplan", "plan leg 2"),
+        ("who", "autopilot"),
+        ("long", "duration_s"),
+        ("badparam", "params"),
+        ("badfeed", "feed"),
+    ] {
+        let line = stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{id}:")));
+        assert!(line.is_some_and(|l| l.contains(says)), "{id}: {stdout}");
+    }
+    let summary = savsim()
+        .args(["study", "summarize", "--json"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
+    assert_eq!(json["rows"], 0);
+    assert_eq!(json["outcomes"]["nominal"]["error"], 6);
+    // A finished shard is skipped; an unknown column is an error that names it.
+    let again = savsim()
+        .args(["study", "--no-netns", "--out"])
+        .arg(&out_dir)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&again.stderr).contains("skipped"));
+    std::fs::write(&manifest, "id,colour\na,red\n").unwrap();
+    let bad = savsim()
+        .args(["study", "--no-netns", "--force", "--out"])
+        .arg(&out_dir)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("colour"));
+}
+
+/// A flown row with `collisions` collisions, for the table.
+fn flown(index: usize, pair: &str, variant: &str, collisions: u64) -> StudyResult {
+    let row = StudyRow {
+        id: Some(format!("{pair}-{variant}")),
+        pair: Some(pair.into()),
+        variant: Some(variant.into()),
+        ..StudyRow::default()
+    };
+    let mut r = StudyResult::of_inputs(index, &row);
+    r.measured.collisions = collisions;
+    r.judge();
+    r
+}
+
+#[test]
+fn summarize_reads_the_written_results_into_the_collision_risk_ratio() {
+    let dir = tempfile::tempdir().unwrap();
+    // 10 pairs: nominal collides in 8, mitigated in 2 (both of those among the 8).
+    let mut rows = Vec::new();
+    for k in 0..10 {
+        let pair = format!("p{k}");
+        rows.push(flown(2 * k, &pair, "nominal", u64::from(k < 8)));
+        rows.push(flown(2 * k + 1, &pair, "mitigated", u64::from(k < 2)));
+    }
+    assert_eq!(rows[0].outcome, Outcome::Collision);
+    assert_eq!(rows[19].outcome, Outcome::Pass);
+    savsim::study::table::write_atomic(
+        &rows,
+        &[("k", "v".into())],
+        &dir.path().join("part.parquet"),
+    )
+    .unwrap();
+    let all = savsim::study::summarize::read_dir(dir.path()).unwrap();
+    let json = savsim::study::summarize::summary_json(&all, "nominal");
+    let ratio = &json["ratios"][0];
+    assert_eq!(ratio["variant"], "mitigated");
+    assert_eq!(ratio["pairs"], 10);
+    assert_eq!(ratio["collision_ratio"]["value"], 0.25);
+    assert!(ratio["collision_ratio"]["high"].as_f64().unwrap() < 1.0);
+    assert_eq!(json["outcomes"]["nominal"]["collision"], 8);
+    assert_eq!(json["outcomes"]["mitigated"]["pass"], 8);
+}
+
+/// Obstacle-approach pairs on ArduCopter SITL (`SAVSIM_ARDUCOPTER`, `SAVSIM_ARDUCOPTER_DEFAULTS`):
+/// `SAVSIM_STUDY_PAIRS` pairs (default 2) at `SAVSIM_STUDY_SPEEDUP` (default 10): every
+/// nominal row hits its box, every mitigated row does not.
+#[test]
+fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
+    if crate::sitl::arducopter().is_none() {
+        return;
+    }
+    let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.into());
+    let dir = tempfile::tempdir().unwrap();
+    let gen = savsim()
+        .args([
+            "study",
+            "gen",
+            "--seed",
+            "11",
+            "--n",
+            &env("SAVSIM_STUDY_PAIRS", "2"),
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(gen.status.success());
+    let out_dir = dir.path().join("out");
+    let run = savsim()
+        .args([
+            "study",
+            "--speedup",
+            &env("SAVSIM_STUDY_SPEEDUP", "10"),
+            "--out",
+        ])
+        .arg(&out_dir)
+        .arg(dir.path().join("study.csv"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    eprintln!("{stdout}{}", String::from_utf8_lossy(&run.stderr));
+    assert!(run.status.success());
+    let summary = savsim()
+        .args(["study", "summarize", "--json"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
+    eprintln!("{json:#}");
+    let pairs: u64 = env("SAVSIM_STUDY_PAIRS", "2").parse().unwrap();
+    assert_eq!(json["outcomes"]["nominal"]["collision"], pairs);
+    assert!(json["outcomes"]["mitigated"]["collision"].is_null());
+}
