@@ -72,6 +72,9 @@ pub struct Session {
     /// savsim's own MAVLink identities (its GCS, its feed): their frames, echoed back by a
     /// router, are counted and never applied to the world.
     own: Vec<SenderId>,
+    /// Times are on the vehicle's clock, the flight starting at its boot
+    /// ([`Session::use_vehicle_clock`]).
+    vehicle_clock: bool,
 }
 
 impl Session {
@@ -138,13 +141,17 @@ impl Session {
             feed_out: Vec::new(),
             feed_tlog: None,
             own: Vec::new(),
+            vehicle_clock: false,
         })
     }
 
-    /// Vehicles' samples keep their own clock's time (`WorldConfig::vehicle_clock`): scripted
-    /// traffic then moves on the vehicle's clock at any speedup. Set before the first frame
-    /// (it starts the world again).
+    /// Vehicles' samples keep their own clock's time (`WorldConfig::vehicle_clock`) and the
+    /// flight starts at the vehicle's boot (its `time_boot_ms` 0): scripted traffic then moves
+    /// on the vehicle's clock from its boot, at any speedup, and times in events and the
+    /// summary are seconds of that clock. For one vehicle per session (`savsim study`). Set
+    /// before the first frame (it starts the world again).
     pub fn use_vehicle_clock(&mut self) {
+        self.vehicle_clock = true;
         let origin = self.world.plane().origin();
         self.world = WorldStore::new(
             origin,
@@ -371,7 +378,14 @@ impl Session {
         };
         let previous = track.history.previous().copied();
         let generation = track.generation;
-        let start = *self.flight_start_t_s.get_or_insert(current.t_s);
+        // On the vehicle's clock the flight starts at its boot (time_boot_ms 0): scripted
+        // traffic is then timed from the same instant whenever its positions begin to arrive.
+        let boot_s = if self.vehicle_clock {
+            f64::from(current.time_boot_ms) / 1000.0
+        } else {
+            0.0
+        };
+        let start = *self.flight_start_t_s.get_or_insert(current.t_s - boot_s);
         let watch = traffic::Watch {
             collision: *pipeline.config(),
             volume: self.approaches.volume(),

@@ -19,21 +19,18 @@ const ASK_EVERY_S: f64 = 1.0;
 pub struct Flown {
     /// Legs flown to their end.
     pub legs_completed: usize,
-    /// The first and last positions' clocks, ms.
-    pub first_ms: u32,
     /// The last position's clock, ms.
     pub last_ms: u32,
     /// When the vehicle first fell under half the commanded speed after reaching 80% of it,
-    /// seconds after the first position.
+    /// seconds of its clock.
     pub slowed_t_s: Option<f64>,
     /// Whether the caller stopped it (a collision, a signal, the wall limit).
     pub stopped: bool,
 }
 
-impl Flown {
-    fn elapsed_s(&self, fix: &Fix) -> f64 {
-        f64::from(fix.time_boot_ms.wrapping_sub(self.first_ms)) / 1000.0
-    }
+/// Seconds of the vehicle's clock (from its boot) at `fix`.
+fn clock_s(fix: &Fix) -> f64 {
+    f64::from(fix.time_boot_ms) / 1000.0
 }
 
 /// Watches for the vehicle slowing against its command (the sign of proximity avoidance).
@@ -59,7 +56,7 @@ impl SlowWatch {
     }
 }
 
-/// Fly `legs`, for at most `duration_s` of the vehicle's clock from its first position.
+/// Fly `legs`, until `duration_s` of the vehicle's clock (from its boot).
 pub fn fly(
     pilot: &mut Pilot,
     legs: &[Leg],
@@ -74,16 +71,16 @@ pub fn fly(
     };
     pilot.ask_positions()?;
     let mut flown = Flown {
-        first_ms: first.time_boot_ms,
         last_ms: first.time_boot_ms,
         ..Flown::default()
     };
     let mut watch = SlowWatch::default();
     for leg in legs {
-        let began = pilot.fix.unwrap_or(first);
         if let Leg::Takeoff { .. } = leg {
             arm_guided(pilot, &mut flown, duration_s, stop)?;
         }
+        // Where and when the leg begins: for a takeoff, where it armed.
+        let began = pilot.fix.unwrap_or(first);
         start_leg(pilot, leg)?;
         loop {
             let Some(fix) = pilot.next_fix(stop)? else {
@@ -91,7 +88,7 @@ pub fn fly(
                 return Ok(flown);
             };
             flown.last_ms = fix.time_boot_ms;
-            if flown.elapsed_s(&fix) >= duration_s {
+            if clock_s(&fix) >= duration_s {
                 return Ok(flown);
             }
             let command = command_of(leg, &fix);
@@ -99,7 +96,7 @@ pub fn fly(
                 pilot.velocity(v)?;
             }
             if watch.slowed(command.unwrap_or(DVec3::ZERO), &fix) && flown.slowed_t_s.is_none() {
-                flown.slowed_t_s = Some(flown.elapsed_s(&fix));
+                flown.slowed_t_s = Some(clock_s(&fix));
             }
             if leg_done(leg, &fix, &began, &pilot.heard()) {
                 break;
@@ -157,7 +154,7 @@ fn arm_guided(
         };
         flown.last_ms = fix.time_boot_ms;
         let waited_s = f64::from(fix.time_boot_ms.wrapping_sub(began_ms)) / 1000.0;
-        if waited_s > ARM_WITHIN_S || flown.elapsed_s(&fix) >= duration_s {
+        if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
             let texts: Vec<String> = heard
                 .texts
                 .iter()

@@ -37,11 +37,11 @@ pub struct StudyRow {
     /// The flight plan (`study::plan`).
     pub plan: Option<String>,
     /// An intruder's track, waypoints `"t_s e_m n_m u_m; ..."` in the scene's ENU frame, `t_s`
-    /// on the vehicle's clock from its first position.
+    /// seconds of the vehicle's clock from its boot.
     pub intruder: Option<String>,
     /// The intruder's kind (default `dji`).
     pub intruder_kind: Option<String>,
-    /// The row's length, seconds of the vehicle's clock from its first position (default 120).
+    /// The row's length, seconds of the vehicle's clock from its boot (default 120).
     pub duration_s: Option<f64>,
     /// The SITL speedup (default: `--speedup`, else 1).
     pub speedup: Option<f64>,

@@ -198,7 +198,8 @@ impl Pilot {
             .try_clone()
             .map_err(|e| PilotError::Send(e.to_string()))?;
         let heard = std::sync::Arc::new(std::sync::Mutex::new(Heard::default()));
-        let (tx, news) = std::sync::mpsc::channel();
+        // Bounded: a pilot that falls behind holds the reader back (TCP then holds SITL's).
+        let (tx, news) = std::sync::mpsc::sync_channel(1024);
         let into = heard.clone();
         std::thread::Builder::new()
             .name("savsim-pilot".into())
@@ -246,10 +247,11 @@ impl Pilot {
         }))
     }
 
-    /// Wait for the next position (at most `silence_limit` of wall time), answering with a
-    /// heartbeat once a second of the vehicle's clock. `Ok(None)`: `stop` was set.
+    /// Wait for the next position, answering with a heartbeat once a second of the vehicle's
+    /// clock; an error when the autopilot sends nothing for `silence_limit` of wall time.
+    /// `Ok(None)`: `stop` was set.
     pub fn next_fix(&mut self, stop: &dyn Fn() -> bool) -> Result<Option<Fix>, PilotError> {
-        let started = Instant::now();
+        let mut started = Instant::now();
         let mut asked = started;
         loop {
             if stop() {
@@ -261,7 +263,9 @@ impl Pilot {
                     self.heartbeat_due(fix.time_boot_ms)?;
                     return Ok(Some(fix));
                 }
-                Ok(Heard1::Other) | Err(RecvTimeoutError::Timeout) => {}
+                // Anything heard: not silent (before its GPS fix it sends no position).
+                Ok(Heard1::Other) => started = Instant::now(),
+                Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
                     return Err(PilotError::Silent {
                         silent_s: started.elapsed().as_secs_f64(),
@@ -383,7 +387,7 @@ fn read_autopilot(
     target: SenderId,
     plane: LocalTangentPlane,
     heard: &std::sync::Mutex<Heard>,
-    tx: &std::sync::mpsc::Sender<Heard1>,
+    tx: &std::sync::mpsc::SyncSender<Heard1>,
 ) {
     let mut reader = mavlink::MavlinkReader::new(stream);
     loop {
@@ -396,7 +400,10 @@ fn read_autopilot(
             continue;
         }
         let news = match message {
-            MavMessage::GLOBAL_POSITION_INT(p) if header.component_id == target.component_id => {
+            // ArduPilot sends 0, 0 until its EKF has an origin: no position yet.
+            MavMessage::GLOBAL_POSITION_INT(p)
+                if header.component_id == target.component_id && (p.lat, p.lon) != (0, 0) =>
+            {
                 let at = Geodetic::new(
                     f64::from(p.lat) * 1e-7,
                     f64::from(p.lon) * 1e-7,

@@ -133,7 +133,7 @@ fn leg(text: &str) -> Result<Leg, String> {
         "takeoff" => {
             count(&[1], "takeoff U (metres above home)")?;
             let up_m = numbers[0];
-            if !(up_m >= 1.0 && up_m <= MAX_ENU_M) {
+            if !(1.0..=MAX_ENU_M).contains(&up_m) {
                 return Err(format!("{up_m} m: take off to at least 1 m"));
             }
             Ok(Leg::Takeoff { up_m })

@@ -59,7 +59,7 @@ pub struct AutopilotDid {
     pub collision_messages: u64,
     /// Its STATUSTEXT about avoidance (avoid, ADS-B, proximity, obstacle, fence), in order.
     pub avoidance_texts: Vec<String>,
-    /// When it first acted, seconds of its clock after its first position: AVOID_ADSB
+    /// When it first acted, seconds of its clock (from its boot): AVOID_ADSB
     /// entered, a COLLISION sent, or (proximity avoidance, which says nothing) its speed along
     /// the commanded velocity fell under half of it after reaching 80% of it.
     pub first_acted_t_s: Option<f64>,
@@ -85,7 +85,8 @@ pub struct StudyResult {
     /// Why it failed, when `outcome` is `error`.
     pub error: Option<String>,
     /// What savsim measured, as a batch row (collisions, near misses, NMAC, closest
-    /// approaches to moving bodies, well clear), times on the vehicle's clock.
+    /// approaches to moving bodies, well clear), times in seconds of the vehicle's clock
+    /// from its boot.
     pub measured: RunRow,
     /// The closest approach to each obstacle within the near-miss band.
     pub obstacles: Vec<ObstacleApproach>,
@@ -99,7 +100,7 @@ pub struct StudyResult {
     pub autopilot_did: AutopilotDid,
     /// Feed frames sent to the vehicle.
     pub feed_frames: u64,
-    /// Seconds of the vehicle's clock from its first position to its last.
+    /// Seconds of the vehicle's clock (from its boot) at its last position.
     pub sim_s: f64,
     /// Wall seconds of the row, SITL's start and stop included (measured).
     pub wall_s: f64,

@@ -34,6 +34,11 @@ use savsim_core::bounds::MAX_DURATION_S;
 pub const DEFAULT_DURATION_S: f64 = 120.0;
 /// The speedups a row may ask of SITL.
 pub const SPEEDUP_RANGE: (f64, f64) = (0.1, 1000.0);
+/// The feed's rate in a study, Hz of the vehicle's clock, and the rate positions are asked for
+/// on the session's link (the feed is cast at each position). ArduCopter stops a copter at 5-8
+/// m/s within a frame or two of seeing the obstacle closer than its margin: at 20 Hz a frame is
+/// 0.25-0.4 m of travel, at 50 Hz 0.1-0.16 m.
+pub const FEED_HZ: f64 = 50.0;
 /// The autopilot's identity (SITL's default SYSID_THISMAV 1, the autopilot component).
 const AUTOPILOT: SenderId = SenderId {
     system_id: 1,
@@ -251,6 +256,7 @@ fn session_for(scene: Arc<Scene>, feed: Option<FeedKinds>) -> Result<Session, Ro
         session
             .start_feed(FeedConfig {
                 kinds,
+                hz: FEED_HZ,
                 ..FeedConfig::default()
             })
             .map_err(savsim)?;
@@ -332,6 +338,7 @@ fn fly_row(
     let collided = Flag::default();
     let options = LiveOptions {
         duration: Some(wall_limit),
+        rate_hz: FEED_HZ,
         collided: Some(collided.clone()),
         ..LiveOptions::default()
     };
@@ -349,7 +356,7 @@ fn fly_row(
     };
     let plane = LocalTangentPlane::new(scene.origin);
     let started = Instant::now();
-    let flight = connect_pilot(&mut sitl, plane)?
+    let flight = connect_pilot(&mut sitl, plane, &setup.stop)?
         .map(|mut pilot| {
             let stop = || {
                 setup.stop.load(Ordering::Relaxed)
@@ -372,16 +379,22 @@ fn fly_row(
         Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
         None => RowError::Pilot(e),
     })?;
-    record(result, run, &flown, &heard, checked.legs.len())
+    record(result, &dir, run, &flown, &heard, checked.legs.len())?;
+    Ok(())
 }
 
-/// The pilot on `sitl`'s port, within a minute; an error at once if SITL ends first.
+/// The pilot on `sitl`'s port, within a minute; an error at once if SITL ends first or a
+/// signal stops the study.
 fn connect_pilot(
     sitl: &mut crate::study::sitl::Sitl,
     plane: LocalTangentPlane,
+    stop: &AtomicBool,
 ) -> Result<Result<Pilot, PilotError>, RowError> {
     let started = Instant::now();
     loop {
+        if stop.load(Ordering::Relaxed) {
+            return Err(RowError::Savsim("stopped by a signal".into()));
+        }
         if let Some(status) = sitl.exited() {
             return Err(RowError::Sitl(format!(
                 "ended by itself ({status}): {}",
@@ -400,6 +413,7 @@ fn connect_pilot(
 /// Fill in what the session measured and what the autopilot did.
 fn record(
     result: &mut StudyResult,
+    dir: &Path,
     mut run: LiveRun,
     flown: &Flown,
     heard: &Heard,
@@ -410,6 +424,11 @@ fn record(
         .finish()
         .map_err(|e| RowError::Savsim(e.to_string()))?;
     let session = &run.session;
+    // The session's own summary beside SITL's files (kept with --keep-work).
+    let _ = crate::session::write_json_atomic(
+        &dir.join("summary.json"),
+        &session.summary("study", &result.row_id),
+    );
     if let Some(pipeline) = session.pipeline() {
         let t0_s = -session.elapsed_s(0.0).unwrap_or(0.0);
         result.measured.record_run(
@@ -426,14 +445,14 @@ fn record(
         .map_or(0, |f| f.counts().map(|(_, c)| c.frames).sum());
     result.legs_completed = flown.legs_completed as u64;
     result.plan_completed = flown.legs_completed == legs;
-    result.sim_s = f64::from(flown.last_ms.wrapping_sub(flown.first_ms)) / 1000.0;
+    result.sim_s = f64::from(flown.last_ms) / 1000.0;
     result.autopilot_did = did(heard, flown);
     Ok(())
 }
 
 /// What the autopilot did, from what it said.
 fn did(heard: &Heard, flown: &Flown) -> AutopilotDid {
-    let since = |ms: u32| f64::from(ms.wrapping_sub(flown.first_ms)) / 1000.0;
+    let since = |ms: u32| f64::from(ms) / 1000.0;
     let avoid_mode = heard
         .modes
         .iter()

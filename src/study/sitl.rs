@@ -4,7 +4,8 @@
 //! ArduCopter SITL (`arducopter`, built from ArduPilot's sources; savsim neither bundles nor
 //! builds it): `-I N` opens SERIAL0 on TCP 5760 + 10 N, SERIAL1 on 5762 + 10 N and SERIAL2 on
 //! 5763 + 10 N, and its RC input on UDP 5501 + 10 N. savsim's session takes SERIAL0
-//! (`--serial0 udpclient:127.0.0.1:PORT`, to the row's own UDP link), the pilot SERIAL1.
+//! (`--serial0 udpclient:127.0.0.1:PORT`, to the row's own UDP link), the pilot SERIAL1
+//! (`--serial1 tcp:2:wait`: SITL does not boot until the pilot is connected).
 //! SITL binds its TCP ports on every interface: `savsim study` runs inside a network
 //! namespace of its own where the machine allows (`study::run`).
 
@@ -116,6 +117,10 @@ impl ArduCopter {
             .args(["-I", &start.instance.to_string()])
             .args(["--home", &home])
             .args(["--serial0", start.serial0])
+            // SITL waits for the pilot before it boots: its clock starts at the same point of
+            // the row whatever the wall-clock delay (at speedup 100 a second of waiting would
+            // be 100 s of its clock).
+            .args(["--serial1", "tcp:2:wait"])
             .args(["--defaults", &defaults.join(",")])
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(start.dir.join("sitl.log"))?)

@@ -251,3 +251,70 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
     assert_eq!(json["outcomes"]["nominal"]["collision"], pairs);
     assert!(json["outcomes"]["mitigated"]["collision"].is_null());
 }
+
+/// A stand-in for SITL, a shell script: `exit` ends at once, `hang` never opens its port.
+fn fake_sitl(dir: &Path, name: &str, body: &str) -> std::path::PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let path = dir.join(name);
+    std::fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    path
+}
+
+#[test]
+fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shard() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(&manifest, "id,plan\na,takeoff 20\nb,takeoff 20\n").unwrap();
+    let exits = fake_sitl(dir.path(), "exits", "echo 'PANIC: no eeprom'; exit 3");
+    let out = savsim()
+        .args(["study", "--no-netns", "--arducopter"])
+        .arg(&exits)
+        .arg("--out")
+        .arg(dir.path().join("a"))
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("2 error"), "{stdout}");
+    assert!(
+        stdout.contains("ended by itself") && stdout.contains("PANIC: no eeprom"),
+        "{stdout}"
+    );
+    // A SITL that hangs; SIGTERM while the study waits for it.
+    let marker = format!("savsim-hang-{}", std::process::id());
+    let hangs = fake_sitl(dir.path(), &marker, "exec sleep 300");
+    let mut study = savsim()
+        .args(["study", "--no-netns", "--arducopter"])
+        .arg(&hangs)
+        .arg("--out")
+        .arg(dir.path().join("b"))
+        .arg(&manifest)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let sleeping = || {
+        let ps = Command::new("ps").args(["-eo", "args"]).output().unwrap();
+        String::from_utf8_lossy(&ps.stdout)
+            .lines()
+            .filter(|l| l.contains("sleep 300"))
+            .count()
+    };
+    assert!(sleeping() >= 1, "the stand-in runs");
+    Command::new("kill")
+        .args(["-TERM", &study.id().to_string()])
+        .status()
+        .unwrap();
+    let status = study.wait().unwrap();
+    assert!(!status.success());
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert_eq!(sleeping(), 0, "the stand-in SITL was left running");
+    let shards: Vec<_> = std::fs::read_dir(dir.path().join("b"))
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().extension().is_some_and(|x| x == "parquet"))
+        .collect();
+    assert!(shards.is_empty(), "a stopped study wrote its shard");
+}
