@@ -87,6 +87,15 @@ pub struct StudyArgs {
     pub no_netns: bool,
 }
 
+/// What `savsim study gen` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum StudyGenKind {
+    /// A box across a straight path.
+    Approaches,
+    /// An intruder crossing a hovering copter, reported as ADS-B.
+    Encounters,
+}
+
 /// `savsim study ...` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum StudyCommand {
@@ -103,10 +112,15 @@ pub enum StudyCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Write obstacle-approach pairs: a box of random size, offset and yaw across a straight
-    /// path flown at a random speed and heading, each as `nominal` (no feed, avoidance off)
-    /// and `mitigated` (the feed, ArduCopter's proximity avoidance on).
+    /// Write pairs of rows, each as `nominal` (avoidance off) and `mitigated` (on):
+    /// `approaches` (a box of random size, offset and yaw across a straight path flown at a
+    /// random speed and heading; the proximity feed and ArduCopter's proximity avoidance) or
+    /// `encounters` (an intruder crossing a hovering copter; the ADS-B feed and ArduCopter's
+    /// ADS-B avoidance).
     Gen {
+        /// `approaches` or `encounters`.
+        #[arg(long, value_enum, default_value_t = StudyGenKind::Approaches)]
+        kind: StudyGenKind,
         /// How many pairs.
         #[arg(long)]
         n: usize,

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use crate::batch::shard::Shard;
-use crate::cli::{StudyArgs, StudyCommand};
+use crate::cli::{StudyArgs, StudyCommand, StudyGenKind};
 use crate::error::{Error, Result};
 use crate::study::manifest;
 use crate::study::result::{Outcome, StudyResult};
@@ -22,22 +22,30 @@ pub const MAX_JOBS: usize = 64;
 /// Run `savsim study ...`.
 pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     match &args.command {
-        Some(StudyCommand::Summarize { dir, nominal, json }) => {
-            let all = crate::study::summarize::read_dir(dir)?;
-            if *json {
-                let value = crate::study::summarize::summary_json(&all, nominal);
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(&value).unwrap_or_default()
-                );
-            } else {
-                print!("{}", crate::study::summarize::summary_text(&all, nominal));
-            }
-            return Ok(());
-        }
-        Some(StudyCommand::Gen { n, seed, out }) => return gen(*n, *seed, out),
-        None => {}
+        Some(StudyCommand::Summarize { dir, nominal, json }) => summarize(dir, nominal, *json),
+        Some(StudyCommand::Gen { kind, n, seed, out }) => gen(*kind, *n, *seed, out),
+        None => study(args, shutdown),
     }
+}
+
+/// `study summarize`.
+fn summarize(dir: &Path, nominal: &str, json: bool) -> Result<()> {
+    let all = crate::study::summarize::read_dir(dir)?;
+    if json {
+        let value = crate::study::summarize::summary_json(&all, nominal);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&value).unwrap_or_default()
+        );
+    } else {
+        print!("{}", crate::study::summarize::summary_text(&all, nominal));
+    }
+    Ok(())
+}
+
+/// `study MANIFEST --out DIR`: the flags checked, the shard chosen (and skipped if done), the
+/// study run in a network namespace of its own where one can be made.
+fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };
@@ -80,37 +88,10 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
         &rows[range.clone()],
         arducopter(args.arducopter.as_deref()),
         args.speedup,
-        work.clone(),
+        work,
         shutdown.clone(),
     );
-    let total = range.len();
-    let finished = std::sync::atomic::AtomicUsize::new(0);
-    let on_done = |r: &StudyResult| {
-        let k = finished.fetch_add(1, Ordering::Relaxed) + 1;
-        eprintln!(
-            "study: {k}/{total} {}: {}{} ({:.1} s of its clock in {:.1} s)",
-            r.row_id,
-            r.outcome.name(),
-            r.error
-                .as_deref()
-                .map(|e| format!(": {e}"))
-                .unwrap_or_default(),
-            r.sim_s,
-            r.wall_s
-        );
-        if !args.keep_work && r.outcome != Outcome::Error {
-            let _ = std::fs::remove_dir_all(
-                work.join(crate::study::run::folder_name(r.index, &r.row_id)),
-            );
-        }
-    };
-    let results = crate::study::run_rows(
-        &rows[range.clone()],
-        range.start,
-        args.jobs,
-        &setup,
-        &on_done,
-    );
+    let results = fly_shard(&rows[range.clone()], range.start, args, &setup);
     if shutdown.load(Ordering::Relaxed) {
         return Err(Error::Usage(
             "study: stopped by a signal; the shard was not written (run it again)".into(),
@@ -134,6 +115,37 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     crate::study::table::write_atomic(&results, &metadata, &path)?;
     print!("{}", report(&results, &path));
     Ok(())
+}
+
+/// The shard's rows, each reported on stderr as it ends (and its folder removed when it flew,
+/// unless `--keep-work`).
+fn fly_shard(
+    rows: &[manifest::StudyRow],
+    first_index: usize,
+    args: &StudyArgs,
+    setup: &Setup,
+) -> Vec<StudyResult> {
+    let finished = std::sync::atomic::AtomicUsize::new(0);
+    let on_done = |r: &StudyResult| {
+        let k = finished.fetch_add(1, Ordering::Relaxed) + 1;
+        eprintln!(
+            "study: {k}/{} {}: {}{} ({:.1} s of its clock in {:.1} s)",
+            rows.len(),
+            r.row_id,
+            r.outcome.name(),
+            r.error
+                .as_deref()
+                .map(|e| format!(": {e}"))
+                .unwrap_or_default(),
+            r.sim_s,
+            r.wall_s
+        );
+        if !args.keep_work && r.outcome != Outcome::Error {
+            let folder = crate::study::run::folder_name(r.index, &r.row_id);
+            let _ = std::fs::remove_dir_all(setup.work.join(folder));
+        }
+    };
+    crate::study::run_rows(rows, first_index, args.jobs, setup, &on_done)
 }
 
 /// ArduCopter from `--arducopter` or `SAVSIM_ARDUCOPTER`, with `SAVSIM_ARDUCOPTER_DEFAULTS`.
@@ -233,18 +245,26 @@ fn report(results: &[StudyResult], path: &Path) -> String {
     text
 }
 
-/// `study gen`: the manifest `study.csv` and one scene per pair in `out`.
-fn gen(n: usize, seed: u64, out: &Path) -> Result<()> {
+/// `study gen`: the manifest `study.csv` in `out`, and one scene per approach.
+fn gen(kind: StudyGenKind, n: usize, seed: u64, out: &Path) -> Result<()> {
     if n == 0 || n > 1_000_000 {
         return Err(Error::Usage(format!("--n {n}: give 1 to 1000000")));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
-    let approaches = crate::study::gen::approaches(n, seed);
-    for a in &approaches {
-        let path = out.join(&a.scene_file);
-        std::fs::write(&path, &a.scene_toml).map_err(|e| Error::file(&path, e))?;
-    }
-    let rows: Vec<_> = approaches.into_iter().flat_map(|a| a.rows).collect();
+    let rows: Vec<_> = match kind {
+        StudyGenKind::Approaches => {
+            let approaches = crate::study::gen::approaches(n, seed);
+            for a in &approaches {
+                let path = out.join(&a.scene_file);
+                std::fs::write(&path, &a.scene_toml).map_err(|e| Error::file(&path, e))?;
+            }
+            approaches.into_iter().flat_map(|a| a.rows).collect()
+        }
+        StudyGenKind::Encounters => crate::study::gen::encounters(n, seed)
+            .into_iter()
+            .flatten()
+            .collect(),
+    };
     let path = out.join("study.csv");
     let file = std::fs::File::create(&path).map_err(|e| Error::file(&path, e))?;
     manifest::write_csv(&rows, std::io::BufWriter::new(file))

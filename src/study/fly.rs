@@ -26,6 +26,8 @@ pub struct Flown {
     pub slowed_t_s: Option<f64>,
     /// Whether the caller stopped it (a collision, a signal, the wall limit).
     pub stopped: bool,
+    /// When it was armed in GUIDED, seconds of its clock.
+    pub armed_t_s: Option<f64>,
 }
 
 /// Seconds of the vehicle's clock (from its boot) at `fix`.
@@ -91,14 +93,17 @@ pub fn fly(
             if clock_s(&fix) >= duration_s {
                 return Ok(flown);
             }
-            let command = command_of(leg, &fix);
+            // Targets only in GUIDED: in a mode the autopilot chose (AVOID_ADSB, RTL, ...) it
+            // flies itself, and a GUIDED-derived mode would take a target over its own.
+            let (mode_now, armed) = pilot.state();
+            let command = command_of(leg, &fix).filter(|_| mode_now == Some(mode::GUIDED));
             if let Some(v) = command {
                 pilot.velocity(v)?;
             }
             if watch.slowed(command.unwrap_or(DVec3::ZERO), &fix) && flown.slowed_t_s.is_none() {
                 flown.slowed_t_s = Some(clock_s(&fix));
             }
-            if leg_done(leg, &fix, &began, &pilot.heard()) {
+            if leg_done(leg, &fix, &began, armed) {
                 break;
             }
         }
@@ -145,8 +150,9 @@ fn arm_guided(
     let began_ms = flown.last_ms;
     let mut asked_ms: Option<u32> = None;
     loop {
-        let heard = pilot.heard();
-        if heard.armed && heard.mode == Some(mode::GUIDED) {
+        let (mode_now, armed) = pilot.state();
+        if armed && mode_now == Some(mode::GUIDED) {
+            flown.armed_t_s = Some(f64::from(flown.last_ms) / 1000.0);
             return Ok(());
         }
         let Some(fix) = pilot.next_fix(stop)? else {
@@ -155,7 +161,8 @@ fn arm_guided(
         flown.last_ms = fix.time_boot_ms;
         let waited_s = f64::from(fix.time_boot_ms.wrapping_sub(began_ms)) / 1000.0;
         if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
-            let texts: Vec<String> = heard
+            let texts: Vec<String> = pilot
+                .heard()
                 .texts
                 .iter()
                 .rev()

@@ -1,8 +1,10 @@
-//! `savsim study gen`: obstacle approaches in the UAV Testing Competition's style. Pair `k`:
-//! a box of random size across a straight path from home, at a random distance, lateral
-//! offset and yaw, flown at a random speed and heading at 20 m; a `nominal` row (no feed, no
-//! proximity sensor, avoidance off) and a `mitigated` row (`--feed proximity`, ArduCopter's
-//! proximity avoidance stopping 3 m short). Deterministic for a seed.
+//! `savsim study gen`: pairs of rows, `nominal` and `mitigated`, deterministic for a seed.
+//!
+//! **Approaches** ([`approaches`]), in the UAV Testing Competition's style. Pair `k`: a box of
+//! random size across a straight path from home, at a random distance, lateral offset and
+//! yaw, flown at a random speed and heading at 20 m; a `nominal` row (no feed, no proximity
+//! sensor, avoidance off) and a `mitigated` row (`--feed proximity`, ArduCopter's proximity
+//! avoidance stopping 3 m short).
 //!
 //! | drawn | range |
 //! |---|---|
@@ -27,6 +29,77 @@ pub const MITIGATED_PARAMS: &str =
     "PRX1_TYPE=2;PRX_FILT=0;AVOID_ENABLE=3;AVOID_BEHAVE=1;AVOID_MARGIN=3";
 /// The nominal rows': avoidance off.
 pub const NOMINAL_PARAMS: &str = "AVOID_ENABLE=0";
+
+/// **Encounters** ([`encounters`]): the copter hovers at 30 m over home (open air); a
+/// small-UAS intruder (`dji`) crosses at [`ENCOUNTER_TCA_S`] of the copter's clock, heading
+/// 0-360 degrees, 15-30 m/s, horizontal miss distance 0-30 m, vertical -10 to +10 m at the
+/// closest approach, waiting 1500 m out before it and flying on 1500 m after. Both rows have
+/// the ADS-B feed and ArduCopter's ADS-B receiver (`ADSB_TYPE=1`); `nominal` has `AVD_ENABLE=0`,
+/// `mitigated` `AVD_ENABLE=1` with the horizontal action (`AVD_F_ACTION=3`; the vertical one
+/// steers towards the threat, docs/closed-loop.md).
+pub const ENCOUNTER_TCA_S: f64 = 110.0;
+/// The encounters' mitigated parameters.
+pub const ADSB_MITIGATED_PARAMS: &str = "ADSB_TYPE=1;AVD_ENABLE=1;AVD_F_ACTION=3";
+/// The encounters' nominal parameters.
+pub const ADSB_NOMINAL_PARAMS: &str = "ADSB_TYPE=1;AVD_ENABLE=0";
+
+/// Encounter pairs from `seed` (open air: no scene).
+///
+/// ```
+/// let e = savsim::study::gen::encounters(2, 5);
+/// assert_eq!(e[1][1].variant.as_deref(), Some("mitigated"));
+/// assert!(e[0][0].intruder.is_some());
+/// ```
+pub fn encounters(n: usize, seed: u64) -> Vec<[StudyRow; 2]> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n).map(|k| encounter(k, seed, &mut rng)).collect()
+}
+
+fn encounter(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> [StudyRow; 2] {
+    const UP_M: f64 = 30.0;
+    const OUT_M: f64 = 1500.0;
+    let heading_deg: f64 = rng.random_range(0.0..360.0);
+    let speed_mps: f64 = rng.random_range(15.0..30.0);
+    let hmd_m: f64 = rng.random_range(0.0..30.0);
+    let vmd_m: f64 = rng.random_range(-10.0..10.0);
+    let (s, c) = heading_deg.to_radians().sin_cos();
+    let (along, right) = ([s, c], [c, -s]);
+    let at = |d: f64| {
+        [
+            along[0] * d + right[0] * hmd_m,
+            along[1] * d + right[1] * hmd_m,
+            UP_M + vmd_m,
+        ]
+    };
+    let run_s = OUT_M / speed_mps;
+    let point = |t: f64, p: [f64; 3]| format!("{t:.2} {:.2} {:.2} {:.2}", p[0], p[1], p[2]);
+    let intruder = [
+        point(0.0, at(-OUT_M)),
+        point(ENCOUNTER_TCA_S - run_s, at(-OUT_M)),
+        point(ENCOUNTER_TCA_S, at(0.0)),
+        point(ENCOUNTER_TCA_S + run_s, at(OUT_M)),
+    ]
+    .join("; ");
+    let id = format!("encounter-{k:05}");
+    let row = |variant: &str, params: &str| StudyRow {
+        id: Some(format!("{id}-{variant}")),
+        autopilot: Some("arducopter".into()),
+        variant: Some(variant.into()),
+        pair: Some(id.clone()),
+        params: Some(params.into()),
+        feed: Some("adsb".into()),
+        plan: Some(format!("takeoff {UP_M}; hold {}", ENCOUNTER_TCA_S + 40.0)),
+        intruder: Some(intruder.clone()),
+        intruder_kind: Some("dji".into()),
+        duration_s: Some(ENCOUNTER_TCA_S + 40.0),
+        seed: Some(seed),
+        ..StudyRow::default()
+    };
+    [
+        row("nominal", ADSB_NOMINAL_PARAMS),
+        row("mitigated", ADSB_MITIGATED_PARAMS),
+    ]
+}
 
 /// One generated approach: its scene's text and its two rows.
 #[derive(Debug, Clone, PartialEq)]

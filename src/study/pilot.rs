@@ -217,6 +217,14 @@ impl Pilot {
         })
     }
 
+    /// The autopilot's mode and whether it is armed, at its last heartbeat.
+    pub fn state(&self) -> (Option<u32>, bool) {
+        self.heard
+            .lock()
+            .map(|h| (h.mode, h.armed))
+            .unwrap_or((None, false))
+    }
+
     /// A copy of what the autopilot said.
     pub fn heard(&self) -> Heard {
         self.heard.lock().map(|h| h.clone()).unwrap_or_default()
@@ -370,13 +378,13 @@ pub fn goto_velocity(at: DVec3, to: DVec3, speed_mps: f64) -> DVec3 {
 
 /// Whether `leg` is done at `fix`, given where and when it began (a takeoff's height is
 /// above where it began: home).
-pub fn leg_done(leg: &Leg, fix: &Fix, began: &Fix, heard: &Heard) -> bool {
+pub fn leg_done(leg: &Leg, fix: &Fix, began: &Fix, armed: bool) -> bool {
     let elapsed_s = f64::from(fix.time_boot_ms.wrapping_sub(began.time_boot_ms)) / 1000.0;
     match *leg {
         Leg::Takeoff { up_m } => fix.enu_m.z - began.enu_m.z >= up_m - TAKEOFF_DONE_M,
         Leg::Goto { enu_m, .. } => fix.enu_m.distance(DVec3::from(enu_m)) <= GOTO_DONE_M,
         Leg::Velocity { seconds, .. } | Leg::Hold { seconds } => elapsed_s >= seconds,
-        Leg::Land => !heard.armed && elapsed_s > 1.0,
+        Leg::Land => !armed && elapsed_s > 1.0,
     }
 }
 

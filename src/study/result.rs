@@ -92,6 +92,9 @@ pub struct StudyResult {
     pub obstacles: Vec<ObstacleApproach>,
     /// The closest of them, metres.
     pub closest_obstacle_m: Option<f64>,
+    /// When it was armed (GUIDED), seconds of its clock: SITL's boot until then is time the
+    /// row spends before its plan.
+    pub armed_t_s: Option<f64>,
     /// Legs of the plan flown to their end.
     pub legs_completed: u64,
     /// Whether every leg was.
@@ -122,6 +125,7 @@ impl StudyResult {
             measured: RunRow::of_inputs(index, &Run::default(), "exact"),
             obstacles: Vec::new(),
             closest_obstacle_m: None,
+            armed_t_s: None,
             legs_completed: 0,
             plan_completed: false,
             autopilot_did: AutopilotDid::default(),

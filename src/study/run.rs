@@ -443,6 +443,7 @@ fn record(
     result.feed_frames = session
         .feed()
         .map_or(0, |f| f.counts().map(|(_, c)| c.frames).sum());
+    result.armed_t_s = flown.armed_t_s;
     result.legs_completed = flown.legs_completed as u64;
     result.plan_completed = flown.legs_completed == legs;
     result.sim_s = f64::from(flown.last_ms) / 1000.0;

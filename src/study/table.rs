@@ -123,6 +123,7 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             floats(rows, |r| Some(m(r).lowc_duration_s)),
         ),
         ("min_taumod_s", floats(rows, |r| m(r).min_taumod_s)),
+        ("armed_t_s", floats(rows, |r| r.armed_t_s)),
         ("legs_completed", counts(rows, |r| Some(r.legs_completed))),
         ("plan_completed", bools(rows, |r| r.plan_completed)),
         (
