@@ -45,6 +45,19 @@ pub enum Command {
     Study(StudyArgs),
 }
 
+/// savsim's own MAVLink identity on a live link (docs/live.md).
+#[derive(Debug, Clone, Copy, Args)]
+pub struct IdentityArgs {
+    /// savsim's system id (default 245: not 255, the ground stations' and ArduPilot's
+    /// SYSID_MYGCS). Its feed is this system's component 196.
+    #[arg(long, default_value_t = 245, value_parser = clap::value_parser!(u8).range(1..=255))]
+    pub sysid: u8,
+    /// savsim's component id as a ground station (default 190, MAV_COMP_ID_MISSIONPLANNER;
+    /// not 196, the feed's).
+    #[arg(long, default_value_t = 190, value_parser = clap::value_parser!(u8).range(1..=255))]
+    pub compid: u8,
+}
+
 /// `savsim study`.
 #[derive(Debug, Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
@@ -388,6 +401,9 @@ pub struct DemoArgs {
     /// The feed a live run would have sent.
     #[command(flatten)]
     pub feed: FeedArgs,
+    /// savsim's MAVLink identity (`--sysid`, `--compid`).
+    #[command(flatten)]
+    pub identity: IdentityArgs,
     /// Write that feed here as a tlog, on the flight's time base (needs --feed).
     #[arg(long)]
     pub feed_out: Option<PathBuf>,
@@ -414,6 +430,9 @@ pub struct ReplayArgs {
     /// The feed a live run would have sent.
     #[command(flatten)]
     pub feed: FeedArgs,
+    /// savsim's MAVLink identity (`--sysid`, `--compid`).
+    #[command(flatten)]
+    pub identity: IdentityArgs,
     /// Write that feed here as a tlog, on the flight's time base (needs --feed).
     #[arg(long)]
     pub feed_out: Option<PathBuf>,
@@ -441,6 +460,9 @@ pub struct LiveArgs {
     /// The closed-loop feed.
     #[command(flatten)]
     pub feed: FeedArgs,
+    /// savsim's MAVLink identity (`--sysid`, `--compid`).
+    #[command(flatten)]
+    pub identity: IdentityArgs,
     /// Record every frame the feed sends to this tlog, as sent (needs --feed).
     #[arg(long)]
     pub feed_out: Option<PathBuf>,
@@ -461,6 +483,9 @@ pub struct RecordArgs {
     /// Stop after this many seconds (default: until Ctrl-C).
     #[arg(long)]
     pub duration_s: Option<f64>,
+    /// savsim's MAVLink identity (`--sysid`, `--compid`).
+    #[command(flatten)]
+    pub identity: IdentityArgs,
     /// Write a JSON summary here at exit.
     #[arg(long)]
     pub summary_json: Option<PathBuf>,

@@ -40,12 +40,13 @@ pub struct LiveOptions {
     pub rate_hz: f64,
     /// Stop after this long (default: run until shutdown).
     pub duration: Option<Duration>,
-    /// savsim's own identity as a GCS. Default 255/190 (MAV_COMP_ID_MISSIONPLANNER).
+    /// savsim's own identity as a GCS (`--sysid`, `--compid`). Default 245/190
+    /// ([`crate::ingest::supervisor::DEFAULT_GCS`]).
     pub gcs: SenderId,
     /// Chunks the channel to the session thread holds before dropping. Default 65536.
     pub queue_len: usize,
-    /// The closed-loop feed's own identity (docs/closed-loop.md). Default 255/196
-    /// (MAV_COMP_ID_OBSTACLE_AVOIDANCE of savsim's system).
+    /// The closed-loop feed's own identity (docs/closed-loop.md): savsim's system,
+    /// MAV_COMP_ID_OBSTACLE_AVOIDANCE (196). Default 245/196.
     pub feed_from: SenderId,
     /// Record every frame the feed sends (its heartbeats too) to this tlog, stamped with the
     /// time it was handed to the link (`--feed-out`). Default none.
@@ -101,11 +102,14 @@ pub struct Latency {
     pub max_us: u64,
 }
 
-/// The feed's identity: savsim's system, MAV_COMP_ID_OBSTACLE_AVOIDANCE. Never the vehicle's
-/// own (ArduPilot drops its own system's messages as a routing loop).
+/// The feed's component: MAV_COMP_ID_OBSTACLE_AVOIDANCE.
+pub const FEED_COMPONENT: u8 = 196;
+
+/// The feed's identity by default: savsim's default system, [`FEED_COMPONENT`]. Never the
+/// vehicle's own (ArduPilot drops its own system's messages as a routing loop).
 pub const FEED_FROM: SenderId = SenderId {
-    system_id: 255,
-    component_id: 196,
+    system_id: crate::ingest::supervisor::DEFAULT_GCS.system_id,
+    component_id: FEED_COMPONENT,
 };
 
 /// What the closed-loop feed sent, for the summary's `link.feed`.

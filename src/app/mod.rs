@@ -9,8 +9,8 @@ use std::time::Duration;
 
 use crate::bundled::{bundled, DEMO_FLIGHT, DEMO_SCENE};
 use crate::cli::{
-    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, LiveArgs, RecordArgs, ReplayArgs,
-    SceneCommand, SceneKind,
+    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, IdentityArgs, LiveArgs, RecordArgs,
+    ReplayArgs, SceneCommand, SceneKind,
 };
 use crate::collision::events::EventKind;
 use crate::collision::pipeline::{CollisionConfig, SensorFan};
@@ -244,7 +244,11 @@ fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
     let mut session = session_for(&args.collision)?;
     start_feed(&mut session, &args.feed)?;
     if let Some(path) = &args.feed_out {
-        session.write_feed_to(path, live::FEED_FROM)?;
+        let from = SenderId {
+            system_id: args.identity.sysid,
+            component_id: live::FEED_COMPONENT,
+        };
+        session.write_feed_to(path, from)?;
     }
     let result = replay(
         &args.flight,
@@ -313,6 +317,7 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
             until_s: args.until_s,
             feed: args.feed,
             feed_out: args.feed_out,
+            identity: args.identity,
         },
         shutdown,
     )
@@ -390,7 +395,18 @@ pub fn print_report(session: &Session) {
     }
 }
 
-fn live_options(connect: &[String], rate_hz: f64, duration_s: Option<f64>) -> Result<LiveOptions> {
+fn live_options(
+    connect: &[String],
+    rate_hz: f64,
+    duration_s: Option<f64>,
+    identity: IdentityArgs,
+) -> Result<LiveOptions> {
+    if identity.compid == live::FEED_COMPONENT {
+        return Err(Error::Usage(format!(
+            "--compid {}: that is the feed's component; give another",
+            live::FEED_COMPONENT
+        )));
+    }
     if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1000.0) {
         return Err(Error::Usage(format!(
             "--rate-hz {rate_hz}: give 0 < rate <= 1000"
@@ -410,15 +426,19 @@ fn live_options(connect: &[String], rate_hz: f64, duration_s: Option<f64>) -> Re
         rate_hz,
         duration: duration_s.map(Duration::from_secs_f64),
         gcs: SenderId {
-            system_id: 255,
-            component_id: 190,
+            system_id: identity.sysid,
+            component_id: identity.compid,
+        },
+        feed_from: SenderId {
+            system_id: identity.sysid,
+            component_id: live::FEED_COMPONENT,
         },
         ..LiveOptions::default()
     })
 }
 
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let mut options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
+    let mut options = live_options(&args.connect, args.rate_hz, args.duration_s, args.identity)?;
     options.feed_out = args.feed_out.clone();
     let mut session = session_for(&args.collision)?;
     if let Some(feed_hz) = start_feed(&mut session, &args.feed)? {
@@ -435,7 +455,7 @@ fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
 }
 
 fn record_command(args: &RecordArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let options = live_options(&args.connect, args.rate_hz, args.duration_s)?;
+    let options = live_options(&args.connect, args.rate_hz, args.duration_s, args.identity)?;
     let session = Session::new(None, CollisionConfig::default(), None)?;
     let mut run = live::run_blocking(&options, session, Some(&args.out), shutdown)?;
     let finished = run.session.finish();

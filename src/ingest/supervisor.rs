@@ -61,6 +61,17 @@ impl std::fmt::Display for Endpoint {
     }
 }
 
+/// savsim's identity as a ground station by default: system 245, component 190
+/// (MAV_COMP_ID_MISSIONPLANNER). Not system 255, which QGroundControl (255/190), Mission
+/// Planner (255/190) and MAVProxy (255/230) use and which ArduPilot takes for its own GCS
+/// (`SYSID_MYGCS`: its heartbeat would hold off the GCS failsafe while the real station is
+/// gone); not 0 (broadcast) and not a vehicle's (1 and up in swarms). `--sysid`/`--compid`
+/// set another.
+pub const DEFAULT_GCS: SenderId = SenderId {
+    system_id: 245,
+    component_id: 190,
+};
+
 /// How the supervisor asks and when it asks again.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SupervisorConfig {
@@ -89,10 +100,7 @@ pub struct SupervisorConfig {
 impl Default for SupervisorConfig {
     fn default() -> Self {
         Self {
-            gcs: SenderId {
-                system_id: 255,
-                component_id: 190,
-            },
+            gcs: DEFAULT_GCS,
             rate_hz: 20.0,
             messages: vec![ID_GLOBAL_POSITION_INT, ID_ATTITUDE],
             answer_timeout_s: 1.0,
@@ -313,8 +321,12 @@ impl Supervisor {
             COMMAND_ACK_DATA::ID => {
                 let command = u16::from_le_bytes(field(frame.payload, 0));
                 let result = frame.payload.get(2).copied().unwrap_or(0);
+                // Its target (extension fields; 0 when truncated or broadcast): our system and
+                // our component, so that another GCS's acknowledgement is not taken for ours.
                 let target_system = frame.payload.get(8).copied().unwrap_or(0);
-                let ours = target_system == 0 || target_system == self.config.gcs.system_id;
+                let target_component = frame.payload.get(9).copied().unwrap_or(0);
+                let ours = (target_system == 0 || target_system == self.config.gcs.system_id)
+                    && (target_component == 0 || target_component == self.config.gcs.component_id);
                 if ours && command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL as u16 {
                     self.answer(sender, t_s, result);
                 }

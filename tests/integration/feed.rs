@@ -591,12 +591,12 @@ fn live_feed_out_records_exactly_what_the_vehicle_received() {
         recorded.push(frame[..len].to_vec());
         at += 8 + len;
     }
-    // What the vehicle received from the feed's identity (255/196), not from savsim's GCS.
+    // What the vehicle received from the feed's identity (245/196), not from savsim's GCS.
     let received: Vec<Vec<u8>> = record
         .lock()
         .unwrap()
         .iter()
-        .filter(|(_, b)| b.len() > 6 && b[5] == 255 && b[6] == 196)
+        .filter(|(_, b)| b.len() > 6 && b[5] == 245 && b[6] == 196)
         .map(|(_, b)| b.clone())
         .collect();
     let feed = run.report.feed.as_ref().unwrap();

@@ -321,6 +321,59 @@ fn acks_for_another_gcs_and_our_own_echo_are_ignored() {
     assert!(due.iter().all(|(e, _)| *e == from), "{due:?}");
 }
 
+/// COMMAND_ACK for SET_MESSAGE_INTERVAL from vehicle 1/1, accepted, targeted at
+/// `target_system`/`target_component` (MAVLink 2's extension fields).
+fn interval_ack(target_system: u8, target_component: u8) -> Vec<u8> {
+    let command = (MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL as u16).to_le_bytes();
+    let mut payload = vec![command[0], command[1], MavResult::MAV_RESULT_ACCEPTED as u8];
+    payload.extend([0, 0, 0, 0, 0, target_system, target_component]);
+    raw_v2(1, 1, 77, &payload)
+}
+
+#[test]
+fn a_ground_station_beside_savsim_is_neither_its_echo_nor_its_acknowledgement() {
+    // savsim's default identity, and QGroundControl's (255/190) on the same link.
+    let ours = SupervisorConfig::default().gcs;
+    assert_eq!((ours.system_id, ours.component_id), (245, 190));
+    let mut s = Supervisor::new(SupervisorConfig::default());
+    let from = endpoint(5760);
+    observe(&mut s, from, 0.0, 1, 1, &heartbeat(COPTER.0, COPTER.1));
+    assert_eq!(requests(&s.due(0.0)).len(), 1);
+    let ack = |s: &mut Supervisor, t_s: f64, bytes: &[u8]| {
+        let Scan::Frame(frame) = scan(bytes) else {
+            panic!()
+        };
+        s.observe(from, t_s, &frame);
+    };
+    // QGroundControl's acknowledgement (255/190), then one for another component of savsim's
+    // system (245/191): neither answers savsim's request.
+    ack(&mut s, 0.1, &interval_ack(255, 190));
+    ack(&mut s, 0.2, &interval_ack(245, 191));
+    assert_eq!(
+        state_of(&s, "1/1", "GLOBAL_POSITION_INT"),
+        RequestState::Pending
+    );
+    // QGroundControl's heartbeat is a peer heard at its address, not an echo to drop: savsim
+    // sends its heartbeat there too.
+    let station = endpoint(14550);
+    observe(
+        &mut s,
+        station,
+        0.3,
+        255,
+        190,
+        &heartbeat(MavType::MAV_TYPE_GCS, MavAutopilot::MAV_AUTOPILOT_INVALID),
+    );
+    let due = s.due(1.5);
+    assert!(due.iter().any(|(e, _)| *e == station), "{due:?}");
+    // The acknowledgement for savsim itself (245/190) answers it.
+    ack(&mut s, 1.6, &interval_ack(245, 190));
+    assert_eq!(
+        state_of(&s, "1/1", "GLOBAL_POSITION_INT"),
+        RequestState::Accepted
+    );
+}
+
 /// A MAVLink 2 frame with `payload` for message `id`, its CRC computed as the crate does.
 fn raw_v2(sysid: u8, compid: u8, id: u32, payload: &[u8]) -> Vec<u8> {
     use mavlink::Message;

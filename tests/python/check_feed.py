@@ -25,7 +25,7 @@ import sys
 
 from pymavlink import mavutil
 
-FEED = (255, 196)
+FEED = (245, 196)
 
 
 def fail(message):
