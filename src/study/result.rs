@@ -103,6 +103,12 @@ pub struct StudyResult {
     pub autopilot_did: AutopilotDid,
     /// Feed frames sent to the vehicle.
     pub feed_frames: u64,
+    /// The position's datagram received -> its feed frame handed to the link, wall
+    /// microseconds: 99th percentile and largest (measured). At speedup S a wall microsecond is
+    /// S microseconds of the vehicle's clock: how stale its sensors were.
+    pub feed_latency_p99_us: Option<u64>,
+    /// The largest.
+    pub feed_latency_max_us: Option<u64>,
     /// Seconds of the vehicle's clock (from its boot) at its last position.
     pub sim_s: f64,
     /// Wall seconds of the row, SITL's start and stop included (measured).
@@ -130,6 +136,8 @@ impl StudyResult {
             plan_completed: false,
             autopilot_did: AutopilotDid::default(),
             feed_frames: 0,
+            feed_latency_p99_us: None,
+            feed_latency_max_us: None,
             sim_s: 0.0,
             wall_s: 0.0,
             achieved_speedup: 0.0,

@@ -420,6 +420,9 @@ fn record(
     legs: usize,
 ) -> Result<(), RowError> {
     run.ended.map_err(|e| RowError::Savsim(e.to_string()))?;
+    let feed_latency = run.report.feed.as_ref().and_then(|f| f.latency);
+    result.feed_latency_p99_us = feed_latency.map(|l| l.p99_us);
+    result.feed_latency_max_us = feed_latency.map(|l| l.max_us);
     run.session
         .finish()
         .map_err(|e| RowError::Savsim(e.to_string()))?;

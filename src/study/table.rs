@@ -147,6 +147,14 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             strings(rows, |r| r.autopilot_did.version.clone()),
         ),
         ("feed_frames", counts(rows, |r| Some(r.feed_frames))),
+        (
+            "feed_latency_p99_us",
+            counts(rows, |r| r.feed_latency_p99_us),
+        ),
+        (
+            "feed_latency_max_us",
+            counts(rows, |r| r.feed_latency_max_us),
+        ),
         ("sim_s", floats(rows, |r| Some(r.sim_s))),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),
         (
