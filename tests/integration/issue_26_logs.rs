@@ -14,7 +14,7 @@ use serde_json::Value;
 use crate::common::shared_fixtures;
 
 /// The files of `kind` in ../shared/fixtures/realdata with their references.
-fn realdata(kind: &str) -> Vec<(PathBuf, Value)> {
+pub(crate) fn realdata(kind: &str) -> Vec<(PathBuf, Value)> {
     let Some(root) = shared_fixtures() else {
         return Vec::new();
     };

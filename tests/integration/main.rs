@@ -41,6 +41,8 @@
 //! - `study`: `savsim study`: the generator's boxes across their paths, bad rows, the results
 //!   table's risk ratios; obstacle-approach pairs on ArduCopter SITL (needs
 //!   `SAVSIM_ARDUCOPTER`).
+//! - `osm`: OpenStreetMap buildings in scenes against pyosmium's counts of every realdata OSM
+//!   file; holes, heights, bad files.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
@@ -67,6 +69,7 @@ mod issue_23_trust;
 mod issue_24_daa;
 mod issue_26_logs;
 mod live;
+mod osm;
 mod properties;
 mod scenes;
 mod shared_fixtures;

@@ -84,14 +84,14 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
     })?;
     for key in root.keys() {
         if ![
-            "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain", "city",
+            "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain", "city", "osm",
         ]
         .contains(&key.as_str())
         {
             return Err(fail(
                 None,
                 Some(key.clone()),
-                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city)"
+                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city, osm)"
                     .into(),
             ));
         }
@@ -147,6 +147,7 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
     )?;
     sections::terrain(&mut b, &array("terrain")?, &threats, &mut obstacles)?;
     sections::cities(&mut b, &array("city")?, &threats, &mut ids, &mut obstacles)?;
+    let osm = sections::osm(&mut b, &array("osm")?, &threats, &mut ids, &mut obstacles)?;
 
     let mut kind_models = Vec::new();
     for kind in Kind::ALL {
@@ -165,5 +166,6 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
         geometries: b.geometries,
         vehicle_models,
         kind_models,
+        osm,
     })
 }

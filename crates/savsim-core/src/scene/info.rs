@@ -36,6 +36,18 @@ pub fn describe(scene: &Scene) -> String {
             "  {kind:<9} {n:>7} obstacles {triangles:>12} triangles"
         );
     }
+    for o in &scene.osm {
+        let defaulted = if o.buildings == 0 {
+            0.0
+        } else {
+            100.0 * o.height_defaulted as f64 / o.buildings as f64
+        };
+        let _ = writeln!(
+            out,
+            "  osm {}: {} buildings ({} parts, {} holes); heights: {} from height, {} from levels, {} defaulted ({defaulted:.1}%); {} outlines replaced by their parts, {} skipped",
+            o.id, o.buildings, o.parts, o.holes, o.height_from_tag, o.height_from_levels, o.height_defaulted, o.outlines_replaced, o.skipped
+        );
+    }
     let _ = writeln!(out, "dynamic obstacles: {}", scene.dynamic.len());
     for d in &scene.dynamic {
         let _ = writeln!(out, "  {} ({}): {:?}", d.id, d.kind.name(), d.source);

@@ -13,6 +13,7 @@
 
 pub(crate) mod build;
 pub mod cityjson;
+pub mod extrude;
 pub mod files;
 pub mod format;
 pub mod gen;
@@ -20,6 +21,7 @@ pub mod geometry;
 pub mod info;
 pub mod mesh_files;
 pub mod models;
+pub mod osm;
 pub(crate) mod sections;
 pub mod spec;
 pub mod surface;
@@ -392,6 +394,32 @@ pub struct Scene {
     pub vehicle_models: Vec<(Option<u8>, usize)>,
     /// Geometry index of the model used for traffic of each kind that has no declared model.
     pub kind_models: Vec<(Kind, usize)>,
+    /// What each `[[osm]]` file gave.
+    pub osm: Vec<OsmStats>,
+}
+
+/// What one `[[osm]]` file gave: its buildings and where their heights came from.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct OsmStats {
+    /// The `[[osm]]` id.
+    pub id: String,
+    /// Buildings (and building parts) made obstacles.
+    pub buildings: usize,
+    /// Of those, `building:part`s.
+    pub parts: usize,
+    /// Inner rings (courtyards) kept in them.
+    pub holes: usize,
+    /// Heights from `height`.
+    pub height_from_tag: usize,
+    /// Heights from `building:levels`.
+    pub height_from_levels: usize,
+    /// Heights defaulted.
+    pub height_defaulted: usize,
+    /// Outlines replaced by their parts.
+    pub outlines_replaced: usize,
+    /// Building ways not closed, relations whose rings do not close, footprints with no area
+    /// or with a base not below the top: not obstacles.
+    pub skipped: usize,
 }
 
 impl Scene {

@@ -10,10 +10,11 @@ use glam::DVec3;
 use crate::geo::Geodetic;
 use crate::scene::build::{item_name, parse_item, Builder};
 use crate::scene::geometry::{Geometry, HeightGrid, TerrainPatch};
-use crate::scene::spec::{CitySpec, DynamicSpec, ObstacleSpec, TerrainSpec, VehicleSpec};
+use crate::scene::spec::{CitySpec, DynamicSpec, ObstacleSpec, OsmSpec, TerrainSpec, VehicleSpec};
 use crate::scene::terrain::{self, Elevation};
 use crate::scene::{
-    cityjson, gen, DynamicObstacle, DynamicSource, Kind, Placement, SceneError, StaticObstacle,
+    cityjson, gen, osm, DynamicObstacle, DynamicSource, Kind, OsmStats, Placement, SceneError,
+    StaticObstacle,
 };
 
 /// Each kind's threat T: the paper's, or the scene's `[threat]` table's.
@@ -325,6 +326,139 @@ pub(crate) fn cities(
         }
     }
     Ok(())
+}
+
+/// `[[osm]]`: an OpenStreetMap file's buildings (`.osm` XML or `.osm.pbf`), each footprint
+/// projected into the scene's ENU frame (its nodes at the origin's height, exact) and extruded
+/// from its base to its top above U = 0 (`scene::osm::heights`).
+pub(crate) fn osm(
+    b: &mut Builder<'_>,
+    items: &[toml::Value],
+    threats: &Threats,
+    ids: &mut HashSet<String>,
+    obstacles: &mut Vec<StaticObstacle>,
+) -> Result<Vec<OsmStats>, SceneError> {
+    let mut all = Vec::new();
+    for (i, value) in items.iter().enumerate() {
+        let item = item_name("osm", value, i);
+        let spec: OsmSpec = parse_item(b, value, &item)?;
+        let policy = osm_policy(b, &spec, &item)?;
+        let path = b.dir.join(&spec.file);
+        let bytes = b.files.read(&path).map_err(|e| {
+            b.err(
+                Some(item.clone()),
+                Some("file"),
+                format!("{}: {e}", path.display()),
+            )
+        })?;
+        let pbf = spec.file.to_ascii_lowercase().ends_with(".pbf");
+        let data = if pbf {
+            osm::parse_pbf(&bytes)
+        } else {
+            std::str::from_utf8(&bytes)
+                .map_err(|e| osm::OsmError::Xml(e.to_string()))
+                .and_then(osm::parse_xml)
+        }
+        .map_err(|e| {
+            b.err(
+                Some(item.clone()),
+                Some("file"),
+                format!("{}: {e}", path.display()),
+            )
+        })?;
+        let (footprints, found) = osm::footprints(&data);
+        let mut stats = OsmStats {
+            id: spec.id.clone(),
+            outlines_replaced: found.outlines_replaced,
+            skipped: found.open_ways + found.broken_relations,
+            ..OsmStats::default()
+        };
+        let threat = threats.of(Kind::Building, spec.threat);
+        for f in &footprints {
+            let Some((base_m, top_m, source)) = osm::heights(&f.tags, policy) else {
+                stats.skipped += 1;
+                continue;
+            };
+            let Some((placement, geometry)) = osm_building(b, f, base_m, top_m) else {
+                stats.skipped += 1;
+                continue;
+            };
+            let id = format!("{}/{}", spec.id, f.id);
+            if !ids.insert(id.clone()) {
+                return Err(b.err(Some(item), Some("id"), format!("duplicate id {id:?}")));
+            }
+            let geometry_index = b.add(geometry);
+            let geometry = b.geometries[geometry_index].clone();
+            obstacles.push(StaticObstacle {
+                id,
+                kind: Kind::Building,
+                threat,
+                aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
+                placement,
+                geometry,
+                geometry_index,
+            });
+            stats.buildings += 1;
+            stats.parts += usize::from(f.part);
+            stats.holes += f.holes.len();
+            match source {
+                osm::HeightSource::Height => stats.height_from_tag += 1,
+                osm::HeightSource::Levels => stats.height_from_levels += 1,
+                osm::HeightSource::Default => stats.height_defaulted += 1,
+            }
+        }
+        all.push(stats);
+    }
+    Ok(all)
+}
+
+/// An `[[osm]]` item's height policy, checked.
+fn osm_policy(
+    b: &Builder<'_>,
+    spec: &OsmSpec,
+    item: &str,
+) -> Result<osm::HeightPolicy, SceneError> {
+    let defaults = osm::HeightPolicy::default();
+    let check = |v: Option<f64>, default: f64, field: &str| match v {
+        None => Ok(default),
+        Some(m) if m.is_finite() && m > 0.0 && m <= 1000.0 => Ok(m),
+        Some(m) => Err(b.err(
+            Some(item.into()),
+            Some(field),
+            format!("{m}: give 0 < metres <= 1000"),
+        )),
+    };
+    Ok(osm::HeightPolicy {
+        level_m: check(spec.level_m, defaults.level_m, "level_m")?,
+        default_m: check(
+            spec.default_height_m,
+            defaults.default_m,
+            "default_height_m",
+        )?,
+    })
+}
+
+/// A footprint as a prism: placed at its first vertex's position (U = 0), its rings relative to
+/// that in the scene's ENU axes. `None` when it has no area.
+fn osm_building(
+    b: &Builder<'_>,
+    f: &osm::Footprint,
+    base_m: f64,
+    top_m: f64,
+) -> Option<(Placement, Geometry)> {
+    let alt = b.plane.origin().alt_m;
+    let enu = |p: &[f64; 2]| b.plane.enu_m_from_geodetic(&Geodetic::new(p[1], p[0], alt));
+    let anchor = enu(f.outer.first()?);
+    let local = |ring: &[[f64; 2]]| -> Vec<glam::DVec2> {
+        ring.iter().map(|p| (enu(p) - anchor).truncate()).collect()
+    };
+    let holes: Vec<Vec<glam::DVec2>> = f.holes.iter().map(|h| local(h)).collect();
+    let geometry = crate::scene::extrude::prism(&local(&f.outer), &holes, base_m, top_m).ok()?;
+    let placement = Placement {
+        position_enu_m: DVec3::new(anchor.x, anchor.y, 0.0),
+        enu_from_local: glam::DQuat::IDENTITY,
+    };
+    Some((placement, geometry))
 }
 
 /// `[[dynamic]]`: moving obstacles (waypoint tracks, MAVLink vehicles, ADS-B traffic).

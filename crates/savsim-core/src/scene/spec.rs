@@ -124,6 +124,20 @@ pub(crate) struct CitySpec {
     pub(crate) threat: Option<f64>,
 }
 
+/// `[[osm]]`: an OpenStreetMap file's buildings.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct OsmSpec {
+    pub(crate) id: String,
+    /// `.osm` (XML) or `.osm.pbf`.
+    pub(crate) file: String,
+    /// Metres per level (`building:levels`). Default 3.
+    pub(crate) level_m: Option<f64>,
+    /// The height of a building that gives neither `height` nor `building:levels`. Default 10.
+    pub(crate) default_height_m: Option<f64>,
+    pub(crate) threat: Option<f64>,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct AreaSpec {

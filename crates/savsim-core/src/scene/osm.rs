@@ -1,0 +1,530 @@
+//! OpenStreetMap buildings (`[[osm]]` in a scene): `.osm` XML and `.osm.pbf` read into one
+//! in-memory model, building footprints assembled from closed ways and multipolygon relations
+//! (holes kept), `building:part` preferred to the outline it lies in, and heights by one policy
+//! ([`heights`]). Pure: the bytes are handed in; `scene::sections` projects and extrudes.
+
+use std::collections::HashMap;
+
+/// An OSM element's tags.
+pub type Tags = Vec<(String, String)>;
+
+/// A way: its node ids and tags.
+#[derive(Debug, Clone, Default)]
+pub struct Way {
+    /// Node ids, in order.
+    pub refs: Vec<i64>,
+    /// Tags.
+    pub tags: Tags,
+}
+
+/// A relation member.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Member {
+    /// Whether it is a way (only ways make rings).
+    pub is_way: bool,
+    /// Its id.
+    pub id: i64,
+    /// Its role (`outer`, `inner`, ...).
+    pub role: String,
+}
+
+/// A relation.
+#[derive(Debug, Clone, Default)]
+pub struct Relation {
+    /// Its id.
+    pub id: i64,
+    /// Its members.
+    pub members: Vec<Member>,
+    /// Tags.
+    pub tags: Tags,
+}
+
+/// What an OSM file holds, as far as buildings need.
+#[derive(Debug, Clone, Default)]
+pub struct OsmData {
+    /// Node positions: (lon_deg, lat_deg).
+    pub nodes: HashMap<i64, [f64; 2]>,
+    /// Ways by id.
+    pub ways: HashMap<i64, Way>,
+    /// Relations, in file order.
+    pub relations: Vec<Relation>,
+}
+
+/// Why an OSM file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum OsmError {
+    /// Not XML, or not an `<osm>` document.
+    #[error("not OSM XML: {0}")]
+    Xml(String),
+    /// Not a readable OSM PBF file.
+    #[error("not a readable OSM PBF file: {0}")]
+    Pbf(String),
+}
+
+/// Read OSM XML (`.osm`). Nodes without a valid `lat`/`lon` are left out (a way through one is
+/// then not closed and is skipped).
+pub fn parse_xml(text: &str) -> Result<OsmData, OsmError> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| OsmError::Xml(e.to_string()))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "osm" {
+        return Err(OsmError::Xml(format!(
+            "the root element is <{}>, not <osm>",
+            root.tag_name().name()
+        )));
+    }
+    let mut data = OsmData::default();
+    let id = |n: &roxmltree::Node<'_, '_>| n.attribute("id").and_then(|v| v.parse::<i64>().ok());
+    let tags = |n: &roxmltree::Node<'_, '_>| -> Tags {
+        n.children()
+            .filter(|c| c.has_tag_name("tag"))
+            .filter_map(|t| Some((t.attribute("k")?.to_owned(), t.attribute("v")?.to_owned())))
+            .collect()
+    };
+    for element in root.children().filter(roxmltree::Node::is_element) {
+        let Some(element_id) = id(&element) else {
+            continue;
+        };
+        match element.tag_name().name() {
+            "node" => {
+                let coordinate = |k: &str| {
+                    element
+                        .attribute(k)
+                        .and_then(|v| v.parse::<f64>().ok())
+                        .filter(|v| v.is_finite())
+                };
+                if let (Some(lat), Some(lon)) = (coordinate("lat"), coordinate("lon")) {
+                    if lat.abs() <= 90.0 && lon.abs() <= 180.0 {
+                        data.nodes.insert(element_id, [lon, lat]);
+                    }
+                }
+            }
+            "way" => {
+                let refs = element
+                    .children()
+                    .filter(|c| c.has_tag_name("nd"))
+                    .filter_map(|c| c.attribute("ref")?.parse::<i64>().ok())
+                    .collect();
+                let tags = tags(&element);
+                data.ways.insert(element_id, Way { refs, tags });
+            }
+            "relation" => {
+                let members = element
+                    .children()
+                    .filter(|c| c.has_tag_name("member"))
+                    .filter_map(|m| {
+                        Some(Member {
+                            is_way: m.attribute("type")? == "way",
+                            id: m.attribute("ref")?.parse().ok()?,
+                            role: m.attribute("role").unwrap_or_default().to_owned(),
+                        })
+                    })
+                    .collect();
+                let tags = tags(&element);
+                data.relations.push(Relation {
+                    id: element_id,
+                    members,
+                    tags,
+                });
+            }
+            _ => {}
+        }
+    }
+    Ok(data)
+}
+
+/// Read OSM PBF (`.osm.pbf`). A file the `osmpbf` crate cannot read (or panics on: it does on
+/// some corrupt enum values) is an error.
+pub fn parse_pbf(bytes: &[u8]) -> Result<OsmData, OsmError> {
+    let read = std::panic::catch_unwind(|| {
+        let mut data = OsmData::default();
+        let reader = osmpbf::ElementReader::new(std::io::Cursor::new(bytes));
+        let owned = |tags: &mut dyn Iterator<Item = (&str, &str)>| -> Tags {
+            tags.map(|(k, v)| (k.to_owned(), v.to_owned())).collect()
+        };
+        reader
+            .for_each(|element| match element {
+                osmpbf::Element::Node(n) => {
+                    data.nodes.insert(n.id(), [n.lon(), n.lat()]);
+                }
+                osmpbf::Element::DenseNode(n) => {
+                    data.nodes.insert(n.id(), [n.lon(), n.lat()]);
+                }
+                osmpbf::Element::Way(w) => {
+                    let way = Way {
+                        refs: w.refs().collect(),
+                        tags: owned(&mut w.tags()),
+                    };
+                    data.ways.insert(w.id(), way);
+                }
+                osmpbf::Element::Relation(r) => {
+                    let members = r
+                        .members()
+                        .map(|m| Member {
+                            is_way: matches!(m.member_type, osmpbf::RelMemberType::Way),
+                            id: m.member_id,
+                            role: m.role().unwrap_or_default().to_owned(),
+                        })
+                        .collect();
+                    data.relations.push(Relation {
+                        id: r.id(),
+                        members,
+                        tags: owned(&mut r.tags()),
+                    });
+                }
+            })
+            .map(|()| data)
+            .map_err(|e| OsmError::Pbf(e.to_string()))
+    });
+    read.unwrap_or_else(|_| Err(OsmError::Pbf("the reader failed on its content".into())))
+}
+
+/// A building footprint: its outer ring and holes as (lon_deg, lat_deg), closed (first point
+/// not repeated), and its tags.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Footprint {
+    /// `way/ID` or `relation/ID`.
+    pub id: String,
+    /// The outer ring.
+    pub outer: Vec<[f64; 2]>,
+    /// Inner rings.
+    pub holes: Vec<Vec<[f64; 2]>>,
+    /// Tags (a relation's; an outline's own for a way).
+    pub tags: Tags,
+    /// Tagged `building:part` (and not `building`).
+    pub part: bool,
+}
+
+/// What assembling the footprints found.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Assembly {
+    /// Building ways not closed (or through a missing node): not buildings.
+    pub open_ways: usize,
+    /// Building relations whose rings do not close: not buildings.
+    pub broken_relations: usize,
+    /// Outlines replaced by the `building:part`s inside them.
+    pub outlines_replaced: usize,
+}
+
+fn tag<'a>(tags: &'a Tags, key: &str) -> Option<&'a str> {
+    tags.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+}
+
+/// Whether the tags make a building (any `building` value but `no`) or a building part.
+fn building_kind(tags: &Tags) -> Option<bool> {
+    match (tag(tags, "building"), tag(tags, "building:part")) {
+        (Some(v), _) if v != "no" => Some(false),
+        (_, Some(v)) if v != "no" => Some(true),
+        _ => None,
+    }
+}
+
+/// The positions of a way's nodes; `None` when one is missing.
+fn positions(data: &OsmData, refs: &[i64]) -> Option<Vec<[f64; 2]>> {
+    refs.iter().map(|r| data.nodes.get(r).copied()).collect()
+}
+
+/// A closed ring of node ids (first == last, at least 4) as positions without the repeat.
+fn ring(data: &OsmData, refs: &[i64]) -> Option<Vec<[f64; 2]>> {
+    if refs.len() < 4 || refs.first() != refs.last() {
+        return None;
+    }
+    let mut points = positions(data, refs)?;
+    points.pop();
+    Some(points)
+}
+
+/// Join ways (node-id sequences) into closed rings by their shared end nodes, as
+/// multipolygon members are drawn; `None` if any way is left in an open chain.
+fn join_rings(mut ways: Vec<Vec<i64>>) -> Option<Vec<Vec<i64>>> {
+    let mut rings = Vec::new();
+    while let Some(mut chain) = ways.pop() {
+        while chain.len() < 2 || chain.first() != chain.last() {
+            let end = *chain.last()?;
+            let next = ways
+                .iter()
+                .position(|w| w.first() == Some(&end) || w.last() == Some(&end))?;
+            let mut way = ways.swap_remove(next);
+            if way.first() != Some(&end) {
+                way.reverse();
+            }
+            chain.extend_from_slice(&way[1..]);
+        }
+        rings.push(chain);
+    }
+    Some(rings)
+}
+
+/// Every building footprint: closed ways tagged `building` or `building:part`, and
+/// `type=multipolygon` relations so tagged (outer and inner rings joined from their member
+/// ways; an empty role is outer). Outlines with a `building:part` inside are replaced by
+/// their parts. In id order (ways, then relations).
+pub fn footprints(data: &OsmData) -> (Vec<Footprint>, Assembly) {
+    let mut out = Vec::new();
+    let mut found = Assembly::default();
+    let mut way_ids: Vec<&i64> = data.ways.keys().collect();
+    way_ids.sort_unstable();
+    for id in way_ids {
+        let way = &data.ways[id];
+        let Some(part) = building_kind(&way.tags) else {
+            continue;
+        };
+        match ring(data, &way.refs) {
+            Some(outer) => out.push(Footprint {
+                id: format!("way/{id}"),
+                outer,
+                holes: Vec::new(),
+                tags: way.tags.clone(),
+                part,
+            }),
+            None => found.open_ways += 1,
+        }
+    }
+    let mut relations: Vec<&Relation> = data.relations.iter().collect();
+    relations.sort_by_key(|r| r.id);
+    for r in relations {
+        let Some(part) = building_kind(&r.tags) else {
+            continue;
+        };
+        if tag(&r.tags, "type") != Some("multipolygon") {
+            continue;
+        }
+        match relation_rings(data, r) {
+            Some((mut outers, holes)) if outers.len() == 1 => out.push(Footprint {
+                id: format!("relation/{}", r.id),
+                outer: outers.remove(0),
+                holes,
+                tags: r.tags.clone(),
+                part,
+            }),
+            Some((outers, holes)) if !outers.is_empty() => {
+                // Several outer rings: one footprint each, every hole with the ring it is in.
+                for (k, outer) in outers.iter().enumerate() {
+                    let inside: Vec<Vec<[f64; 2]>> = holes
+                        .iter()
+                        .filter(|h| h.first().is_some_and(|p| contains(outer, *p)))
+                        .cloned()
+                        .collect();
+                    out.push(Footprint {
+                        id: format!("relation/{}/{k}", r.id),
+                        outer: outer.clone(),
+                        holes: inside,
+                        tags: r.tags.clone(),
+                        part,
+                    });
+                }
+            }
+            _ => found.broken_relations += 1,
+        }
+    }
+    found.outlines_replaced = prefer_parts(&mut out);
+    (out, found)
+}
+
+/// A relation's outer and inner rings as positions.
+#[allow(clippy::type_complexity)]
+fn relation_rings(
+    data: &OsmData,
+    r: &Relation,
+) -> Option<(Vec<Vec<[f64; 2]>>, Vec<Vec<[f64; 2]>>)> {
+    let of_role = |inner: bool| -> Option<Vec<Vec<[f64; 2]>>> {
+        let ways: Vec<Vec<i64>> = r
+            .members
+            .iter()
+            .filter(|m| m.is_way && (m.role == "inner") == inner)
+            .filter(|m| inner || m.role.is_empty() || m.role == "outer")
+            .map(|m| data.ways.get(&m.id).map(|w| w.refs.clone()))
+            .collect::<Option<_>>()?;
+        join_rings(ways)?
+            .iter()
+            .map(|refs| ring(data, refs))
+            .collect()
+    };
+    Some((of_role(false)?, of_role(true)?))
+}
+
+/// Whether `p` is inside the ring (even-odd rule, in the plane of lon and lat).
+fn contains(ring: &[[f64; 2]], p: [f64; 2]) -> bool {
+    let mut inside = false;
+    let mut j = ring.len().wrapping_sub(1);
+    for (i, a) in ring.iter().enumerate() {
+        let b = ring[j];
+        if (a[1] > p[1]) != (b[1] > p[1])
+            && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
+        {
+            inside = !inside;
+        }
+        j = i;
+    }
+    inside
+}
+
+/// Drop every outline that has a `building:part` inside it (the part's first vertex, or its
+/// centre, within the outline's outer ring); how many were dropped.
+fn prefer_parts(footprints: &mut Vec<Footprint>) -> usize {
+    let parts: Vec<[f64; 2]> = footprints
+        .iter()
+        .filter(|f| f.part)
+        .map(|f| centre(&f.outer))
+        .collect();
+    let before = footprints.len();
+    footprints.retain(|f| f.part || !parts.iter().any(|p| contains(&f.outer, *p)));
+    before - footprints.len()
+}
+
+fn centre(ring: &[[f64; 2]]) -> [f64; 2] {
+    let n = ring.len().max(1) as f64;
+    let (x, y) = ring
+        .iter()
+        .fold((0.0, 0.0), |(x, y), p| (x + p[0], y + p[1]));
+    [x / n, y / n]
+}
+
+/// Where a building's height came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HeightSource {
+    /// `height`.
+    Height,
+    /// `building:levels` (and `roof:levels`/`roof:height`).
+    Levels,
+    /// Neither: the default.
+    Default,
+}
+
+/// The height policy's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeightPolicy {
+    /// Metres per level. Default 3.
+    pub level_m: f64,
+    /// The height of a building that says neither `height` nor `building:levels`. Default 10.
+    pub default_m: f64,
+}
+
+impl Default for HeightPolicy {
+    fn default() -> Self {
+        Self {
+            level_m: 3.0,
+            default_m: 10.0,
+        }
+    }
+}
+
+/// A length as OSM writes it: metres (`12`, `12.5 m`, `12m`), or feet (`40 ft`, `40'`,
+/// `40'6"`); `None` when it is not one.
+///
+/// ```
+/// use savsim_core::scene::osm::length_m;
+/// assert_eq!(length_m("12.5 m"), Some(12.5));
+/// assert_eq!(length_m("40'"), Some(12.192));
+/// assert_eq!(length_m("tall"), None);
+/// ```
+pub fn length_m(text: &str) -> Option<f64> {
+    let t = text.trim();
+    let number = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+    let metres = if let Some(m) = t.strip_suffix('m') {
+        number(m)?
+    } else if let Some(f) = t.strip_suffix("ft") {
+        number(f)? * 0.3048
+    } else if let Some((feet, rest)) = t.split_once('\'') {
+        let inches = rest.trim().strip_suffix('"').map_or(Some(0.0), number)?;
+        (number(feet)? + inches / 12.0) * 0.3048
+    } else {
+        number(t)?
+    };
+    Some(metres)
+}
+
+/// A building's base and top above the ground, metres, and where its height came from:
+/// top = `height`, else `building:levels` x `level_m` + the roof (`roof:height`, else
+/// `roof:levels` x `level_m`), else the default; base = `min_height`, else
+/// `building:min_level` x `level_m`, else 0. `None` when the base is not below the top.
+///
+/// ```
+/// use savsim_core::scene::osm::{heights, HeightPolicy, HeightSource};
+/// let tags = |t: &[(&str, &str)]| t.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+/// let p = HeightPolicy::default();
+/// assert_eq!(heights(&tags(&[("height", "21")]), p), Some((0.0, 21.0, HeightSource::Height)));
+/// let levels = tags(&[("building:levels", "4"), ("roof:height", "2"), ("building:min_level", "1")]);
+/// assert_eq!(heights(&levels, p), Some((3.0, 14.0, HeightSource::Levels)));
+/// assert_eq!(heights(&tags(&[]), p), Some((0.0, 10.0, HeightSource::Default)));
+/// ```
+pub fn heights(tags: &Tags, policy: HeightPolicy) -> Option<(f64, f64, HeightSource)> {
+    let number = |k: &str| tag(tags, k).and_then(length_m).filter(|v| *v >= 0.0);
+    let count = |k: &str| {
+        tag(tags, k)
+            .and_then(|v| v.trim().parse::<f64>().ok())
+            .filter(|v| v.is_finite() && *v >= 0.0)
+    };
+    let (top, source) = if let Some(h) = number("height") {
+        (h, HeightSource::Height)
+    } else if let Some(levels) = count("building:levels") {
+        let roof = number("roof:height")
+            .or_else(|| count("roof:levels").map(|l| l * policy.level_m))
+            .unwrap_or(0.0);
+        (levels * policy.level_m + roof, HeightSource::Levels)
+    } else {
+        (policy.default_m, HeightSource::Default)
+    };
+    let base = number("min_height")
+        .or_else(|| count("building:min_level").map(|l| l * policy.level_m))
+        .unwrap_or(0.0);
+    (base < top).then_some((base, top, source))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data(xml: &str) -> OsmData {
+        parse_xml(xml).unwrap()
+    }
+
+    const SQUARE: &str = r#"<osm version="0.6">
+      <node id="1" lat="0" lon="0"/><node id="2" lat="0" lon="0.001"/>
+      <node id="3" lat="0.001" lon="0.001"/><node id="4" lat="0.001" lon="0"/>
+      <node id="5" lat="0.0004" lon="0.0004"/><node id="6" lat="0.0004" lon="0.0006"/>
+      <node id="7" lat="0.0006" lon="0.0006"/><node id="8" lat="0.0006" lon="0.0004"/>
+      <way id="10"><nd ref="1"/><nd ref="2"/><nd ref="3"/></way>
+      <way id="11"><nd ref="3"/><nd ref="4"/><nd ref="1"/></way>
+      <way id="12"><nd ref="5"/><nd ref="6"/><nd ref="7"/><nd ref="8"/><nd ref="5"/></way>
+      <relation id="20"><member type="way" ref="11" role="outer"/><member type="way" ref="10" role="outer"/>
+        <member type="way" ref="12" role="inner"/><tag k="type" v="multipolygon"/><tag k="building" v="yes"/></relation>
+    </osm>"#;
+
+    #[test]
+    fn a_multipolygon_of_two_outer_ways_and_a_hole_is_one_footprint_with_its_hole() {
+        let (f, found) = footprints(&data(SQUARE));
+        assert_eq!(found, Assembly::default());
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].id, "relation/20");
+        assert_eq!(f[0].outer.len(), 4);
+        assert_eq!(f[0].holes.len(), 1);
+        assert_eq!(f[0].holes[0].len(), 4);
+    }
+
+    #[test]
+    fn a_part_inside_an_outline_replaces_it_and_an_open_way_is_counted() {
+        let xml = SQUARE.replace(
+            "<relation",
+            r#"<way id="13"><nd ref="5"/><nd ref="6"/><nd ref="7"/><nd ref="8"/><nd ref="5"/><tag k="building:part" v="yes"/></way>
+               <way id="14"><nd ref="1"/><nd ref="2"/><tag k="building" v="yes"/></way><relation"#,
+        );
+        let (f, found) = footprints(&data(&xml));
+        assert_eq!(
+            f.iter().map(|f| f.id.as_str()).collect::<Vec<_>>(),
+            ["way/13"]
+        );
+        assert_eq!((found.outlines_replaced, found.open_ways), (1, 1));
+    }
+
+    #[test]
+    fn bad_files_are_errors_not_panics() {
+        assert!(parse_xml("<kml/>").is_err());
+        assert!(parse_xml("not xml").is_err());
+        assert!(parse_pbf(b"\0\0\0\x0dnot a pbf blob").is_err());
+        assert!(parse_pbf(&[0xff; 64]).is_err());
+        let broken = SQUARE.replace(r#"<member type="way" ref="10" role="outer"/>"#, "");
+        let (f, found) = footprints(&data(&broken));
+        assert!(f.is_empty());
+        assert_eq!(found.broken_relations, 1);
+    }
+}
