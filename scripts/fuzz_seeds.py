@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Write the fuzz targets' seed corpora (fuzz/corpus/<target>/) from the bundled demo flight.
+"""Write the fuzz targets' seed corpora (fuzz/corpus/<target>/) from the bundled demo flight
+(and, for osm_reader and flight_logs, from ../shared/fixtures/realdata when it is there).
 
 Run from the repository root: python3 scripts/fuzz_seeds.py
 """
@@ -56,4 +57,12 @@ CONF = (b"lookahead_time = 180 [s]\nalerting_m = 2\nalerting_n = 4\nhysteresis_t
 for k, daa in enumerate(sorted((ROOT / "tests" / "fixtures" / "daa").glob("*.daa"))):
     head = b"\n".join(daa.read_bytes().split(b"\n")[:60])
     write("daa_files", f"seed{k:03d}", CONF + b"\0" + head)
+# osm_reader and flight_logs: the heads of ../shared/fixtures/realdata's files, where present.
+REALDATA = ROOT.parent / "shared" / "fixtures" / "realdata"
+for path in sorted((REALDATA / "osm").glob("*.osm*")) if REALDATA.is_dir() else []:
+    if not path.name.endswith(".ref.json"):
+        write("osm_reader", path.name, path.read_bytes()[:8000])
+for kind, pattern in [("ulog", "*.ulg"), ("dataflash", "*.bin")]:
+    for path in sorted((REALDATA / kind).glob(pattern)) if REALDATA.is_dir() else []:
+        write("flight_logs", path.name, path.read_bytes()[:16384])
 print("seeds written under", FUZZ / "corpus")

@@ -27,7 +27,8 @@ use crate::error::{Error, Result};
 pub struct Run {
     /// Name in the results (default: `run-<row number>`).
     pub id: Option<String>,
-    /// A flight log to replay.
+    /// A flight log to replay: a tlog, a PX4 ULog or an ArduPilot DataFlash log (told apart by
+    /// their first bytes).
     pub tlog: Option<String>,
     /// A scene file (default: open air around ArduPilot SITL's default home).
     pub scene: Option<String>,

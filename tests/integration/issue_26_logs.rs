@@ -245,3 +245,58 @@ fn real_logs_cut_and_corrupted_anywhere_read_without_a_panic() {
         }
     }
 }
+
+/// `savsim batch` replays ULog and DataFlash logs given in the `tlog` column: one row each,
+/// every position with a fix a collision tick (the same as `savsim replay`).
+#[test]
+fn batch_rows_replay_autopilot_logs() {
+    let mut files = realdata("ulog");
+    files.extend(realdata("dataflash"));
+    if files.is_empty() {
+        eprintln!("skipped: ../shared/fixtures/realdata is absent");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("id,tlog\n");
+    let mut expected = Vec::new();
+    for (k, (path, _)) in files.iter().enumerate() {
+        let data = std::fs::read(path).unwrap();
+        let positions = match read_ulog(&data) {
+            Ok(log) => log.summary.positions,
+            Err(_) => read_dataflash(&data).summary.positions,
+        };
+        csv += &format!("log{k},{}\n", path.display());
+        expected.push(positions);
+    }
+    std::fs::write(dir.path().join("m.csv"), csv).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .args(["batch", "--no-progress", "--out"])
+        .arg(dir.path().join("out"))
+        .arg(dir.path().join("m.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let file = std::fs::File::open(dir.path().join("out/part-00000-of-00001.parquet")).unwrap();
+    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap();
+    let mut ticks = Vec::new();
+    for batch in reader {
+        use arrow_array::Array;
+        let batch = batch.unwrap();
+        let errors = batch.column_by_name("error").unwrap();
+        assert_eq!(errors.null_count(), batch.num_rows(), "a row failed");
+        let t = batch.column_by_name("ticks").unwrap();
+        let t = t
+            .as_any()
+            .downcast_ref::<arrow_array::UInt64Array>()
+            .unwrap();
+        ticks.extend(t.values().iter().copied());
+    }
+    assert_eq!(ticks, expected);
+}

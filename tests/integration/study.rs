@@ -318,3 +318,79 @@ fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shar
         .collect();
     assert!(shards.is_empty(), "a stopped study wrote its shard");
 }
+
+/// The closest approach to each box of every row of `dir`'s shard, by row id, and its outcome.
+fn outcomes(dir: &Path) -> std::collections::BTreeMap<String, (String, Option<f64>)> {
+    use arrow_array::{Array, Float64Array, StringArray};
+    let file = std::fs::File::open(dir.join("part-00000-of-00001.parquet")).unwrap();
+    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .unwrap()
+        .build()
+        .unwrap();
+    let mut out = std::collections::BTreeMap::new();
+    for batch in reader {
+        let batch = batch.unwrap();
+        let text = |name: &str| {
+            batch
+                .column_by_name(name)
+                .unwrap()
+                .as_any()
+                .downcast_ref::<StringArray>()
+                .unwrap()
+                .clone()
+        };
+        let (ids, ended) = (text("row_id"), text("outcome"));
+        let closest = batch.column_by_name("closest_obstacle_m").unwrap();
+        let closest = closest.as_any().downcast_ref::<Float64Array>().unwrap();
+        for i in 0..batch.num_rows() {
+            let m = closest.is_valid(i).then(|| closest.value(i));
+            out.insert(ids.value(i).to_string(), (ended.value(i).to_string(), m));
+        }
+    }
+    out
+}
+
+/// Speed-independence (docs/study.md): two obstacle-approach pairs at speedup 1 and at
+/// `SAVSIM_STUDY_SPEEDUP` (default 20): the same outcome in every row and the closest approach
+/// to the box within 0.5 m. Needs `SAVSIM_ARDUCOPTER`; about two minutes.
+#[test]
+fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
+    if crate::sitl::arducopter().is_none() {
+        return;
+    }
+    let speedup = std::env::var("SAVSIM_STUDY_SPEEDUP").unwrap_or_else(|_| "20".into());
+    let dir = tempfile::tempdir().unwrap();
+    let gen = savsim()
+        .args(["study", "gen", "--seed", "21", "--n", "2", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(gen.status.success());
+    let mut runs = Vec::new();
+    for s in ["1", speedup.as_str()] {
+        let out = dir.path().join(format!("out{s}"));
+        let run = savsim()
+            .args(["study", "--jobs", "2", "--speedup", s, "--out"])
+            .arg(&out)
+            .arg(dir.path().join("study.csv"))
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        runs.push(outcomes(&out));
+    }
+    for (id, (ended, closest)) in &runs[0] {
+        let (at_speed, closest_at_speed) = &runs[1][id];
+        eprintln!("{id}: {ended} {closest:?} / {at_speed} {closest_at_speed:?}");
+        assert_eq!(ended, at_speed, "{id}");
+        if let (Some(a), Some(b)) = (closest, closest_at_speed) {
+            assert!(
+                (a - b).abs() <= 0.5,
+                "{id}: {a} m at 1x, {b} m at {speedup}x"
+            );
+        }
+    }
+}
