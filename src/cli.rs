@@ -87,7 +87,7 @@ pub struct StudyArgs {
     /// SAVSIM_ARDUCOPTER_DEFAULTS (comma-separated).
     #[arg(long)]
     pub arducopter: Option<PathBuf>,
-    /// PX4 SITL binary (default: SAVSIM_PX4). Not flown yet: its rows are errors.
+    /// PX4 SITL binary, `px4` of px4_sitl_default, flown with SIH (default: SAVSIM_PX4).
     #[arg(long)]
     pub px4: Option<PathBuf>,
     /// Keep each row's SITL folder (eeprom, logs, console) under OUT/work (default: removed
@@ -134,6 +134,9 @@ pub enum StudyCommand {
         /// `approaches` or `encounters`.
         #[arg(long, value_enum, default_value_t = StudyGenKind::Approaches)]
         kind: StudyGenKind,
+        /// `arducopter` or `px4` (approaches only): which autopilot's parameters and feed.
+        #[arg(long, default_value = "arducopter")]
+        autopilot: String,
         /// How many pairs.
         #[arg(long)]
         n: usize,

@@ -318,9 +318,15 @@ impl Session {
         Ok(())
     }
 
-    /// Seconds from the first message to `t_s`: the clock of the printed report's "+N s" and of
-    /// the viewer's labels. `None` before the first message.
+    /// Seconds from the first message to `t_s` (on the vehicle's clock,
+    /// [`Session::use_vehicle_clock`]: from the vehicle's boot): the clock of the printed
+    /// report's "+N s", the viewer's labels and a study's times. `None` before the first
+    /// message (its first position, on the vehicle's clock).
     pub fn elapsed_s(&self, t_s: f64) -> Option<f64> {
+        if self.vehicle_clock {
+            // On the vehicle's clock: seconds since its boot.
+            return self.flight_start_t_s.map(|start| t_s - start);
+        }
         self.ingestor
             .stats
             .time_span_s

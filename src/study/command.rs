@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::study::manifest;
 use crate::study::result::{Outcome, StudyResult};
 use crate::study::run::{Setup, SPEEDUP_RANGE};
-use crate::study::sitl::ArduCopter;
+use crate::study::sitl::{ArduCopter, Px4};
 
 /// Set in the environment of a study that runs inside its own network namespace.
 pub const INSIDE_NETNS: &str = "SAVSIM_STUDY_NETNS";
@@ -23,7 +23,13 @@ pub const MAX_JOBS: usize = 64;
 pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     match &args.command {
         Some(StudyCommand::Summarize { dir, nominal, json }) => summarize(dir, nominal, *json),
-        Some(StudyCommand::Gen { kind, n, seed, out }) => gen(*kind, *n, *seed, out),
+        Some(StudyCommand::Gen {
+            kind,
+            autopilot,
+            n,
+            seed,
+            out,
+        }) => gen(*kind, autopilot, *n, *seed, out),
         None => study(args, shutdown),
     }
 }
@@ -86,7 +92,10 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
         .join("work");
     let setup = Setup::new(
         &rows[range.clone()],
-        arducopter(args.arducopter.as_deref()),
+        (
+            arducopter(args.arducopter.as_deref()),
+            px4(args.px4.as_deref()),
+        ),
         args.speedup,
         work,
         shutdown.clone(),
@@ -109,6 +118,14 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
                 .arducopter
                 .as_ref()
                 .map(|a| a.binary.display().to_string())
+                .unwrap_or_default(),
+        ),
+        (
+            "study_px4",
+            setup
+                .px4
+                .as_ref()
+                .map(|p| p.binary.display().to_string())
                 .unwrap_or_default(),
         ),
     ];
@@ -166,6 +183,16 @@ fn arducopter(flag: Option<&Path>) -> Option<ArduCopter> {
     Some(ArduCopter {
         binary: absolute(binary),
         defaults: defaults.into_iter().map(absolute).collect(),
+    })
+}
+
+/// PX4 from `--px4` or `SAVSIM_PX4` (its `etc` folder beside its `bin` folder).
+fn px4(flag: Option<&Path>) -> Option<Px4> {
+    let binary = flag
+        .map(Path::to_path_buf)
+        .or_else(|| std::env::var_os("SAVSIM_PX4").map(PathBuf::from))?;
+    Some(Px4 {
+        binary: std::fs::canonicalize(&binary).unwrap_or(binary),
     })
 }
 
@@ -246,14 +273,29 @@ fn report(results: &[StudyResult], path: &Path) -> String {
 }
 
 /// `study gen`: the manifest `study.csv` in `out`, and one scene per approach.
-fn gen(kind: StudyGenKind, n: usize, seed: u64, out: &Path) -> Result<()> {
+fn gen(kind: StudyGenKind, autopilot: &str, n: usize, seed: u64, out: &Path) -> Result<()> {
     if n == 0 || n > 1_000_000 {
         return Err(Error::Usage(format!("--n {n}: give 1 to 1000000")));
     }
+    let px4 = match (autopilot, kind) {
+        ("arducopter", _) => false,
+        ("px4", StudyGenKind::Approaches) => true,
+        ("px4", StudyGenKind::Encounters) => {
+            return Err(Error::Usage(
+                "--autopilot px4: encounters are written for ArduCopter's ADS-B avoidance only"
+                    .into(),
+            ))
+        }
+        (other, _) => {
+            return Err(Error::Usage(format!(
+                "--autopilot {other:?}: give arducopter or px4"
+            )))
+        }
+    };
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let rows: Vec<_> = match kind {
         StudyGenKind::Approaches => {
-            let approaches = crate::study::gen::approaches(n, seed);
+            let approaches = crate::study::gen::approaches_for(n, seed, px4);
             for a in &approaches {
                 let path = out.join(&a.scene_file);
                 std::fs::write(&path, &a.scene_toml).map_err(|e| Error::file(&path, e))?;

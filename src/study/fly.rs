@@ -189,3 +189,206 @@ fn arm_guided(
         }
     }
 }
+
+/// PX4's main mode POSCTL (custom_mode's third byte).
+const PX4_POSCTL: u32 = 3;
+
+/// PX4's Position-mode stick mapping, from its parameters (their defaults when unread).
+#[derive(Debug, Clone, Copy)]
+struct StickMap {
+    vel_xy: f64,
+    vel_up: f64,
+    vel_down: f64,
+    dz: f64,
+    expo_xy: f64,
+    expo_z: f64,
+}
+
+impl StickMap {
+    fn read(pilot: &mut Pilot, stop: &dyn Fn() -> bool) -> Result<StickMap, PilotError> {
+        let mut get = |name: &str, default: f64| -> Result<f64, PilotError> {
+            Ok(pilot
+                .read_param(name, 3.0, stop)?
+                .map_or(default, |(v, _)| f64::from(v))
+                .max(0.0))
+        };
+        Ok(StickMap {
+            vel_xy: get("MPC_VEL_MANUAL", 10.0)?.max(0.1),
+            vel_up: get("MPC_Z_VEL_MAX_UP", 3.0)?.max(0.1),
+            vel_down: get("MPC_Z_VEL_MAX_DN", 1.5)?.max(0.1),
+            dz: get("MPC_HOLD_DZ", 0.1)?.min(0.9),
+            expo_xy: get("MPC_XY_MAN_EXPO", 0.6)?.min(1.0),
+            expo_z: get("MPC_Z_MAN_EXPO", 0.6)?.min(1.0),
+        })
+    }
+
+    /// Sticks (forward, right, up) asking for `velocity` (ENU m/s) of a vehicle heading
+    /// `heading_deg` (clockwise from north).
+    fn sticks(&self, velocity: DVec3, heading_deg: f64) -> (f64, f64, f64) {
+        let (s, c) = heading_deg.to_radians().sin_cos();
+        let forward = velocity.x * s + velocity.y * c;
+        let right = velocity.x * c - velocity.y * s;
+        let vertical = if velocity.z >= 0.0 {
+            velocity.z / self.vel_up
+        } else {
+            velocity.z / self.vel_down
+        };
+        let xy = |v: f64| crate::study::pilot::stick_for(v / self.vel_xy, self.dz, self.expo_xy);
+        (
+            xy(forward),
+            xy(right),
+            crate::study::pilot::stick_for(vertical, self.dz, self.expo_z),
+        )
+    }
+}
+
+/// Fly `legs` on PX4 (SIH) until `duration_s` of its clock: the row's parameters and
+/// MIS_TAKEOFF_ALT set over MAVLink, armed, AUTO takeoff, then Position mode with the sticks
+/// (MANUAL_CONTROL at every position) asking for each leg's velocity: Position mode is where
+/// PX4's Collision Prevention (CP_DIST) acts.
+pub fn fly_px4(
+    pilot: &mut Pilot,
+    legs: &[Leg],
+    params: &[(String, f64)],
+    duration_s: f64,
+    stop: &dyn Fn() -> bool,
+) -> Result<Flown, PilotError> {
+    let Some(first) = pilot.next_fix(stop)? else {
+        return Ok(Flown {
+            stopped: true,
+            ..Flown::default()
+        });
+    };
+    pilot.ask_positions()?;
+    for (name, value) in params {
+        pilot.set_param(name, *value, stop)?;
+    }
+    if let Some(Leg::Takeoff { up_m }) = legs.iter().find(|l| matches!(l, Leg::Takeoff { .. })) {
+        pilot.set_param("MIS_TAKEOFF_ALT", *up_m, stop)?;
+    }
+    let map = StickMap::read(pilot, stop)?;
+    let mut flown = Flown {
+        last_ms: first.time_boot_ms,
+        ..Flown::default()
+    };
+    let mut watch = SlowWatch::default();
+    let mut position_mode_asked = false;
+    for leg in legs {
+        if let Leg::Takeoff { .. } = leg {
+            arm_px4(pilot, &mut flown, duration_s, stop)?;
+        }
+        let began = pilot.fix.unwrap_or(first);
+        start_leg_px4(pilot, leg)?;
+        let mut asked_ms = began.time_boot_ms;
+        loop {
+            let Some(fix) = pilot.next_fix(stop)? else {
+                flown.stopped = true;
+                return Ok(flown);
+            };
+            flown.last_ms = fix.time_boot_ms;
+            if clock_s(&fix) >= duration_s {
+                return Ok(flown);
+            }
+            // PX4 may refuse a takeoff sent the moment it armed: asked again every 3 s of its
+            // clock while it has not left the ground.
+            let low = fix.enu_m.z - began.enu_m.z < 1.0;
+            if matches!(leg, Leg::Takeoff { .. })
+                && low
+                && fix.time_boot_ms.wrapping_sub(asked_ms) >= 3000
+            {
+                asked_ms = fix.time_boot_ms;
+                start_leg_px4(pilot, leg)?;
+            }
+            let (mode_now, armed) = pilot.state();
+            let in_position_mode = mode_now.is_some_and(|m| (m >> 16) & 0xff == PX4_POSCTL);
+            let command = command_of(leg, &fix);
+            // Position mode once, at the first leg after the takeoff (asked until PX4 takes
+            // it); a mode PX4 chose later (its traffic avoidance's) is left to it.
+            if command.is_some() && in_position_mode {
+                position_mode_asked = true;
+            } else if command.is_some()
+                && !position_mode_asked
+                && fix.time_boot_ms.wrapping_sub(asked_ms) >= 1000
+            {
+                asked_ms = fix.time_boot_ms;
+                pilot.command(
+                    MavCmd::MAV_CMD_DO_SET_MODE,
+                    [1.0, PX4_POSCTL as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
+                )?;
+            }
+            let wanted = command.filter(|_| in_position_mode).unwrap_or(DVec3::ZERO);
+            let (forward, right, up) = map.sticks(wanted, fix.heading_deg.unwrap_or(0.0));
+            pilot.sticks(forward, right, up)?;
+            if watch.slowed(wanted, &fix) && flown.slowed_t_s.is_none() {
+                flown.slowed_t_s = Some(clock_s(&fix));
+            }
+            if leg_done(leg, &fix, &began, armed) {
+                break;
+            }
+        }
+        flown.legs_completed += 1;
+    }
+    Ok(flown)
+}
+
+/// What a PX4 leg sends once, at its start: AUTO takeoff (to MIS_TAKEOFF_ALT), or land.
+fn start_leg_px4(pilot: &mut Pilot, leg: &Leg) -> Result<(), PilotError> {
+    let nan = f32::NAN;
+    match leg {
+        Leg::Takeoff { .. } => pilot.command(
+            MavCmd::MAV_CMD_NAV_TAKEOFF,
+            [nan, 0.0, 0.0, nan, nan, nan, nan],
+        ),
+        Leg::Land => pilot.command(
+            MavCmd::MAV_CMD_NAV_LAND,
+            [0.0, 0.0, 0.0, nan, nan, nan, nan],
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// PX4 armed, asking once a second of its clock (sticks centred meanwhile: PX4 wants its
+/// manual input alive), within [`ARM_WITHIN_S`] and the row's time.
+fn arm_px4(
+    pilot: &mut Pilot,
+    flown: &mut Flown,
+    duration_s: f64,
+    stop: &dyn Fn() -> bool,
+) -> Result<(), PilotError> {
+    let began_ms = flown.last_ms;
+    let mut asked_ms: Option<u32> = None;
+    loop {
+        if pilot.state().1 {
+            flown.armed_t_s = Some(f64::from(flown.last_ms) / 1000.0);
+            return Ok(());
+        }
+        let Some(fix) = pilot.next_fix(stop)? else {
+            return Ok(());
+        };
+        flown.last_ms = fix.time_boot_ms;
+        pilot.sticks(0.0, 0.0, 0.0)?;
+        let waited_s = f64::from(fix.time_boot_ms.wrapping_sub(began_ms)) / 1000.0;
+        if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
+            let texts: Vec<String> = pilot
+                .heard()
+                .texts
+                .iter()
+                .rev()
+                .take(5)
+                .map(|t| t.2.clone())
+                .collect();
+            return Err(PilotError::NoArm {
+                waited_s,
+                texts: texts.join("; "),
+            });
+        }
+        let due = asked_ms.is_none_or(|a| fix.time_boot_ms.wrapping_sub(a) >= 1000);
+        if due {
+            asked_ms = Some(fix.time_boot_ms);
+            pilot.command(
+                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+                [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            )?;
+        }
+    }
+}

@@ -29,6 +29,13 @@ pub const MITIGATED_PARAMS: &str =
     "PRX1_TYPE=2;PRX_FILT=0;AVOID_ENABLE=3;AVOID_BEHAVE=1;AVOID_MARGIN=3";
 /// The nominal rows': avoidance off.
 pub const NOMINAL_PARAMS: &str = "AVOID_ENABLE=0";
+/// PX4's mitigated rows: Collision Prevention keeping 5 m, in the Position-mode variant that
+/// has it in PX4 1.15 (smoothed velocity; the default, acceleration-based, has none there).
+pub const PX4_MITIGATED_PARAMS: &str = "CP_DIST=5;MPC_POS_MODE=3";
+/// PX4's nominal rows: Collision Prevention off, the same Position-mode variant.
+pub const PX4_NOMINAL_PARAMS: &str = "CP_DIST=-1;MPC_POS_MODE=3";
+/// PX4 takes longer to reach its stick's speed: its velocity legs last this much longer.
+const PX4_EXTRA_S: f64 = 15.0;
 
 /// **Encounters** ([`encounters`]): the copter hovers at 30 m over home (open air); a
 /// small-UAS intruder (`dji`) crosses at [`ENCOUNTER_TCA_S`] of the copter's clock, heading
@@ -122,11 +129,17 @@ pub struct Approach {
 /// assert_eq!(a[0].rows[1].variant.as_deref(), Some("mitigated"));
 /// ```
 pub fn approaches(n: usize, seed: u64) -> Vec<Approach> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..n).map(|k| approach(k, seed, &mut rng)).collect()
+    approaches_for(n, seed, false)
 }
 
-fn approach(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> Approach {
+/// The same approaches for PX4 (`px4`: `--feed obstacle-distance`, CP_DIST) or ArduCopter;
+/// the geometry is the same for a seed.
+pub fn approaches_for(n: usize, seed: u64, px4: bool) -> Vec<Approach> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n).map(|k| approach(k, seed, px4, &mut rng)).collect()
+}
+
+fn approach(k: usize, seed: u64, px4: bool, rng: &mut ChaCha8Rng) -> Approach {
     let heading_deg: f64 = rng.random_range(0.0..360.0);
     let speed_mps: f64 = rng.random_range(3.0..8.0);
     let (width_m, depth_m, height_m): (f64, f64, f64) = (
@@ -158,7 +171,7 @@ fn approach(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> Approach {
         o.lat_deg, o.lon_deg, o.alt_m, centre[0], centre[1]
     );
     // Fly on 25 m past the box's far side.
-    let leg_s = (near_m + depth_m + 25.0) / speed_mps;
+    let leg_s = (near_m + depth_m + 25.0) / speed_mps + if px4 { PX4_EXTRA_S } else { 0.0 };
     let plan = format!(
         "takeoff {PATH_UP_M}; velocity {:.3} {:.3} 0 {leg_s:.1}",
         along[0] * speed_mps,
@@ -167,7 +180,7 @@ fn approach(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> Approach {
     let row = |variant: &str, params: &str, feed: Option<&str>| StudyRow {
         id: Some(format!("{id}-{variant}")),
         scene: Some(scene_file.clone()),
-        autopilot: Some("arducopter".into()),
+        autopilot: Some(if px4 { "px4" } else { "arducopter" }.into()),
         variant: Some(variant.into()),
         pair: Some(id.clone()),
         params: Some(params.into()),
@@ -180,9 +193,16 @@ fn approach(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> Approach {
     Approach {
         scene_file: scene_file.clone(),
         scene_toml,
-        rows: [
-            row("nominal", NOMINAL_PARAMS, None),
-            row("mitigated", MITIGATED_PARAMS, Some("proximity")),
-        ],
+        rows: if px4 {
+            [
+                row("nominal", PX4_NOMINAL_PARAMS, None),
+                row("mitigated", PX4_MITIGATED_PARAMS, Some("obstacle-distance")),
+            ]
+        } else {
+            [
+                row("nominal", NOMINAL_PARAMS, None),
+                row("mitigated", MITIGATED_PARAMS, Some("proximity")),
+            ]
+        },
     }
 }

@@ -8,14 +8,15 @@
 //! ArduCopter's proximity avoidance acts on, docs/closed-loop.md), re-sent at every position.
 
 use std::io::Write;
-use std::net::TcpStream;
+use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavState, MavType,
-    PositionTargetTypemask, COMMAND_LONG_DATA, HEARTBEAT_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavState, MavType,
+    PositionTargetTypemask, COMMAND_LONG_DATA, HEARTBEAT_DATA, MANUAL_CONTROL_DATA,
+    PARAM_REQUEST_READ_DATA, PARAM_SET_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 
 use crate::geo::{Geodetic, LocalTangentPlane};
@@ -93,6 +94,8 @@ pub struct Fix {
     pub enu_m: DVec3,
     /// Velocity, scene ENU m/s.
     pub velocity_enu_mps: DVec3,
+    /// Heading, degrees clockwise from north (`None` when the autopilot does not know it).
+    pub heading_deg: Option<f64>,
 }
 
 /// What the autopilot said, apart from its positions.
@@ -112,6 +115,8 @@ pub struct Heard {
     pub version: Option<String>,
     /// Its clock at the last position, ms.
     pub time_boot_ms: u32,
+    /// PARAM_VALUE: the last value and type heard of each parameter, by name.
+    pub params: Vec<(String, f32, u8)>,
 }
 
 /// What the reader thread passes on.
@@ -152,11 +157,26 @@ pub enum PilotError {
     /// Writing to its port failed.
     #[error("sending to the autopilot failed: {0}")]
     Send(String),
+    /// A parameter could not be set.
+    #[error("parameter {name}: {why}")]
+    Param {
+        /// Its name.
+        name: String,
+        /// Why.
+        why: String,
+    },
+}
+
+/// How the pilot reaches the autopilot: a TCP connection (ArduCopter SITL's SERIAL1) or a UDP
+/// socket and the autopilot's address (PX4's onboard link).
+enum Wire {
+    Tcp(TcpStream),
+    Udp(UdpSocket, SocketAddr),
 }
 
 /// The pilot's side of the link: the writer; the reader thread feeds `fixes`.
 pub struct Pilot {
-    stream: TcpStream,
+    wire: Wire,
     outbox: Outbox,
     target: SenderId,
     /// Positions (and other news) from the reader thread.
@@ -197,16 +217,88 @@ impl Pilot {
         let reader = stream
             .try_clone()
             .map_err(|e| PilotError::Send(e.to_string()))?;
+        Self::with_reader(Wire::Tcp(stream), target, move |into, tx| {
+            let mut reader = mavlink::MavlinkReader::new(reader);
+            loop {
+                match reader.read_any_message::<MavMessage>() {
+                    Ok((h, m)) => {
+                        if !pass_on(h, m, target, &plane, into, tx) {
+                            return;
+                        }
+                    }
+                    Err(mavlink::error::MessageReadError::Io(_)) => return,
+                    Err(_) => {}
+                }
+            }
+        })
+    }
+
+    /// The pilot on UDP: bound to 127.0.0.1:`bind_port` (retried for five seconds), sending
+    /// to 127.0.0.1:`to_port` (PX4's onboard link sends to the one and listens on the other).
+    pub fn udp(
+        bind_port: u16,
+        to_port: u16,
+        target: SenderId,
+        plane: LocalTangentPlane,
+    ) -> Result<Pilot, PilotError> {
+        let started = Instant::now();
+        let socket = loop {
+            match bind_reusable(bind_port) {
+                Ok(s) => break s,
+                Err(e) if started.elapsed() > Duration::from_secs(5) => {
+                    return Err(PilotError::NoPort {
+                        port: bind_port,
+                        waited_s: 5.0,
+                        why: e.to_string(),
+                    })
+                }
+                Err(_) => std::thread::sleep(Duration::from_millis(100)),
+            }
+        };
+        let err = |e: std::io::Error| PilotError::Send(e.to_string());
+        socket
+            .set_read_timeout(Some(Duration::from_millis(200)))
+            .map_err(err)?;
+        let reader = socket.try_clone().map_err(err)?;
+        let to = SocketAddr::from(([127, 0, 0, 1], to_port));
+        Self::with_reader(Wire::Udp(socket, to), target, move |into, tx| {
+            let mut buffer = [0u8; 4096];
+            loop {
+                // Nobody holds the pilot any more: stop reading (and free the port).
+                if std::sync::Arc::strong_count(into) == 1 {
+                    return;
+                }
+                let n = match reader.recv(&mut buffer) {
+                    Ok(n) => n,
+                    Err(e) if is_timeout(&e) => continue,
+                    Err(_) => return,
+                };
+                let mut datagram = mavlink::MavlinkReader::new(&buffer[..n]);
+                while let Ok((h, m)) = datagram.read_any_message::<MavMessage>() {
+                    if !pass_on(h, m, target, &plane, into, tx) {
+                        return;
+                    }
+                }
+            }
+        })
+    }
+
+    /// A pilot writing to `wire`, its reader thread running `read`.
+    fn with_reader(
+        wire: Wire,
+        target: SenderId,
+        read: impl FnOnce(&Shared, &std::sync::mpsc::SyncSender<Heard1>) + Send + 'static,
+    ) -> Result<Pilot, PilotError> {
         let heard = std::sync::Arc::new(std::sync::Mutex::new(Heard::default()));
         // Bounded: a pilot that falls behind holds the reader back (TCP then holds SITL's).
         let (tx, news) = std::sync::mpsc::sync_channel(1024);
         let into = heard.clone();
         std::thread::Builder::new()
             .name("savsim-pilot".into())
-            .spawn(move || read_autopilot(reader, target, plane, &into, &tx))
+            .spawn(move || read(&into, &tx))
             .map_err(|e| PilotError::Send(e.to_string()))?;
         Ok(Pilot {
-            stream,
+            wire,
             outbox: Outbox::new(PILOT),
             target,
             news,
@@ -233,9 +325,11 @@ impl Pilot {
     /// Send `message` to the autopilot.
     pub fn send(&mut self, message: &MavMessage) -> Result<(), PilotError> {
         let bytes = self.outbox.encode(message);
-        self.stream
-            .write_all(&bytes)
-            .map_err(|e| PilotError::Send(e.to_string()))
+        let sent = match &mut self.wire {
+            Wire::Tcp(stream) => stream.write_all(&bytes),
+            Wire::Udp(socket, to) => socket.send_to(&bytes, *to).map(|_| ()),
+        };
+        sent.map_err(|e| PilotError::Send(e.to_string()))
     }
 
     /// COMMAND_LONG `command` with `p` to the autopilot.
@@ -357,6 +451,229 @@ impl Pilot {
     }
 }
 
+impl Pilot {
+    /// PX4's parameter `name` as last heard: its value (as PX4 encodes it: an integer's bits in
+    /// the float) and MAV_PARAM_TYPE.
+    fn param_heard(&self, name: &str) -> Option<(f32, u8)> {
+        let heard = self.heard.lock().ok()?;
+        heard
+            .params
+            .iter()
+            .find(|p| p.0 == name)
+            .map(|p| (p.1, p.2))
+    }
+
+    /// Ask for parameter `name` and wait (on the vehicle's clock, at most `within_s`) for its
+    /// value and type.
+    pub fn read_param(
+        &mut self,
+        name: &str,
+        within_s: f64,
+        stop: &dyn Fn() -> bool,
+    ) -> Result<Option<(f32, u8)>, PilotError> {
+        let asked_ms = self.fix.map_or(0, |f| f.time_boot_ms);
+        self.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: self.target.system_id,
+            target_component: self.target.component_id,
+            param_id: name.into(),
+        }))?;
+        while let Some(fix) = self.next_fix(stop)? {
+            if let Some(v) = self.param_heard(name) {
+                return Ok(Some(v));
+            }
+            if f64::from(fix.time_boot_ms.wrapping_sub(asked_ms)) / 1000.0 > within_s {
+                return Ok(None);
+            }
+        }
+        Ok(None)
+    }
+
+    /// Set PX4 parameter `name` to `value` in its own type (read first; an integer's bits travel
+    /// in the float, as PX4 encodes them) and wait for PX4 to echo it. An error when PX4 does
+    /// not know the parameter or does not take the value.
+    pub fn set_param(
+        &mut self,
+        name: &str,
+        value: f64,
+        stop: &dyn Fn() -> bool,
+    ) -> Result<(), PilotError> {
+        let refused = |why: &str| PilotError::Param {
+            name: name.to_owned(),
+            why: why.to_owned(),
+        };
+        let Some((_, kind)) = self.read_param(name, 5.0, stop)? else {
+            return Err(refused("PX4 did not answer for it (no such parameter?)"));
+        };
+        let int = kind == MavParamType::MAV_PARAM_TYPE_INT32 as u8;
+        let wire = if int {
+            f32::from_bits(value.round() as i32 as u32)
+        } else {
+            value as f32
+        };
+        let param_type = if int {
+            MavParamType::MAV_PARAM_TYPE_INT32
+        } else {
+            MavParamType::MAV_PARAM_TYPE_REAL32
+        };
+        for _ in 0..3 {
+            self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
+                param_value: wire,
+                target_system: self.target.system_id,
+                target_component: self.target.component_id,
+                param_id: name.into(),
+                param_type,
+            }))?;
+            let Some((now, _)) = self.read_param(name, 2.0, stop)? else {
+                continue;
+            };
+            if now.to_bits() == wire.to_bits() {
+                return Ok(());
+            }
+        }
+        Err(refused(&format!("PX4 did not take {value}")))
+    }
+
+    /// Set parameter `name` (its type read first) before the autopilot sends positions,
+    /// waiting on the wall clock (at most `within` for each answer): for set-up before the
+    /// row's flight, e.g. PX4 SIH's home altitude.
+    pub fn set_param_before_flight(
+        &mut self,
+        name: &str,
+        value: f64,
+        within: Duration,
+    ) -> Result<(), PilotError> {
+        let refused = |why: String| PilotError::Param {
+            name: name.to_owned(),
+            why,
+        };
+        let ask = |pilot: &mut Pilot, set: Option<(f32, MavParamType)>| {
+            if let Ok(mut heard) = pilot.heard.lock() {
+                heard.params.retain(|p| p.0 != name);
+            }
+            match set {
+                Some((param_value, param_type)) => {
+                    pilot.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
+                        param_value,
+                        target_system: pilot.target.system_id,
+                        target_component: pilot.target.component_id,
+                        param_id: name.into(),
+                        param_type,
+                    }))
+                }
+                None => pilot.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+                    param_index: -1,
+                    target_system: pilot.target.system_id,
+                    target_component: pilot.target.component_id,
+                    param_id: name.into(),
+                })),
+            }?;
+            let started = Instant::now();
+            while started.elapsed() < within {
+                if let Some(v) = pilot.param_heard(name) {
+                    return Ok(Some(v));
+                }
+                let _ = pilot.news.recv_timeout(Duration::from_millis(50));
+            }
+            Ok::<_, PilotError>(None)
+        };
+        let mut answer = None;
+        for _ in 0..20 {
+            answer = ask(self, None)?;
+            if answer.is_some() {
+                break;
+            }
+        }
+        let Some((_, kind)) = answer else {
+            return Err(refused("the autopilot did not answer for it".into()));
+        };
+        let param_type = if kind == MavParamType::MAV_PARAM_TYPE_INT32 as u8 {
+            MavParamType::MAV_PARAM_TYPE_INT32
+        } else {
+            MavParamType::MAV_PARAM_TYPE_REAL32
+        };
+        let wire = if param_type == MavParamType::MAV_PARAM_TYPE_INT32 {
+            f32::from_bits(value.round() as i32 as u32)
+        } else {
+            value as f32
+        };
+        match ask(self, Some((wire, param_type)))? {
+            Some((now, _)) if now.to_bits() == wire.to_bits() => Ok(()),
+            _ => Err(refused(format!("the autopilot did not take {value}"))),
+        }
+    }
+
+    /// MANUAL_CONTROL: pitch (`forward`), roll (`right`) and throttle (`up`), each -1..1
+    /// (throttle centred at 0), no yaw; PX4's joystick input (COM_RC_IN_MODE).
+    pub fn sticks(&mut self, forward: f64, right: f64, up: f64) -> Result<(), PilotError> {
+        let axis = |v: f64| (v.clamp(-1.0, 1.0) * 1000.0).round() as i16;
+        self.send(&MavMessage::MANUAL_CONTROL(MANUAL_CONTROL_DATA {
+            x: axis(forward),
+            y: axis(right),
+            z: ((up.clamp(-1.0, 1.0) + 1.0) * 500.0).round() as i16,
+            r: 0,
+            buttons: 0,
+            target: self.target.system_id,
+            ..MANUAL_CONTROL_DATA::default()
+        }))
+    }
+}
+
+/// PX4's name of flight mode `custom_mode` (main mode in its third byte, AUTO's sub mode in
+/// its fourth).
+pub fn px4_mode_name(custom_mode: u32) -> String {
+    let (main, sub) = ((custom_mode >> 16) & 0xff, custom_mode >> 24);
+    const MAIN: [&str; 9] = [
+        "",
+        "MANUAL",
+        "ALTCTL",
+        "POSCTL",
+        "AUTO",
+        "ACRO",
+        "OFFBOARD",
+        "STABILIZED",
+        "RATTITUDE",
+    ];
+    const AUTO: [&str; 10] = [
+        "", "READY", "TAKEOFF", "LOITER", "MISSION", "RTL", "LAND", "", "FOLLOW", "PRECLAND",
+    ];
+    match (MAIN.get(main as usize), AUTO.get(sub as usize)) {
+        (Some(&"AUTO"), Some(sub)) if !sub.is_empty() => format!("AUTO.{sub}"),
+        (Some(main), _) if !main.is_empty() => (*main).to_string(),
+        _ => format!("MODE{custom_mode:#x}"),
+    }
+}
+
+/// The stick (-1..1) that makes PX4's Position mode ask for `fraction` (-1..1) of its
+/// maximum, through its deadzone `dz` (MPC_HOLD_DZ) and expo `e` (MPC_XY_MAN_EXPO):
+/// PX4 maps a stick `s` to `expo(deadzone(s))`, `deadzone(s) = (|s| - dz) / (1 - dz)`,
+/// `expo(u) = (1 - e) u + e u^3`; this inverts it (Newton on the cubic).
+///
+/// ```
+/// use savsim::study::pilot::stick_for;
+/// let s = stick_for(0.5, 0.1, 0.6);
+/// let u = (s - 0.1) / 0.9;
+/// assert!(((1.0 - 0.6) * u + 0.6 * u * u * u - 0.5).abs() < 1e-9);
+/// assert_eq!(stick_for(0.0, 0.1, 0.6), 0.0);
+/// ```
+pub fn stick_for(fraction: f64, dz: f64, e: f64) -> f64 {
+    let f = fraction.clamp(-1.0, 1.0);
+    if f == 0.0 {
+        return 0.0;
+    }
+    let target = f.abs();
+    let mut u = target;
+    for _ in 0..50 {
+        let value = (1.0 - e) * u + e * u * u * u - target;
+        let slope = (1.0 - e) + 3.0 * e * u * u;
+        if slope.abs() < 1e-12 {
+            break;
+        }
+        u = (u - value / slope).clamp(0.0, 1.0);
+    }
+    f.signum() * (u * (1.0 - dz) + dz).min(1.0)
+}
+
 /// The velocity a `goto` commands from `at` towards `to` at `speed_mps`, slowing within two
 /// seconds of the point (at most half the distance per second), scene ENU m/s.
 ///
@@ -388,57 +705,72 @@ pub fn leg_done(leg: &Leg, fix: &Fix, began: &Fix, armed: bool) -> bool {
     }
 }
 
-/// The reader thread: every message from `target` into `heard`, positions (in `plane`) also
-/// to `tx`. Ends when the connection closes or the pilot is gone.
-fn read_autopilot(
-    stream: TcpStream,
+/// A UDP socket on 127.0.0.1:`port` with SO_REUSEADDR, so that a row's pilot can bind the
+/// port the last row's pilot had while that one's reader thread lets go of it.
+fn bind_reusable(port: u16) -> std::io::Result<UdpSocket> {
+    let address = SocketAddr::from(([127, 0, 0, 1], port));
+    let socket = socket2::Socket::new(
+        socket2::Domain::IPV4,
+        socket2::Type::DGRAM,
+        Some(socket2::Protocol::UDP),
+    )?;
+    socket.set_reuse_address(true)?;
+    socket.bind(&address.into())?;
+    Ok(socket.into())
+}
+
+/// What the pilot and its reader thread share.
+type Shared = std::sync::Arc<std::sync::Mutex<Heard>>;
+
+fn is_timeout(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+    )
+}
+
+/// One message from the autopilot's link: from `target` into `heard`, positions (in `plane`)
+/// also to `tx`. False when the pilot is gone.
+fn pass_on(
+    header: mavlink::MavHeader,
+    message: MavMessage,
     target: SenderId,
-    plane: LocalTangentPlane,
+    plane: &LocalTangentPlane,
     heard: &std::sync::Mutex<Heard>,
     tx: &std::sync::mpsc::SyncSender<Heard1>,
-) {
-    let mut reader = mavlink::MavlinkReader::new(stream);
-    loop {
-        let (header, message) = match reader.read_any_message::<MavMessage>() {
-            Ok(m) => m,
-            Err(mavlink::error::MessageReadError::Io(_)) => return,
-            Err(_) => continue,
-        };
-        if header.system_id != u32::from(target.system_id) {
-            continue;
-        }
-        let news = match message {
-            // ArduPilot sends 0, 0 until its EKF has an origin: no position yet.
-            MavMessage::GLOBAL_POSITION_INT(p)
-                if header.component_id == target.component_id && (p.lat, p.lon) != (0, 0) =>
-            {
-                let at = Geodetic::new(
-                    f64::from(p.lat) * 1e-7,
-                    f64::from(p.lon) * 1e-7,
-                    f64::from(p.alt) * 1e-3,
-                );
-                let ned =
-                    glam::DVec3::new(f64::from(p.vx), f64::from(p.vy), f64::from(p.vz)) * 0.01;
-                if let Ok(mut h) = heard.lock() {
-                    h.time_boot_ms = p.time_boot_ms;
-                }
-                Heard1::Fix(Fix {
-                    time_boot_ms: p.time_boot_ms,
-                    enu_m: plane.enu_m_from_geodetic(&at),
-                    velocity_enu_mps: DVec3::new(ned.y, ned.x, -ned.z),
-                })
-            }
-            other => {
-                if let Ok(mut h) = heard.lock() {
-                    hear(&mut h, header.component_id == target.component_id, other);
-                }
-                Heard1::Other
-            }
-        };
-        if tx.send(news).is_err() {
-            return;
-        }
+) -> bool {
+    if header.system_id != u32::from(target.system_id) {
+        return true;
     }
+    let news = match message {
+        // ArduPilot sends 0, 0 until its EKF has an origin: no position yet.
+        MavMessage::GLOBAL_POSITION_INT(p)
+            if header.component_id == target.component_id && (p.lat, p.lon) != (0, 0) =>
+        {
+            let at = Geodetic::new(
+                f64::from(p.lat) * 1e-7,
+                f64::from(p.lon) * 1e-7,
+                f64::from(p.alt) * 1e-3,
+            );
+            let ned = DVec3::new(f64::from(p.vx), f64::from(p.vy), f64::from(p.vz)) * 0.01;
+            if let Ok(mut h) = heard.lock() {
+                h.time_boot_ms = p.time_boot_ms;
+            }
+            Heard1::Fix(Fix {
+                time_boot_ms: p.time_boot_ms,
+                enu_m: plane.enu_m_from_geodetic(&at),
+                velocity_enu_mps: DVec3::new(ned.y, ned.x, -ned.z),
+                heading_deg: (p.hdg != u16::MAX).then(|| f64::from(p.hdg) / 100.0),
+            })
+        }
+        other => {
+            if let Ok(mut h) = heard.lock() {
+                hear(&mut h, header.component_id == target.component_id, other);
+            }
+            Heard1::Other
+        }
+    };
+    tx.send(news).is_ok()
 }
 
 /// Take one message other than a position into `heard`.
@@ -468,6 +800,16 @@ fn hear(heard: &mut Heard, from_autopilot: bool, message: MavMessage) {
                 .to_owned();
             if heard.texts.len() < 1000 {
                 heard.texts.push((now, t.severity as u8, text));
+            }
+        }
+        MavMessage::PARAM_VALUE(v) => {
+            let name = v.param_id.to_str().unwrap_or("").trim_end_matches('\0');
+            let entry = (name.to_owned(), v.param_value, v.param_type as u8);
+            let full = heard.params.len() >= 1000;
+            match heard.params.iter_mut().find(|p| p.0 == entry.0) {
+                Some(p) => *p = entry,
+                None if !full => heard.params.push(entry),
+                None => {}
             }
         }
         MavMessage::AUTOPILOT_VERSION(v) => {

@@ -22,12 +22,12 @@ use crate::ingest::live::Link;
 use crate::ingest::stats::SenderId;
 use crate::scene::{self, Kind, Scene, Waypoint};
 use crate::session::Session;
-use crate::study::fly::{fly, Flown};
+use crate::study::fly::{fly, fly_px4, Flown};
 use crate::study::manifest::StudyRow;
-use crate::study::pilot::{arducopter_mode_name, mode, Heard, Pilot, PilotError};
+use crate::study::pilot::{arducopter_mode_name, mode, px4_mode_name, Heard, Pilot, PilotError};
 use crate::study::plan::{self, Leg, PlanError};
 use crate::study::result::{AutopilotDid, Outcome, StudyResult};
-use crate::study::sitl::{ArduCopter, Start};
+use crate::study::sitl::{px4_gcs_port, px4_onboard_ports, ArduCopter, Px4, Sitl, Start};
 use savsim_core::bounds::MAX_DURATION_S;
 
 /// A row's default length, seconds of the vehicle's clock.
@@ -84,6 +84,8 @@ fn input(column: &'static str, why: impl Into<String>) -> RowError {
 pub struct Setup {
     /// ArduCopter SITL, when given.
     pub arducopter: Option<ArduCopter>,
+    /// PX4 SITL (SIH), when given.
+    pub px4: Option<Px4>,
     /// The speedup for rows that name none.
     pub speedup: f64,
     /// Where each row's SITL folder is made (`DIR/work/<row id>`).
@@ -98,7 +100,7 @@ impl Setup {
     /// The setup for `rows`: each scene they name loaded once.
     pub fn new(
         rows: &[StudyRow],
-        arducopter: Option<ArduCopter>,
+        autopilots: (Option<ArduCopter>, Option<Px4>),
         speedup: f64,
         work: PathBuf,
         stop: Arc<AtomicBool>,
@@ -113,7 +115,8 @@ impl Setup {
             }
         }
         Setup {
-            arducopter,
+            arducopter: autopilots.0,
+            px4: autopilots.1,
             speedup,
             work,
             stop,
@@ -137,6 +140,7 @@ impl Setup {
 
 /// A row's columns, checked.
 struct Checked {
+    px4: bool,
     legs: Vec<Leg>,
     params: Vec<(String, f64)>,
     feed: Option<FeedKinds>,
@@ -147,21 +151,16 @@ struct Checked {
 }
 
 fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
-    match row.autopilot.as_deref().unwrap_or("arducopter") {
-        "arducopter" => {}
-        "px4" => {
-            return Err(input(
-                "autopilot",
-                "px4 rows are not flown by this savsim yet (ArduCopter only; docs/study.md)",
-            ))
-        }
+    let px4 = match row.autopilot.as_deref().unwrap_or("arducopter") {
+        "arducopter" => false,
+        "px4" => true,
         other => {
             return Err(input(
                 "autopilot",
                 format!("{other:?}: give arducopter or px4"),
             ))
         }
-    }
+    };
     let legs = plan::parse(row.plan.as_deref().unwrap_or_default())?;
     let params = plan::parse_params(row.params.as_deref().unwrap_or_default())
         .map_err(|why| input("params", why))?;
@@ -200,6 +199,7 @@ fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
         return Err(input("w", format!("{w}: give a finite weight >= 0")));
     }
     Ok(Checked {
+        px4,
         legs,
         params,
         feed,
@@ -294,11 +294,6 @@ fn fly_row(
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
     result.speedup = checked.speedup;
-    let arducopter = setup.arducopter.as_ref().ok_or_else(|| {
-        RowError::NoAutopilot(
-            "no ArduCopter SITL: give --arducopter PATH or set SAVSIM_ARDUCOPTER".into(),
-        )
-    })?;
     let scene = scene_for(row, &checked, setup)?;
     let session = session_for(scene.clone(), checked.feed)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -306,32 +301,17 @@ fn fly_row(
         .enable_all()
         .build()
         .map_err(|e| RowError::Savsim(format!("start the network runtime: {e}")))?;
-    let address = ConnectAddress::UdpIn(
-        "127.0.0.1:0"
-            .parse::<std::net::SocketAddr>()
-            .map_err(|e| RowError::Savsim(e.to_string()))?
-            .into(),
-    );
-    let link = runtime
-        .block_on(Link::open(&address))
-        .map_err(|e| RowError::Savsim(e.to_string()))?;
-    let port = link
-        .local_addr()
-        .map(|a| a.port())
-        .ok_or_else(|| RowError::Savsim("the row's UDP link has no port".into()))?;
     let dir = setup.work.join(folder_name(result.index, &result.row_id));
-    let serial0 = format!("udpclient:127.0.0.1:{port}");
-    let mut sitl = arducopter
-        .start(&Start {
-            instance,
-            home: home_of(&scene),
-            home_yaw_deg: 0.0,
-            speedup: checked.speedup,
-            serial0: &serial0,
-            params: &checked.params,
-            dir: &dir,
-        })
-        .map_err(|e| RowError::Sitl(format!("start {}: {e}", arducopter.binary.display())))?;
+    let start = Start {
+        instance,
+        home: home_of(&scene),
+        home_yaw_deg: 0.0,
+        speedup: checked.speedup,
+        serial0: "",
+        params: &checked.params,
+        dir: &dir,
+    };
+    let (link, mut sitl) = start_autopilot(&runtime, setup, &checked, &start)?;
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
     let shutdown = Arc::new(AtomicBool::new(false));
@@ -356,17 +336,27 @@ fn fly_row(
     };
     let plane = LocalTangentPlane::new(scene.origin);
     let started = Instant::now();
-    let flight = connect_pilot(&mut sitl, plane, &setup.stop)?
-        .map(|mut pilot| {
-            let stop = || {
-                setup.stop.load(Ordering::Relaxed)
-                    || (checked.stop_on_collision && collided.is_raised())
-                    || started.elapsed() > wall_limit
+    let stop = || {
+        setup.stop.load(Ordering::Relaxed)
+            || (checked.stop_on_collision && collided.is_raised())
+            || started.elapsed() > wall_limit
+    };
+    let flight = connect_pilot(&mut sitl, plane, checked.px4, instance, &setup.stop)?.and_then(
+        |mut pilot| {
+            let flown = if checked.px4 {
+                fly_px4(
+                    &mut pilot,
+                    &checked.legs,
+                    &checked.params,
+                    checked.duration_s,
+                    &stop,
+                )
+            } else {
+                fly(&mut pilot, &checked.legs, checked.duration_s, &stop)
             };
-            let flown = fly(&mut pilot, &checked.legs, checked.duration_s, &stop);
             flown.map(|f| (f, pilot.heard()))
-        })
-        .and_then(|flown| flown);
+        },
+    );
     shutdown.store(true, Ordering::Relaxed);
     let run = live
         .join()
@@ -379,17 +369,98 @@ fn fly_row(
         Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
         None => RowError::Pilot(e),
     })?;
-    record(result, &dir, run, &flown, &heard, checked.legs.len())?;
+    record(
+        result,
+        &dir,
+        run,
+        &flown,
+        &heard,
+        checked.px4,
+        checked.legs.len(),
+    )?;
     Ok(())
+}
+
+/// Where PX4's startup script does not set SIH's home altitude (`Px4::home_alt_by_param`):
+/// boot PX4 once in the row's folder, set SIH_LOC_H0 over MAVLink (PX4 saves it in the
+/// folder's parameters.bson), stop it, so that the row's PX4 starts at the scene's height.
+fn prime_px4_home(px4: &Px4, start: &Start<'_>) -> Result<(), RowError> {
+    let first = px4
+        .start(start)
+        .map_err(|e| RowError::Sitl(format!("start {}: {e}", px4.binary.display())))?;
+    let (listens, sends) = px4_onboard_ports(start.instance);
+    let plane = LocalTangentPlane::new(start.home);
+    let set = Pilot::udp(sends, listens, AUTOPILOT, plane).and_then(|mut pilot| {
+        pilot.set_param_before_flight("SIH_LOC_H0", start.home.alt_m, Duration::from_secs(1))
+    });
+    // PX4 saves a changed parameter within a second (its autosave).
+    std::thread::sleep(Duration::from_millis(1500));
+    let tail = first.log_tail(3);
+    drop(first);
+    set.map_err(|e| RowError::Sitl(format!("setting its home altitude: {e}; {tail}")))
+}
+
+/// The row's link for savsim's session and its SITL, started. ArduCopter: savsim listens on a
+/// port of its own and SITL's SERIAL0 sends to it. PX4: savsim sends to PX4's GCS link (PX4
+/// then answers to savsim's address).
+fn start_autopilot(
+    runtime: &tokio::runtime::Runtime,
+    setup: &Setup,
+    checked: &Checked,
+    start: &Start<'_>,
+) -> Result<(Link, Sitl), RowError> {
+    let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
+    let loopback = |port: u16| std::net::SocketAddr::from(([127, 0, 0, 1], port));
+    if checked.px4 {
+        let px4 = setup.px4.as_ref().ok_or_else(|| {
+            RowError::NoAutopilot("no PX4 SITL: give --px4 PATH or set SAVSIM_PX4".into())
+        })?;
+        if px4.home_alt_by_param() {
+            prime_px4_home(px4, start)?;
+        }
+        let address = ConnectAddress::UdpOut(loopback(px4_gcs_port(start.instance)).into());
+        let link = runtime.block_on(Link::open(&address)).map_err(savsim)?;
+        let sitl = px4
+            .start(start)
+            .map_err(|e| RowError::Sitl(format!("start {}: {e}", px4.binary.display())))?;
+        return Ok((link, sitl));
+    }
+    let arducopter = setup.arducopter.as_ref().ok_or_else(|| {
+        RowError::NoAutopilot(
+            "no ArduCopter SITL: give --arducopter PATH or set SAVSIM_ARDUCOPTER".into(),
+        )
+    })?;
+    let link = runtime
+        .block_on(Link::open(&ConnectAddress::UdpIn(loopback(0).into())))
+        .map_err(savsim)?;
+    let port = link
+        .local_addr()
+        .map(|a| a.port())
+        .ok_or_else(|| RowError::Savsim("the row's UDP link has no port".into()))?;
+    let serial0 = format!("udpclient:127.0.0.1:{port}");
+    let sitl = arducopter
+        .start(&Start {
+            serial0: &serial0,
+            ..start.clone()
+        })
+        .map_err(|e| RowError::Sitl(format!("start {}: {e}", arducopter.binary.display())))?;
+    Ok((link, sitl))
 }
 
 /// The pilot on `sitl`'s port, within a minute; an error at once if SITL ends first or a
 /// signal stops the study.
 fn connect_pilot(
-    sitl: &mut crate::study::sitl::Sitl,
+    sitl: &mut Sitl,
     plane: LocalTangentPlane,
+    px4: bool,
+    instance: u16,
     stop: &AtomicBool,
 ) -> Result<Result<Pilot, PilotError>, RowError> {
+    if px4 {
+        // PX4's onboard link: the pilot listens where PX4 sends, and sends where it listens.
+        let (listens, sends) = px4_onboard_ports(instance);
+        return Ok(Pilot::udp(sends, listens, AUTOPILOT, plane));
+    }
     let started = Instant::now();
     loop {
         if stop.load(Ordering::Relaxed) {
@@ -417,6 +488,7 @@ fn record(
     mut run: LiveRun,
     flown: &Flown,
     heard: &Heard,
+    px4: bool,
     legs: usize,
 ) -> Result<(), RowError> {
     run.ended.map_err(|e| RowError::Savsim(e.to_string()))?;
@@ -450,12 +522,12 @@ fn record(
     result.legs_completed = flown.legs_completed as u64;
     result.plan_completed = flown.legs_completed == legs;
     result.sim_s = f64::from(flown.last_ms) / 1000.0;
-    result.autopilot_did = did(heard, flown);
+    result.autopilot_did = did(heard, flown, px4);
     Ok(())
 }
 
 /// What the autopilot did, from what it said.
-fn did(heard: &Heard, flown: &Flown) -> AutopilotDid {
+fn did(heard: &Heard, flown: &Flown, px4: bool) -> AutopilotDid {
     let since = |ms: u32| f64::from(ms) / 1000.0;
     let avoid_mode = heard
         .modes
@@ -477,7 +549,13 @@ fn did(heard: &Heard, flown: &Flown) -> AutopilotDid {
         modes: heard
             .modes
             .iter()
-            .map(|(_, m)| arducopter_mode_name(*m))
+            .map(|(_, m)| {
+                if px4 {
+                    px4_mode_name(*m)
+                } else {
+                    arducopter_mode_name(*m)
+                }
+            })
             .collect(),
         collision_messages: heard.collisions.len() as u64,
         avoidance_texts: heard

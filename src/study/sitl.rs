@@ -35,7 +35,8 @@ pub struct Sitl {
     child: Child,
     /// Its working folder (its eeprom, logs and `sitl.log`).
     pub dir: PathBuf,
-    /// The pilot's TCP port (SERIAL1).
+    /// The pilot's port: ArduCopter's SERIAL1 (TCP, to connect to), PX4's onboard link's
+    /// destination (UDP, to listen on).
     pub pilot_port: u16,
 }
 
@@ -129,6 +130,112 @@ impl ArduCopter {
             child: command.spawn()?,
             dir: start.dir.to_path_buf(),
             pilot_port: serial1_port(start.instance),
+        })
+    }
+}
+
+/// How to start PX4 SITL with its SIH simulator (`px4` of `px4_sitl_default`, built from PX4's
+/// sources).
+///
+/// Instance `-i N`: its GCS link listens on UDP 18570 + N (and sends to 14550 until it hears a
+/// peer, then to that peer: savsim's session sends to it first), its onboard link listens on
+/// 14580 + N and sends to 14540 + N (the pilot). Its working folder is the row's; it also
+/// makes `/tmp/px4-sock-N`, so two studies on one machine must not share instance numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Px4 {
+    /// The `px4` binary.
+    pub binary: PathBuf,
+}
+
+/// PX4 instance `instance`'s GCS link port (where savsim's session sends).
+pub fn px4_gcs_port(instance: u16) -> u16 {
+    18570 + instance
+}
+
+/// PX4 instance `instance`'s onboard link: where it listens, and where it sends (the pilot).
+pub fn px4_onboard_ports(instance: u16) -> (u16, u16) {
+    (14580 + instance, 14540 + instance)
+}
+
+impl Px4 {
+    /// Its `etc` folder (ROMFS), beside `bin/`.
+    fn etc(&self) -> Option<PathBuf> {
+        Some(self.binary.parent()?.parent()?.join("etc"))
+    }
+
+    /// Whether this PX4 takes SIH's home (`PX4_HOME_LAT`/`LON`, set into SIH_LOC_LAT0/LON0 by
+    /// its startup script) in 1e-7 degrees: PX4 up to 1.15 declares those parameters INT32,
+    /// later ones FLOAT degrees. Read from the build's `parameters.xml` beside `bin/`; without
+    /// it, degrees.
+    fn home_in_e7(&self) -> bool {
+        let Some(xml) = self.binary.parent().and_then(Path::parent) else {
+            return false;
+        };
+        let text = std::fs::read_to_string(xml.join("parameters.xml")).unwrap_or_default();
+        text.lines()
+            .find(|l| l.contains("name=\"SIH_LOC_LAT0\""))
+            .is_some_and(|l| l.contains("type=\"INT32\""))
+    }
+
+    /// Whether its startup script leaves SIH's home altitude (SIH_LOC_H0) at its default
+    /// (PX4 1.15 maps PX4_HOME_LAT and _LON only): then savsim boots it once to set SIH_LOC_H0
+    /// over MAVLink (`study::run`), or the vehicle would fly hundreds of metres from the scene's
+    /// height.
+    pub fn home_alt_by_param(&self) -> bool {
+        let script = self
+            .etc()
+            .map(|etc| etc.join("init.d-posix/px4-rc.simulator"))
+            .and_then(|p| std::fs::read_to_string(p).ok())
+            .unwrap_or_default();
+        !script.contains("SIH_LOC_H0")
+    }
+
+    /// Start PX4 SIH (quadrotor, airframe 10040) for one row, home at `start.home`, at
+    /// `start.speedup` (PX4_SIM_SPEED_FACTOR), in the row's folder (`px4.log` its console).
+    /// The row's parameters are set over MAVLink by the pilot (PX4 has no defaults file).
+    pub fn start(&self, start: &Start<'_>) -> std::io::Result<Sitl> {
+        std::fs::create_dir_all(start.dir)?;
+        let etc = self.etc().ok_or_else(|| {
+            std::io::Error::other(format!(
+                "{}: no etc folder beside its bin folder",
+                self.binary.display()
+            ))
+        })?;
+        let e7 = self.home_in_e7();
+        let home = |deg: f64| {
+            if e7 {
+                format!("{}", (deg * 1e7).round() as i64)
+            } else {
+                format!("{deg:.7}")
+            }
+        };
+        let mut command = match pdeathsig() {
+            Some(setpriv) => {
+                let mut c = Command::new(setpriv);
+                c.args(["--pdeathsig", "KILL", "--"]).arg(&self.binary);
+                c
+            }
+            None => Command::new(&self.binary),
+        };
+        command
+            .current_dir(start.dir)
+            .args(["-d", "-i", &start.instance.to_string(), "-w"])
+            .arg(start.dir)
+            .arg(etc)
+            .env("PX4_SYS_AUTOSTART", "10040")
+            .env("PX4_SIMULATOR", "sihsim")
+            .env("PX4_SIM_MODEL", "sihsim_quadx")
+            .env("PX4_SIM_SPEED_FACTOR", start.speedup.to_string())
+            .env("PX4_HOME_LAT", home(start.home.lat_deg))
+            .env("PX4_HOME_LON", home(start.home.lon_deg))
+            .env("PX4_HOME_ALT", format!("{:.2}", start.home.alt_m))
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(start.dir.join("sitl.log"))?)
+            .stderr(Stdio::null());
+        Ok(Sitl {
+            child: command.spawn()?,
+            dir: start.dir.to_path_buf(),
+            pilot_port: px4_onboard_ports(start.instance).1,
         })
     }
 }

@@ -394,3 +394,50 @@ fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
         }
     }
 }
+
+/// PX4 SIH (`SAVSIM_PX4`): a 40 m wide wall 30 m south of home, flown at 5 m/s in Position
+/// mode: without Collision Prevention the copter hits it; with `CP_DIST=5` and the
+/// OBSTACLE_DISTANCE feed it stops short. About a minute at speedup 4.
+#[test]
+fn px4_study_nominal_hits_the_wall_and_collision_prevention_stops_short() {
+    let Some(bin) = std::env::var_os("SAVSIM_PX4") else {
+        eprintln!("skipped: set SAVSIM_PX4 to PX4's px4_sitl_default bin/px4 (docs/study.md)");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let o = savsim::scene::gen::DEFAULT_ORIGIN;
+    std::fs::write(
+        dir.path().join("wall.toml"),
+        format!(
+            "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n\n[[obstacle]]\nid = \"wall\"\n\
+             kind = \"building\"\nshape = {{ box = [40.0, 4.0, 50.0] }}\nposition_enu_m = [0.0, -32.0, 0.0]\n",
+            o.lat_deg, o.lon_deg, o.alt_m
+        ),
+    )
+    .unwrap();
+    let plan = "takeoff 20; velocity 0 -5 0 30";
+    std::fs::write(
+        dir.path().join("m.csv"),
+        format!(
+            "id,scene,autopilot,variant,pair,params,feed,plan,duration_s\n\
+             nominal,wall.toml,px4,nominal,w,CP_DIST=-1;MPC_POS_MODE=3,,{plan},150\n\
+             mitigated,wall.toml,px4,mitigated,w,CP_DIST=5;MPC_POS_MODE=3,obstacle-distance,{plan},150\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = savsim()
+        .args(["study", "--speedup", "4", "--px4"])
+        .arg(bin)
+        .arg("--out")
+        .arg(&out)
+        .arg(dir.path().join("m.csv"))
+        .output()
+        .unwrap();
+    eprintln!("{}", String::from_utf8_lossy(&run.stderr));
+    assert!(run.status.success());
+    let rows = outcomes(&out);
+    eprintln!("{rows:?}");
+    assert_eq!(rows["nominal"].0, "collision");
+    assert_eq!(rows["mitigated"].0, "pass");
+}
