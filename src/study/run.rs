@@ -39,11 +39,18 @@ pub const SPEEDUP_RANGE: (f64, f64) = (0.1, 1000.0);
 /// m/s within a frame or two of seeing the obstacle closer than its margin: at 20 Hz a frame is
 /// 0.25-0.4 m of travel, at 50 Hz 0.1-0.16 m.
 pub const FEED_HZ: f64 = 50.0;
-/// The autopilot's identity (SITL's default SYSID_THISMAV 1, the autopilot component).
-const AUTOPILOT: SenderId = SenderId {
-    system_id: 1,
-    component_id: 1,
-};
+/// The autopilot's identity: ArduCopter SITL's default SYSID_THISMAV 1 (whatever its
+/// instance); PX4 SITL sets MAV_SYS_ID to its instance + 1. Component 1, the autopilot.
+fn autopilot_id(px4: bool, instance: u16) -> SenderId {
+    SenderId {
+        system_id: if px4 {
+            (instance + 1).min(255) as u8
+        } else {
+            1
+        },
+        component_id: 1,
+    }
+}
 
 /// Why a row could not be flown.
 #[derive(Debug, thiserror::Error)]
@@ -390,7 +397,8 @@ fn prime_px4_home(px4: &Px4, start: &Start<'_>) -> Result<(), RowError> {
         .map_err(|e| RowError::Sitl(format!("start {}: {e}", px4.binary.display())))?;
     let (listens, sends) = px4_onboard_ports(start.instance);
     let plane = LocalTangentPlane::new(start.home);
-    let set = Pilot::udp(sends, listens, AUTOPILOT, plane).and_then(|mut pilot| {
+    let id = autopilot_id(true, start.instance);
+    let set = Pilot::udp(sends, listens, id, plane).and_then(|mut pilot| {
         pilot.set_param_before_flight("SIH_LOC_H0", start.home.alt_m, Duration::from_secs(1))
     });
     // PX4 saves a changed parameter within a second (its autosave).
@@ -459,7 +467,12 @@ fn connect_pilot(
     if px4 {
         // PX4's onboard link: the pilot listens where PX4 sends, and sends where it listens.
         let (listens, sends) = px4_onboard_ports(instance);
-        return Ok(Pilot::udp(sends, listens, AUTOPILOT, plane));
+        return Ok(Pilot::udp(
+            sends,
+            listens,
+            autopilot_id(true, instance),
+            plane,
+        ));
     }
     let started = Instant::now();
     loop {
@@ -473,7 +486,12 @@ fn connect_pilot(
             )));
         }
         let within = Duration::from_millis(500);
-        match Pilot::connect(sitl.pilot_port, AUTOPILOT, plane, within) {
+        match Pilot::connect(
+            sitl.pilot_port,
+            autopilot_id(false, instance),
+            plane,
+            within,
+        ) {
             Ok(pilot) => return Ok(Ok(pilot)),
             Err(e) if started.elapsed() > Duration::from_secs(60) => return Ok(Err(e)),
             Err(_) => {}
