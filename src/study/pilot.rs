@@ -120,7 +120,7 @@ pub struct Heard {
 }
 
 /// What the reader thread passes on.
-pub enum Heard1 {
+pub enum News {
     /// A position.
     Fix(Fix),
     /// Anything else that changed [`Heard`].
@@ -180,7 +180,7 @@ pub struct Pilot {
     outbox: Outbox,
     target: SenderId,
     /// Positions (and other news) from the reader thread.
-    news: Receiver<Heard1>,
+    news: Receiver<News>,
     /// What the autopilot said.
     pub heard: std::sync::Arc<std::sync::Mutex<Heard>>,
     /// The last position.
@@ -287,7 +287,7 @@ impl Pilot {
     fn with_reader(
         wire: Wire,
         target: SenderId,
-        read: impl FnOnce(&Shared, &std::sync::mpsc::SyncSender<Heard1>) + Send + 'static,
+        read: impl FnOnce(&Shared, &std::sync::mpsc::SyncSender<News>) + Send + 'static,
     ) -> Result<Pilot, PilotError> {
         let heard = std::sync::Arc::new(std::sync::Mutex::new(Heard::default()));
         // Bounded: a pilot that falls behind holds the reader back (TCP then holds SITL's).
@@ -360,13 +360,13 @@ impl Pilot {
                 return Ok(None);
             }
             match self.news.recv_timeout(Duration::from_millis(50)) {
-                Ok(Heard1::Fix(fix)) => {
+                Ok(News::Fix(fix)) => {
                     self.fix = Some(fix);
                     self.heartbeat_due(fix.time_boot_ms)?;
                     return Ok(Some(fix));
                 }
                 // Anything heard: not silent (before its GPS fix it sends no position).
-                Ok(Heard1::Other) => started = Instant::now(),
+                Ok(News::Other) => started = Instant::now(),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
                     return Err(PilotError::Silent {
@@ -505,17 +505,7 @@ impl Pilot {
         let Some((_, kind)) = self.read_param(name, 5.0, stop)? else {
             return Err(refused("PX4 did not answer for it (no such parameter?)"));
         };
-        let int = kind == MavParamType::MAV_PARAM_TYPE_INT32 as u8;
-        let wire = if int {
-            f32::from_bits(value.round() as i32 as u32)
-        } else {
-            value as f32
-        };
-        let param_type = if int {
-            MavParamType::MAV_PARAM_TYPE_INT32
-        } else {
-            MavParamType::MAV_PARAM_TYPE_REAL32
-        };
+        let (wire, param_type) = param_on_wire(value, kind);
         for _ in 0..3 {
             self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
                 param_value: wire,
@@ -587,16 +577,7 @@ impl Pilot {
         let Some((_, kind)) = answer else {
             return Err(refused("the autopilot did not answer for it".into()));
         };
-        let param_type = if kind == MavParamType::MAV_PARAM_TYPE_INT32 as u8 {
-            MavParamType::MAV_PARAM_TYPE_INT32
-        } else {
-            MavParamType::MAV_PARAM_TYPE_REAL32
-        };
-        let wire = if param_type == MavParamType::MAV_PARAM_TYPE_INT32 {
-            f32::from_bits(value.round() as i32 as u32)
-        } else {
-            value as f32
-        };
+        let (wire, param_type) = param_on_wire(value, kind);
         match ask(self, Some((wire, param_type)))? {
             Some((now, _)) if now.to_bits() == wire.to_bits() => Ok(()),
             _ => Err(refused(format!("the autopilot did not take {value}"))),
@@ -616,6 +597,19 @@ impl Pilot {
             target: self.target.system_id,
             ..MANUAL_CONTROL_DATA::default()
         }))
+    }
+}
+
+/// `value` as PARAM_SET carries it for a parameter of MAV_PARAM_TYPE `kind`: an INT32's bits
+/// in the float (PX4 encodes parameters bytewise), anything else as a REAL32.
+fn param_on_wire(value: f64, kind: u8) -> (f32, MavParamType) {
+    if kind == MavParamType::MAV_PARAM_TYPE_INT32 as u8 {
+        (
+            f32::from_bits(value.round() as i32 as u32),
+            MavParamType::MAV_PARAM_TYPE_INT32,
+        )
+    } else {
+        (value as f32, MavParamType::MAV_PARAM_TYPE_REAL32)
     }
 }
 
@@ -737,7 +731,7 @@ fn pass_on(
     target: SenderId,
     plane: &LocalTangentPlane,
     heard: &std::sync::Mutex<Heard>,
-    tx: &std::sync::mpsc::SyncSender<Heard1>,
+    tx: &std::sync::mpsc::SyncSender<News>,
 ) -> bool {
     if header.system_id != u32::from(target.system_id) {
         return true;
@@ -756,7 +750,7 @@ fn pass_on(
             if let Ok(mut h) = heard.lock() {
                 h.time_boot_ms = p.time_boot_ms;
             }
-            Heard1::Fix(Fix {
+            News::Fix(Fix {
                 time_boot_ms: p.time_boot_ms,
                 enu_m: plane.enu_m_from_geodetic(&at),
                 velocity_enu_mps: DVec3::new(ned.y, ned.x, -ned.z),
@@ -767,7 +761,7 @@ fn pass_on(
             if let Ok(mut h) = heard.lock() {
                 hear(&mut h, header.component_id == target.component_id, other);
             }
-            Heard1::Other
+            News::Other
         }
     };
     tx.send(news).is_ok()
