@@ -100,6 +100,15 @@ fn mode_of(run: &Run) -> Result<Mode, String> {
     }
 }
 
+/// What a caught panic said (its `&str` or `String` payload; empty for any other).
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_default()
+}
+
 /// Run row `index` of a manifest.
 pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
     let started = Instant::now();
@@ -113,12 +122,10 @@ pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
     let outcome = mode.and_then(|mode| {
         std::panic::catch_unwind(AssertUnwindSafe(|| execute(run, mode, scenes, &mut row)))
             .unwrap_or_else(|panic| {
-                let what = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_default();
-                Err(format!("internal error, please report it: {what}"))
+                Err(format!(
+                    "internal error, please report it: {}",
+                    panic_message(&*panic)
+                ))
             })
     });
     if let Err(e) = outcome {

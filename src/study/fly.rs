@@ -58,32 +58,141 @@ impl SlowWatch {
     }
 }
 
-/// Fly `legs`, until `duration_s` of the vehicle's clock (from its boot).
+/// Fly `legs` on ArduCopter (GUIDED velocity targets), until `duration_s` of the vehicle's
+/// clock (from its boot).
 pub fn fly(
     pilot: &mut Pilot,
     legs: &[Leg],
     duration_s: f64,
     stop: &dyn Fn() -> bool,
 ) -> Result<Flown, PilotError> {
-    let Some(first) = pilot.next_fix(stop)? else {
+    let Some(first) = first_fix(pilot, stop)? else {
         return Ok(Flown {
             stopped: true,
             ..Flown::default()
         });
     };
-    pilot.ask_positions()?;
+    fly_legs(pilot, legs, first, duration_s, &mut Steer::Guided, stop)
+}
+
+/// The autopilot's first position, then positions asked at the pilot's rate; `None` when
+/// `stop` came first.
+fn first_fix(pilot: &mut Pilot, stop: &dyn Fn() -> bool) -> Result<Option<Fix>, PilotError> {
+    let first = pilot.next_fix(stop)?;
+    if first.is_some() {
+        pilot.ask_positions()?;
+    }
+    Ok(first)
+}
+
+/// How a leg's velocity reaches the autopilot.
+enum Steer {
+    /// ArduCopter: GUIDED velocity targets.
+    Guided,
+    /// PX4: Position mode's sticks.
+    Sticks {
+        /// PX4's stick mapping.
+        map: StickMap,
+        /// Position mode was taken once (a mode PX4 chooses later is left to it).
+        position_mode_taken: bool,
+        /// When the leg's takeoff or Position mode was last asked for, its clock (ms).
+        asked_ms: u32,
+    },
+}
+
+impl Steer {
+    /// What a leg sends once, at its start (`began`).
+    fn start_leg(&mut self, pilot: &mut Pilot, leg: &Leg, began: &Fix) -> Result<(), PilotError> {
+        match self {
+            Steer::Guided => start_leg(pilot, leg),
+            Steer::Sticks { asked_ms, .. } => {
+                *asked_ms = began.time_boot_ms;
+                start_leg_px4(pilot, leg)
+            }
+        }
+    }
+
+    /// At one position of `leg` (begun at `began`, the autopilot in `mode_now`): send what the
+    /// leg asks; the velocity asked (zero when none).
+    fn at(
+        &mut self,
+        pilot: &mut Pilot,
+        leg: &Leg,
+        fix: &Fix,
+        began: &Fix,
+        mode_now: Option<u32>,
+    ) -> Result<DVec3, PilotError> {
+        let command = command_of(leg, fix);
+        match self {
+            Steer::Guided => {
+                // Targets only in GUIDED: in a mode the autopilot chose (AVOID_ADSB, RTL, ...)
+                // it flies itself, and a GUIDED-derived mode would take a target over its own.
+                let command = command.filter(|_| mode_now == Some(mode::GUIDED));
+                if let Some(v) = command {
+                    pilot.velocity(v)?;
+                }
+                Ok(command.unwrap_or(DVec3::ZERO))
+            }
+            Steer::Sticks {
+                map,
+                position_mode_taken,
+                asked_ms,
+            } => {
+                // PX4 may refuse a takeoff sent the moment it armed: asked again every 3 s of
+                // its clock while it has not left the ground.
+                let low = fix.enu_m.z - began.enu_m.z < 1.0;
+                let since_ms = fix.time_boot_ms.wrapping_sub(*asked_ms);
+                if matches!(leg, Leg::Takeoff { .. }) && low && since_ms >= 3000 {
+                    *asked_ms = fix.time_boot_ms;
+                    start_leg_px4(pilot, leg)?;
+                }
+                let in_position_mode = mode_now.is_some_and(|m| (m >> 16) & 0xff == PX4_POSCTL);
+                // Position mode once, at the first leg after the takeoff (asked until PX4
+                // takes it); a mode PX4 chose later (its traffic avoidance's) is left to it.
+                if command.is_some() && in_position_mode {
+                    *position_mode_taken = true;
+                } else if command.is_some()
+                    && !*position_mode_taken
+                    && fix.time_boot_ms.wrapping_sub(*asked_ms) >= 1000
+                {
+                    *asked_ms = fix.time_boot_ms;
+                    pilot.command(
+                        MavCmd::MAV_CMD_DO_SET_MODE,
+                        [1.0, PX4_POSCTL as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
+                    )?;
+                }
+                let wanted = command.filter(|_| in_position_mode).unwrap_or(DVec3::ZERO);
+                let (forward, right, up) = map.sticks(wanted, fix.heading_deg.unwrap_or(0.0));
+                pilot.sticks(forward, right, up)?;
+                Ok(wanted)
+            }
+        }
+    }
+}
+
+/// Fly `legs` from the first position `first` until `duration_s` of the vehicle's clock:
+/// armed at a takeoff, each leg started, then steered at every position until it is done.
+fn fly_legs(
+    pilot: &mut Pilot,
+    legs: &[Leg],
+    first: Fix,
+    duration_s: f64,
+    steer: &mut Steer,
+    stop: &dyn Fn() -> bool,
+) -> Result<Flown, PilotError> {
     let mut flown = Flown {
         last_ms: first.time_boot_ms,
         ..Flown::default()
     };
+    let px4 = matches!(steer, Steer::Sticks { .. });
     let mut watch = SlowWatch::default();
     for leg in legs {
         if let Leg::Takeoff { .. } = leg {
-            arm_guided(pilot, &mut flown, duration_s, stop)?;
+            arm(pilot, &mut flown, duration_s, px4, stop)?;
         }
         // Where and when the leg begins: for a takeoff, where it armed.
         let began = pilot.fix.unwrap_or(first);
-        start_leg(pilot, leg)?;
+        steer.start_leg(pilot, leg, &began)?;
         loop {
             let Some(fix) = pilot.next_fix(stop)? else {
                 flown.stopped = true;
@@ -93,14 +202,9 @@ pub fn fly(
             if clock_s(&fix) >= duration_s {
                 return Ok(flown);
             }
-            // Targets only in GUIDED: in a mode the autopilot chose (AVOID_ADSB, RTL, ...) it
-            // flies itself, and a GUIDED-derived mode would take a target over its own.
             let (mode_now, armed) = pilot.state();
-            let command = command_of(leg, &fix).filter(|_| mode_now == Some(mode::GUIDED));
-            if let Some(v) = command {
-                pilot.velocity(v)?;
-            }
-            if watch.slowed(command.unwrap_or(DVec3::ZERO), &fix) && flown.slowed_t_s.is_none() {
+            let wanted = steer.at(pilot, leg, &fix, &began, mode_now)?;
+            if watch.slowed(wanted, &fix) && flown.slowed_t_s.is_none() {
                 flown.slowed_t_s = Some(clock_s(&fix));
             }
             if leg_done(leg, &fix, &began, armed) {
@@ -139,19 +243,21 @@ fn start_leg(pilot: &mut Pilot, leg: &Leg) -> Result<(), PilotError> {
     }
 }
 
-/// GUIDED and armed, asking once a second of the vehicle's clock, within [`ARM_WITHIN_S`] of it
-/// (and within the row's time).
-fn arm_guided(
+/// Armed (and, for ArduCopter, in GUIDED), asking once a second of the vehicle's clock, within
+/// [`ARM_WITHIN_S`] of it and the row's time. PX4's sticks are centred at every position
+/// meanwhile: it wants its manual input alive.
+fn arm(
     pilot: &mut Pilot,
     flown: &mut Flown,
     duration_s: f64,
+    px4: bool,
     stop: &dyn Fn() -> bool,
 ) -> Result<(), PilotError> {
     let began_ms = flown.last_ms;
     let mut asked_ms: Option<u32> = None;
     loop {
         let (mode_now, armed) = pilot.state();
-        if armed && mode_now == Some(mode::GUIDED) {
+        if armed && (px4 || mode_now == Some(mode::GUIDED)) {
             flown.armed_t_s = Some(f64::from(flown.last_ms) / 1000.0);
             return Ok(());
         }
@@ -159,6 +265,9 @@ fn arm_guided(
             return Ok(());
         };
         flown.last_ms = fix.time_boot_ms;
+        if px4 {
+            pilot.sticks(0.0, 0.0, 0.0)?;
+        }
         let waited_s = f64::from(fix.time_boot_ms.wrapping_sub(began_ms)) / 1000.0;
         if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
             let texts: Vec<String> = pilot
@@ -178,10 +287,12 @@ fn arm_guided(
             .is_none_or(|a| f64::from(fix.time_boot_ms.wrapping_sub(a)) / 1000.0 >= ASK_EVERY_S);
         if due {
             asked_ms = Some(fix.time_boot_ms);
-            pilot.command(
-                MavCmd::MAV_CMD_DO_SET_MODE,
-                [1.0, mode::GUIDED as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
-            )?;
+            if !px4 {
+                pilot.command(
+                    MavCmd::MAV_CMD_DO_SET_MODE,
+                    [1.0, mode::GUIDED as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
+                )?;
+            }
             pilot.command(
                 MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
                 [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
@@ -253,13 +364,12 @@ pub fn fly_px4(
     duration_s: f64,
     stop: &dyn Fn() -> bool,
 ) -> Result<Flown, PilotError> {
-    let Some(first) = pilot.next_fix(stop)? else {
+    let Some(first) = first_fix(pilot, stop)? else {
         return Ok(Flown {
             stopped: true,
             ..Flown::default()
         });
     };
-    pilot.ask_positions()?;
     for (name, value) in params {
         pilot.set_param(name, *value, stop)?;
     }
@@ -267,68 +377,12 @@ pub fn fly_px4(
         pilot.set_param("MIS_TAKEOFF_ALT", *up_m, stop)?;
     }
     let map = StickMap::read(pilot, stop)?;
-    let mut flown = Flown {
-        last_ms: first.time_boot_ms,
-        ..Flown::default()
+    let mut steer = Steer::Sticks {
+        map,
+        position_mode_taken: false,
+        asked_ms: first.time_boot_ms,
     };
-    let mut watch = SlowWatch::default();
-    let mut position_mode_asked = false;
-    for leg in legs {
-        if let Leg::Takeoff { .. } = leg {
-            arm_px4(pilot, &mut flown, duration_s, stop)?;
-        }
-        let began = pilot.fix.unwrap_or(first);
-        start_leg_px4(pilot, leg)?;
-        let mut asked_ms = began.time_boot_ms;
-        loop {
-            let Some(fix) = pilot.next_fix(stop)? else {
-                flown.stopped = true;
-                return Ok(flown);
-            };
-            flown.last_ms = fix.time_boot_ms;
-            if clock_s(&fix) >= duration_s {
-                return Ok(flown);
-            }
-            // PX4 may refuse a takeoff sent the moment it armed: asked again every 3 s of its
-            // clock while it has not left the ground.
-            let low = fix.enu_m.z - began.enu_m.z < 1.0;
-            if matches!(leg, Leg::Takeoff { .. })
-                && low
-                && fix.time_boot_ms.wrapping_sub(asked_ms) >= 3000
-            {
-                asked_ms = fix.time_boot_ms;
-                start_leg_px4(pilot, leg)?;
-            }
-            let (mode_now, armed) = pilot.state();
-            let in_position_mode = mode_now.is_some_and(|m| (m >> 16) & 0xff == PX4_POSCTL);
-            let command = command_of(leg, &fix);
-            // Position mode once, at the first leg after the takeoff (asked until PX4 takes
-            // it); a mode PX4 chose later (its traffic avoidance's) is left to it.
-            if command.is_some() && in_position_mode {
-                position_mode_asked = true;
-            } else if command.is_some()
-                && !position_mode_asked
-                && fix.time_boot_ms.wrapping_sub(asked_ms) >= 1000
-            {
-                asked_ms = fix.time_boot_ms;
-                pilot.command(
-                    MavCmd::MAV_CMD_DO_SET_MODE,
-                    [1.0, PX4_POSCTL as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
-                )?;
-            }
-            let wanted = command.filter(|_| in_position_mode).unwrap_or(DVec3::ZERO);
-            let (forward, right, up) = map.sticks(wanted, fix.heading_deg.unwrap_or(0.0));
-            pilot.sticks(forward, right, up)?;
-            if watch.slowed(wanted, &fix) && flown.slowed_t_s.is_none() {
-                flown.slowed_t_s = Some(clock_s(&fix));
-            }
-            if leg_done(leg, &fix, &began, armed) {
-                break;
-            }
-        }
-        flown.legs_completed += 1;
-    }
-    Ok(flown)
+    fly_legs(pilot, legs, first, duration_s, &mut steer, stop)
 }
 
 /// What a PX4 leg sends once, at its start: AUTO takeoff (to MIS_TAKEOFF_ALT), or land.
@@ -344,51 +398,5 @@ fn start_leg_px4(pilot: &mut Pilot, leg: &Leg) -> Result<(), PilotError> {
             [0.0, 0.0, 0.0, nan, nan, nan, nan],
         ),
         _ => Ok(()),
-    }
-}
-
-/// PX4 armed, asking once a second of its clock (sticks centred meanwhile: PX4 wants its
-/// manual input alive), within [`ARM_WITHIN_S`] and the row's time.
-fn arm_px4(
-    pilot: &mut Pilot,
-    flown: &mut Flown,
-    duration_s: f64,
-    stop: &dyn Fn() -> bool,
-) -> Result<(), PilotError> {
-    let began_ms = flown.last_ms;
-    let mut asked_ms: Option<u32> = None;
-    loop {
-        if pilot.state().1 {
-            flown.armed_t_s = Some(f64::from(flown.last_ms) / 1000.0);
-            return Ok(());
-        }
-        let Some(fix) = pilot.next_fix(stop)? else {
-            return Ok(());
-        };
-        flown.last_ms = fix.time_boot_ms;
-        pilot.sticks(0.0, 0.0, 0.0)?;
-        let waited_s = f64::from(fix.time_boot_ms.wrapping_sub(began_ms)) / 1000.0;
-        if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
-            let texts: Vec<String> = pilot
-                .heard()
-                .texts
-                .iter()
-                .rev()
-                .take(5)
-                .map(|t| t.2.clone())
-                .collect();
-            return Err(PilotError::NoArm {
-                waited_s,
-                texts: texts.join("; "),
-            });
-        }
-        let due = asked_ms.is_none_or(|a| fix.time_boot_ms.wrapping_sub(a) >= 1000);
-        if due {
-            asked_ms = Some(fix.time_boot_ms);
-            pilot.command(
-                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-                [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            )?;
-        }
     }
 }

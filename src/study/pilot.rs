@@ -463,6 +463,35 @@ impl Pilot {
             .map(|p| (p.1, p.2))
     }
 
+    /// Forget what was heard of parameter `name`, then send `set` (PARAM_SET: its value on the
+    /// wire and type) or, without it, PARAM_REQUEST_READ: the next PARAM_VALUE of `name` heard
+    /// is the answer, never an older one.
+    fn ask_param(
+        &mut self,
+        name: &str,
+        set: Option<(f32, MavParamType)>,
+    ) -> Result<(), PilotError> {
+        if let Ok(mut heard) = self.heard.lock() {
+            heard.params.retain(|p| p.0 != name);
+        }
+        let (target_system, target_component) = (self.target.system_id, self.target.component_id);
+        self.send(&match set {
+            Some((param_value, param_type)) => MavMessage::PARAM_SET(PARAM_SET_DATA {
+                param_value,
+                target_system,
+                target_component,
+                param_id: name.into(),
+                param_type,
+            }),
+            None => MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+                param_index: -1,
+                target_system,
+                target_component,
+                param_id: name.into(),
+            }),
+        })
+    }
+
     /// Ask for parameter `name` and wait (on the vehicle's clock, at most `within_s`) for its
     /// value and type.
     pub fn read_param(
@@ -472,12 +501,7 @@ impl Pilot {
         stop: &dyn Fn() -> bool,
     ) -> Result<Option<(f32, u8)>, PilotError> {
         let asked_ms = self.fix.map_or(0, |f| f.time_boot_ms);
-        self.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
-            param_index: -1,
-            target_system: self.target.system_id,
-            target_component: self.target.component_id,
-            param_id: name.into(),
-        }))?;
+        self.ask_param(name, None)?;
         while let Some(fix) = self.next_fix(stop)? {
             if let Some(v) = self.param_heard(name) {
                 return Ok(Some(v));
@@ -507,13 +531,7 @@ impl Pilot {
         };
         let (wire, param_type) = param_on_wire(value, kind);
         for _ in 0..3 {
-            self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-                param_value: wire,
-                target_system: self.target.system_id,
-                target_component: self.target.component_id,
-                param_id: name.into(),
-                param_type,
-            }))?;
+            self.ask_param(name, Some((wire, param_type)))?;
             let Some((now, _)) = self.read_param(name, 2.0, stop)? else {
                 continue;
             };
@@ -538,26 +556,7 @@ impl Pilot {
             why,
         };
         let ask = |pilot: &mut Pilot, set: Option<(f32, MavParamType)>| {
-            if let Ok(mut heard) = pilot.heard.lock() {
-                heard.params.retain(|p| p.0 != name);
-            }
-            match set {
-                Some((param_value, param_type)) => {
-                    pilot.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-                        param_value,
-                        target_system: pilot.target.system_id,
-                        target_component: pilot.target.component_id,
-                        param_id: name.into(),
-                        param_type,
-                    }))
-                }
-                None => pilot.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
-                    param_index: -1,
-                    target_system: pilot.target.system_id,
-                    target_component: pilot.target.component_id,
-                    param_id: name.into(),
-                })),
-            }?;
+            pilot.ask_param(name, set)?;
             let started = Instant::now();
             while started.elapsed() < within {
                 if let Some(v) = pilot.param_heard(name) {

@@ -229,11 +229,7 @@ pub fn run_row(index: usize, row: &StudyRow, instance: u16, setup: &Setup) -> St
         Ok(Err(e)) => Some(e.to_string()),
         Err(panic) => Some(format!(
             "savsim failed on this row (a bug; please report it): {}",
-            panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("panic")
+            crate::batch::run::panic_message(&*panic)
         )),
     };
     result.wall_s = started.elapsed().as_secs_f64();

@@ -103,14 +103,7 @@ impl ArduCopter {
             "{:.7},{:.7},{:.2},{:.1}",
             start.home.lat_deg, start.home.lon_deg, start.home.alt_m, start.home_yaw_deg
         );
-        let mut command = match pdeathsig() {
-            Some(setpriv) => {
-                let mut c = Command::new(setpriv);
-                c.args(["--pdeathsig", "KILL", "--"]).arg(&self.binary);
-                c
-            }
-            None => Command::new(&self.binary),
-        };
+        let mut command = launcher(&self.binary);
         command
             .current_dir(start.dir)
             .args(["--model", "+", "--wipe"])
@@ -209,14 +202,7 @@ impl Px4 {
                 format!("{deg:.7}")
             }
         };
-        let mut command = match pdeathsig() {
-            Some(setpriv) => {
-                let mut c = Command::new(setpriv);
-                c.args(["--pdeathsig", "KILL", "--"]).arg(&self.binary);
-                c
-            }
-            None => Command::new(&self.binary),
-        };
+        let mut command = launcher(&self.binary);
         command
             .current_dir(start.dir)
             .args(["-d", "-i", &start.instance.to_string(), "-w"])
@@ -237,6 +223,19 @@ impl Px4 {
             dir: start.dir.to_path_buf(),
             pilot_port: px4_onboard_ports(start.instance).1,
         })
+    }
+}
+
+/// A command running `binary`: under Linux through `setpriv --pdeathsig KILL` where that
+/// exists, so that the process dies with the thread that started it even if savsim is killed.
+fn launcher(binary: &Path) -> Command {
+    match pdeathsig() {
+        Some(setpriv) => {
+            let mut c = Command::new(setpriv);
+            c.args(["--pdeathsig", "KILL", "--"]).arg(binary);
+            c
+        }
+        None => Command::new(binary),
     }
 }
 

@@ -4,7 +4,8 @@ use std::process::Command;
 
 use crate::common::root;
 
-fn savsim() -> Command {
+/// The savsim binary, run from the repository root.
+pub(crate) fn savsim() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_savsim"));
     c.current_dir(root());
     c

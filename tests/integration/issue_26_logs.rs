@@ -269,34 +269,22 @@ fn batch_rows_replay_autopilot_logs() {
         expected.push(positions);
     }
     std::fs::write(dir.path().join("m.csv"), csv).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
+    let out = crate::cli::savsim()
         .args(["batch", "--no-progress", "--out"])
         .arg(dir.path().join("out"))
         .arg(dir.path().join("m.csv"))
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let file = std::fs::File::open(dir.path().join("out/part-00000-of-00001.parquet")).unwrap();
-    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
-        .unwrap()
-        .build()
+    crate::common::assert_ran(&out);
+    let batch = crate::batch::read(&dir.path().join("out/part-00000-of-00001.parquet"));
+    use arrow_array::Array;
+    let errors = batch.column_by_name("error").unwrap();
+    assert_eq!(errors.null_count(), batch.num_rows(), "a row failed");
+    let t = batch.column_by_name("ticks").unwrap();
+    let t = t
+        .as_any()
+        .downcast_ref::<arrow_array::UInt64Array>()
         .unwrap();
-    let mut ticks = Vec::new();
-    for batch in reader {
-        use arrow_array::Array;
-        let batch = batch.unwrap();
-        let errors = batch.column_by_name("error").unwrap();
-        assert_eq!(errors.null_count(), batch.num_rows(), "a row failed");
-        let t = batch.column_by_name("ticks").unwrap();
-        let t = t
-            .as_any()
-            .downcast_ref::<arrow_array::UInt64Array>()
-            .unwrap();
-        ticks.extend(t.values().iter().copied());
-    }
+    let ticks: Vec<u64> = t.values().to_vec();
     assert_eq!(ticks, expected);
 }

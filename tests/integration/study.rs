@@ -5,14 +5,11 @@
 use std::path::Path;
 use std::process::Command;
 
+use crate::cli::savsim;
+use crate::common::assert_ran;
+
 use savsim::study::manifest::StudyRow;
 use savsim::study::result::{Outcome, StudyResult};
-
-fn savsim() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_savsim"));
-    c.current_dir(crate::common::root());
-    c
-}
 
 /// Whether ENU point `p` (east, north) at height `u` is inside a box of `size` (x along the
 /// box's own east axis before its yaw, y, height) with its base centre at `c`, turned `yaw_deg`
@@ -44,11 +41,7 @@ fn study_gen_puts_every_box_across_its_path_and_the_scenes_load() {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ran(&out);
     let rows = savsim::study::manifest::load(&dir.path().join("study.csv")).unwrap();
     assert_eq!(rows.len(), 50);
     for pair in rows.chunks(2) {
@@ -322,32 +315,25 @@ fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shar
 /// The closest approach to each box of every row of `dir`'s shard, by row id, and its outcome.
 fn outcomes(dir: &Path) -> std::collections::BTreeMap<String, (String, Option<f64>)> {
     use arrow_array::{Array, Float64Array, StringArray};
-    let file = std::fs::File::open(dir.join("part-00000-of-00001.parquet")).unwrap();
-    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
-        .unwrap()
-        .build()
-        .unwrap();
-    let mut out = std::collections::BTreeMap::new();
-    for batch in reader {
-        let batch = batch.unwrap();
-        let text = |name: &str| {
-            batch
-                .column_by_name(name)
-                .unwrap()
-                .as_any()
-                .downcast_ref::<StringArray>()
-                .unwrap()
-                .clone()
-        };
-        let (ids, ended) = (text("row_id"), text("outcome"));
-        let closest = batch.column_by_name("closest_obstacle_m").unwrap();
-        let closest = closest.as_any().downcast_ref::<Float64Array>().unwrap();
-        for i in 0..batch.num_rows() {
+    let batch = crate::batch::read(&dir.join("part-00000-of-00001.parquet"));
+    let text = |name: &str| {
+        batch
+            .column_by_name(name)
+            .unwrap()
+            .as_any()
+            .downcast_ref::<StringArray>()
+            .unwrap()
+            .clone()
+    };
+    let (ids, ended) = (text("row_id"), text("outcome"));
+    let closest = batch.column_by_name("closest_obstacle_m").unwrap();
+    let closest = closest.as_any().downcast_ref::<Float64Array>().unwrap();
+    (0..batch.num_rows())
+        .map(|i| {
             let m = closest.is_valid(i).then(|| closest.value(i));
-            out.insert(ids.value(i).to_string(), (ended.value(i).to_string(), m));
-        }
-    }
-    out
+            (ids.value(i).to_string(), (ended.value(i).to_string(), m))
+        })
+        .collect()
 }
 
 /// Speed-independence (docs/study.md): two obstacle-approach pairs at speedup 1 and at
@@ -375,11 +361,7 @@ fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
             .arg(dir.path().join("study.csv"))
             .output()
             .unwrap();
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
+        assert_ran(&run);
         runs.push(outcomes(&out));
     }
     for (id, (ended, closest)) in &runs[0] {
