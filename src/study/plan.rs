@@ -119,14 +119,14 @@ fn leg(text: &str) -> Result<Leg, String> {
         if v.abs() <= max {
             Ok(v)
         } else {
-            Err(format!("{what} {v} is beyond {max}"))
+            Err(format!("a {what} is beyond +/-{max}"))
         }
     };
     let seconds = |v: f64| {
         if v > 0.0 && v <= MAX_LEG_S {
             Ok(v)
         } else {
-            Err(format!("{v} s: give more than 0 and at most {MAX_LEG_S} s"))
+            Err(format!("give more than 0 and at most {MAX_LEG_S} s"))
         }
     };
     match verb.as_str() {
@@ -134,7 +134,7 @@ fn leg(text: &str) -> Result<Leg, String> {
             count(&[1], "takeoff U (metres above home)")?;
             let up_m = numbers[0];
             if !(1.0..=MAX_ENU_M).contains(&up_m) {
-                return Err(format!("{up_m} m: take off to at least 1 m"));
+                return Err(format!("take off to 1 m to {MAX_ENU_M} m above home"));
             }
             Ok(Leg::Takeoff { up_m })
         }
@@ -143,12 +143,12 @@ fn leg(text: &str) -> Result<Leg, String> {
             let speed_mps = numbers.get(3).copied().unwrap_or(GOTO_SPEED_MPS);
             if !(speed_mps > 0.0 && speed_mps <= MAX_SPEED_MPS) {
                 return Err(format!(
-                    "speed {speed_mps}: give more than 0 and at most {MAX_SPEED_MPS} m/s"
+                    "give a speed of more than 0 and at most {MAX_SPEED_MPS} m/s"
                 ));
             }
             let mut enu_m = [0.0; 3];
             for (axis, v) in enu_m.iter_mut().zip(&numbers) {
-                *axis = within(*v, MAX_ENU_M, "coordinate")?;
+                *axis = within(*v, MAX_ENU_M, "coordinate (m)")?;
             }
             Ok(Leg::Goto { enu_m, speed_mps })
         }
@@ -156,7 +156,7 @@ fn leg(text: &str) -> Result<Leg, String> {
             count(&[4], "velocity VE VN VU SECONDS")?;
             let mut enu_mps = [0.0; 3];
             for (axis, v) in enu_mps.iter_mut().zip(&numbers) {
-                *axis = within(*v, MAX_SPEED_MPS, "velocity")?;
+                *axis = within(*v, MAX_SPEED_MPS, "velocity (m/s)")?;
             }
             Ok(Leg::Velocity {
                 enu_mps,
