@@ -58,6 +58,36 @@ pub struct IdentityArgs {
     pub compid: u8,
 }
 
+/// Ground stations through savsim, and MAVLink 2 signing (docs/live.md).
+#[derive(Debug, Clone, Args)]
+pub struct NetworkArgs {
+    /// A ground station to route the vehicles to and its commands back from, addressed as
+    /// --connect is (e.g. udpout:127.0.0.1:14550 where QGroundControl listens). Repeatable.
+    #[arg(long)]
+    pub forward: Vec<String>,
+    /// Let the stations see savsim's own frames too (its heartbeat, requests and feed).
+    #[arg(long)]
+    pub forward_own: bool,
+    /// Sign every frame savsim sends with this key, and check what vehicles send: a file of
+    /// exactly 32 bytes is the key; anything else is a passphrase (one trailing newline
+    /// ignored), hashed as MAVProxy's `signing setup` does.
+    #[arg(long)]
+    pub signing_key: Option<PathBuf>,
+    /// accept: unsigned frames are taken (signed ones must be right); require: they are
+    /// dropped. Needs --signing-key.
+    #[arg(long, value_enum, default_value_t = SigningMode::Accept)]
+    pub signing: SigningMode,
+}
+
+/// What `--signing` does with unsigned frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SigningMode {
+    /// Taken (and counted).
+    Accept,
+    /// Dropped (and counted).
+    Require,
+}
+
 /// `savsim study`.
 #[derive(Debug, Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
@@ -466,6 +496,9 @@ pub struct LiveArgs {
     /// savsim's MAVLink identity (`--sysid`, `--compid`).
     #[command(flatten)]
     pub identity: IdentityArgs,
+    /// Ground stations and signing.
+    #[command(flatten)]
+    pub network: NetworkArgs,
     /// Record every frame the feed sends to this tlog, as sent (needs --feed).
     #[arg(long)]
     pub feed_out: Option<PathBuf>,
@@ -489,6 +522,9 @@ pub struct RecordArgs {
     /// savsim's MAVLink identity (`--sysid`, `--compid`).
     #[command(flatten)]
     pub identity: IdentityArgs,
+    /// Ground stations and signing.
+    #[command(flatten)]
+    pub network: NetworkArgs,
     /// Write a JSON summary here at exit.
     #[arg(long)]
     pub summary_json: Option<PathBuf>,

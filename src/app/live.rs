@@ -20,9 +20,11 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
-use crate::ingest::frame::RawFrame;
+use crate::ingest::forward::{ForwardCounts, Forwarder};
+use crate::ingest::frame::{FrameStatus, RawFrame};
 use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Link, Network, Outgoing};
 use crate::ingest::outbox::Outbox;
+use crate::ingest::signing::{Signing, SigningCounts, SigningKey};
 use crate::ingest::stats::SenderId;
 use crate::ingest::stream::{frames_in_datagram, Skipped, StreamFramer};
 use crate::ingest::supervisor::{
@@ -54,6 +56,16 @@ pub struct LiveOptions {
     /// Raised when the session first counts a collision (`savsim study` ends a row there).
     /// Default none.
     pub collided: Option<Flag>,
+    /// Ground stations to route the vehicles to (`--forward`): the last links of a run, after
+    /// the `connect` ones (docs/live.md). Default none.
+    pub forward: Vec<ConnectAddress>,
+    /// Show the stations savsim's own frames too (its heartbeat, requests and feed;
+    /// `--forward-own`). Default false.
+    pub forward_own: bool,
+    /// Sign every frame sent, and judge every frame received, with this key (`--signing-key`).
+    pub signing_key: Option<SigningKey>,
+    /// Drop unsigned frames (`--signing require`); without it they are taken. Needs a key.
+    pub signing_require: bool,
 }
 
 /// A flag shared between threads; two are equal when they are the same flag.
@@ -84,6 +96,10 @@ impl Default for LiveOptions {
             feed_from: FEED_FROM,
             feed_out: None,
             collided: None,
+            forward: Vec::new(),
+            forward_own: false,
+            signing_key: None,
+            signing_require: false,
         }
     }
 }
@@ -165,6 +181,22 @@ pub struct LinkReport {
     pub latency: Option<Latency>,
     /// The closed-loop feed, when on.
     pub feed: Option<FeedLinkReport>,
+    /// `--forward`: what was routed to and from the ground stations.
+    pub forward: Option<ForwardReport>,
+    /// `--signing-key`: what signing judged and signed.
+    pub signing: Option<SigningCounts>,
+}
+
+/// What `--forward` did, for the summary's `link.forward`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ForwardReport {
+    /// The stations' links, in `--forward` order.
+    pub stations: Vec<String>,
+    /// Frames routed each way, dropped and shown.
+    #[serde(flatten)]
+    pub counts: ForwardCounts,
+    /// A chunk received -> its frames handed to the other side's links.
+    pub latency: Option<Latency>,
 }
 
 /// A finished live run: the session (for its summary), what the links did, and how the run
@@ -197,7 +229,7 @@ pub fn run_blocking(
         })?;
     let links = runtime.block_on(async {
         let mut links = Vec::new();
-        for address in &options.connect {
+        for address in options.connect.iter().chain(&options.forward) {
             links.push(Link::open(address).await?);
         }
         Ok::<_, Error>(links)
@@ -216,6 +248,20 @@ pub struct LiveSession {
     latency_us: hdrhistogram::Histogram<u64>,
     feed: FeedSender,
     result: Result<()>,
+    /// `--forward`: the router, the vehicle links' fixed endpoints, what to send, how long
+    /// it waited.
+    forward: Option<Forwarding>,
+    /// `--signing-key`: the judge, and what it judged.
+    signing: Option<(Arc<Signing>, SigningCounts)>,
+}
+
+/// The router's state on the session thread.
+struct Forwarding {
+    router: Forwarder,
+    vehicle_fixed: Vec<Endpoint>,
+    /// Frames to hand to the links when the chunk is done.
+    pending: Vec<Outgoing>,
+    latency_us: hdrhistogram::Histogram<u64>,
 }
 
 /// Sends the session's feed messages to each vehicle's route, as the feed's identity.
@@ -230,6 +276,9 @@ struct FeedSender {
     latency_us: hdrhistogram::Histogram<u64>,
     /// `--feed-out`: what was sent, as sent.
     record: Option<(PathBuf, TlogWriter<BufWriter<std::fs::File>>)>,
+    /// `--forward-own`: the stations see the feed's frames too (kept here until shown).
+    shown: bool,
+    shown_frames: Vec<Vec<u8>>,
 }
 
 impl FeedSender {
@@ -243,6 +292,8 @@ impl FeedSender {
             heartbeats: 0,
             latency_us: new_histogram(),
             record: None,
+            shown: false,
+            shown_frames: Vec::new(),
         }
     }
 
@@ -253,6 +304,9 @@ impl FeedSender {
                 tracing::warn!("--feed-out {}: {e}; no longer recording", path.display());
                 self.record = None;
             }
+        }
+        if self.shown {
+            self.shown_frames.push(bytes.clone());
         }
         network.send(Outgoing { to, bytes });
     }
@@ -297,6 +351,96 @@ impl LiveSession {
             latency_us: new_histogram(),
             feed: FeedSender::new(FEED_FROM),
             result: Ok(()),
+            forward: None,
+            signing: None,
+        }
+    }
+
+    /// Route between vehicles and stations with `router`; `vehicle_fixed` are the vehicle
+    /// links' endpoints known before anything is heard (a station's heartbeat goes there).
+    pub fn forward_with(&mut self, router: Forwarder, vehicle_fixed: Vec<Endpoint>) {
+        self.forward = Some(Forwarding {
+            router,
+            vehicle_fixed,
+            pending: Vec::new(),
+            latency_us: new_histogram(),
+        });
+    }
+
+    /// Judge every vehicle frame with `signing` before anything else sees it.
+    pub fn sign_with(&mut self, signing: Arc<Signing>) {
+        self.signing = Some((signing, SigningCounts::default()));
+    }
+
+    /// Hand what the last chunk routed to the links (`--forward`), noting how long it waited.
+    pub fn send_forwarded(&mut self, network: &Network, received_t_s: f64) {
+        let Some(f) = self.forward.as_mut() else {
+            return;
+        };
+        if f.pending.is_empty() {
+            return;
+        }
+        for out in f.pending.drain(..) {
+            network.send(out);
+        }
+        let waited_us = ((unix_now_s() - received_t_s) * 1e6).max(0.0) as u64;
+        f.latency_us.saturating_record(waited_us);
+    }
+
+    /// Show a frame savsim sent to the stations (`--forward-own`).
+    fn show_own(&mut self, network: &Network, bytes: &[u8]) {
+        if let Some(f) = self.forward.as_mut() {
+            f.router.own_frame(unix_now_s(), |to| {
+                network.send(Outgoing {
+                    to,
+                    bytes: bytes.to_vec(),
+                })
+            });
+        }
+    }
+
+    /// Route a station's chunk: its frames go to the vehicles (or stations) they are for,
+    /// and nowhere else in savsim.
+    fn process_station(&mut self, chunk: &Chunk) {
+        let Some(f) = self.forward.as_mut() else {
+            return;
+        };
+        let from = chunk.endpoint();
+        let supervisor = &self.supervisor;
+        let mut on_frame = |frame: &RawFrame<'_>| {
+            let Forwarding {
+                router,
+                vehicle_fixed,
+                pending,
+                ..
+            } = &mut *f;
+            router.from_station(
+                from,
+                chunk.t_s,
+                frame,
+                supervisor.routes(),
+                vehicle_fixed,
+                |to| {
+                    pending.push(Outgoing {
+                        to,
+                        bytes: frame.bytes.to_vec(),
+                    })
+                },
+            );
+        };
+        match chunk.kind {
+            ChunkKind::Datagram => {
+                frames_in_datagram(&chunk.bytes, &mut on_frame);
+            }
+            ChunkKind::Connected => {
+                self.framers.insert(chunk.link, StreamFramer::default());
+            }
+            ChunkKind::Stream => {
+                self.framers
+                    .entry(chunk.link)
+                    .or_default()
+                    .push(&chunk.bytes, &mut on_frame);
+            }
         }
     }
 
@@ -314,6 +458,13 @@ impl LiveSession {
     /// endpoint it was last heard on), and the feed's heartbeat once a second to every
     /// endpoint fed. `received_t_s` is when the chunk that made them arrived.
     pub fn send_feed(&mut self, network: &Network, received_t_s: f64) {
+        self.send_feed_frames(network, received_t_s);
+        for bytes in std::mem::take(&mut self.feed.shown_frames) {
+            self.show_own(network, &bytes);
+        }
+    }
+
+    fn send_feed_frames(&mut self, network: &Network, received_t_s: f64) {
         let feed = &mut self.feed;
         let now_s = unix_now_s();
         if self.session.has_feed_out() {
@@ -343,8 +494,17 @@ impl LiveSession {
         }
     }
 
-    /// Frame, supervise, record and run one chunk through the session.
+    /// Frame, judge (signing), route (forwarding), supervise, record and run one chunk
+    /// through the session.
     pub fn process(&mut self, chunk: &Chunk) {
+        if self
+            .forward
+            .as_ref()
+            .is_some_and(|f| f.router.is_station(chunk.link))
+        {
+            self.process_station(chunk);
+            return;
+        }
         let from = chunk.endpoint();
         let t_us = (chunk.t_s * 1e6) as u64;
         let Self {
@@ -352,9 +512,29 @@ impl LiveSession {
             supervisor,
             recorder,
             result,
+            forward,
+            signing,
             ..
         } = self;
         let mut on_frame = |frame: &RawFrame<'_>| {
+            if let Some((judge, counts)) = signing.as_mut() {
+                let intact = !matches!(
+                    frame.status,
+                    FrameStatus::BadCrc | FrameStatus::BadIncompatFlags
+                );
+                if intact && !judge.keep(frame, counts) {
+                    return;
+                }
+            }
+            if let Some(f) = forward.as_mut() {
+                let pending = &mut f.pending;
+                f.router.from_vehicle(chunk.t_s, frame, |to| {
+                    pending.push(Outgoing {
+                        to,
+                        bytes: frame.bytes.to_vec(),
+                    })
+                });
+            }
             if supervisor.observe(from, chunk.t_s, frame).rebooted {
                 let sender = SenderId {
                     system_id: frame.system_id,
@@ -392,7 +572,8 @@ impl LiveSession {
     }
 }
 
-/// [`run_blocking`] on links already open on `runtime` (tests bind them to port 0).
+/// [`run_blocking`] on links already open on `runtime` (tests bind them to port 0): the
+/// vehicles' first, then `options.forward.len()` stations'.
 pub fn run_links(
     runtime: &tokio::runtime::Handle,
     links: Vec<Link>,
@@ -413,22 +594,57 @@ pub fn run_links(
         rate_hz: options.rate_hz,
         ..SupervisorConfig::default()
     });
+    let Some(first_station) = links.len().checked_sub(options.forward.len()) else {
+        return Err(Error::Usage("more --forward stations than links".into()));
+    };
+    let (mut vehicle_fixed, mut station_fixed) = (Vec::new(), Vec::new());
     for (index, link) in links.iter().enumerate() {
         if let Some(endpoint) = link.fixed_endpoint(index as LinkId) {
-            supervisor.add_fixed(endpoint);
+            if index < first_station {
+                supervisor.add_fixed(endpoint);
+                vehicle_fixed.push(endpoint);
+            } else {
+                station_fixed.push(endpoint);
+            }
         }
     }
     // What the user typed names the links best; links opened by a caller describe themselves.
-    let endpoints: Vec<String> = if options.connect.len() == links.len() {
-        options.connect.iter().map(ToString::to_string).collect()
+    let typed: Vec<String> = options
+        .connect
+        .iter()
+        .chain(&options.forward)
+        .map(ToString::to_string)
+        .collect();
+    let endpoints: Vec<String> = if typed.len() == links.len() {
+        typed
     } else {
         links.iter().map(Link::describe).collect()
     };
     let (network, chunks) = Network::start(runtime, links, options.queue_len);
-    let mut outbox = Outbox::new(options.gcs);
+    let signing = options
+        .signing_key
+        .as_ref()
+        .map(|key| Arc::new(Signing::new(key, options.signing_require)));
+    if options.signing_require && signing.is_none() {
+        return Err(Error::Usage("--signing require needs --signing-key".into()));
+    }
+    let mut outbox = Outbox::new(options.gcs).signed_with(signing.clone());
     let feeding = session.feed().is_some();
     let mut thread = LiveSession::new(session, supervisor, recorder);
     thread.feed = FeedSender::new(options.feed_from);
+    thread.feed.outbox = Outbox::new(options.feed_from).signed_with(signing.clone());
+    thread.feed.shown = options.forward_own;
+    if let Some(signing) = signing {
+        thread.sign_with(signing);
+    }
+    if !options.forward.is_empty() {
+        let router = Forwarder::new(
+            first_station as LinkId,
+            station_fixed,
+            vec![options.gcs, options.feed_from],
+        );
+        thread.forward_with(router, vehicle_fixed);
+    }
     if let Some(path) = &options.feed_out {
         if !feeding {
             return Err(Error::Usage("--feed-out needs --feed".into()));
@@ -454,6 +670,7 @@ pub fn run_links(
             Ok(chunk) => {
                 network.taken();
                 thread.process(&chunk);
+                thread.send_forwarded(&network, chunk.t_s);
                 if feeding {
                     thread.send_feed(&network, chunk.t_s);
                 }
@@ -487,10 +704,11 @@ pub fn run_links(
                 }
             }
             for (to, message) in thread.supervisor.due(now_s) {
-                network.send(Outgoing {
-                    to,
-                    bytes: outbox.encode(&message),
-                });
+                let bytes = outbox.encode(&message);
+                if options.forward_own {
+                    thread.show_own(&network, &bytes);
+                }
+                network.send(Outgoing { to, bytes });
             }
         }
     }
@@ -510,6 +728,13 @@ pub fn run_links(
             thread.process(&chunk);
         }
     }
+    // The links are stopped: what the drain routed is not sent (counted as unsent).
+    if let Some(f) = thread.forward.as_mut() {
+        counters
+            .unsent
+            .fetch_add(f.pending.len() as u64, Ordering::Relaxed);
+        f.pending.clear();
+    }
     if let Some(rec) = thread.recorder.as_mut() {
         if let Err(e) = rec.flush() {
             thread.result = thread.result.and(Err(Error::file("recording", e)));
@@ -526,6 +751,7 @@ pub fn run_links(
     session.stats_mut().dropped_bytes = load(&counters.dropped_bytes);
     session.set_interrupted(shutdown.load(Ordering::Relaxed));
     let h = &thread.latency_us;
+    let report_endpoints = endpoints.clone();
     let report = LinkReport {
         endpoints,
         counts: thread.supervisor.counts,
@@ -541,6 +767,15 @@ pub fn run_links(
         closes: load(&counters.closes),
         latency: latency(h),
         feed: feeding.then(|| thread.feed.report()),
+        forward: thread.forward.as_ref().map(|f| ForwardReport {
+            stations: report_endpoints[first_station..].to_vec(),
+            counts: f.router.counts,
+            latency: latency(&f.latency_us),
+        }),
+        signing: thread.signing.as_ref().map(|(_, counts)| SigningCounts {
+            sent_signed: outbox.signed + thread.feed.outbox.signed,
+            ..*counts
+        }),
     };
     Ok(LiveRun {
         session,

@@ -9,14 +9,15 @@ use std::time::Duration;
 
 use crate::bundled::{bundled, DEMO_FLIGHT, DEMO_SCENE};
 use crate::cli::{
-    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, IdentityArgs, LiveArgs, RecordArgs,
-    ReplayArgs, SceneCommand, SceneKind,
+    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, IdentityArgs, LiveArgs,
+    NetworkArgs, RecordArgs, ReplayArgs, SceneCommand, SceneKind, SigningMode,
 };
 use crate::collision::events::EventKind;
 use crate::collision::pipeline::{CollisionConfig, SensorFan};
 use crate::collision::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
+use crate::ingest::signing::SigningKey;
 use crate::ingest::stats::SenderId;
 use crate::replay::{replay, Speed};
 use crate::scene::{self, gen, Scene};
@@ -400,7 +401,14 @@ fn live_options(
     rate_hz: f64,
     duration_s: Option<f64>,
     identity: IdentityArgs,
+    network: &NetworkArgs,
 ) -> Result<LiveOptions> {
+    let require = network.signing == SigningMode::Require;
+    if require && network.signing_key.is_none() {
+        return Err(Error::Usage(
+            "--signing require needs --signing-key FILE (the key, or a passphrase)".into(),
+        ));
+    }
     if identity.compid == live::FEED_COMPONENT {
         return Err(Error::Usage(format!(
             "--compid {}: that is the feed's component; give another",
@@ -433,12 +441,30 @@ fn live_options(
             system_id: identity.sysid,
             component_id: live::FEED_COMPONENT,
         },
+        forward: network
+            .forward
+            .iter()
+            .map(|c| c.parse::<ConnectAddress>())
+            .collect::<Result<_>>()?,
+        forward_own: network.forward_own,
+        signing_key: network
+            .signing_key
+            .as_deref()
+            .map(SigningKey::read)
+            .transpose()?,
+        signing_require: require,
         ..LiveOptions::default()
     })
 }
 
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let mut options = live_options(&args.connect, args.rate_hz, args.duration_s, args.identity)?;
+    let mut options = live_options(
+        &args.connect,
+        args.rate_hz,
+        args.duration_s,
+        args.identity,
+        &args.network,
+    )?;
     options.feed_out = args.feed_out.clone();
     let mut session = session_for(&args.collision)?;
     if let Some(feed_hz) = start_feed(&mut session, &args.feed)? {
@@ -455,7 +481,13 @@ fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
 }
 
 fn record_command(args: &RecordArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let options = live_options(&args.connect, args.rate_hz, args.duration_s, args.identity)?;
+    let options = live_options(
+        &args.connect,
+        args.rate_hz,
+        args.duration_s,
+        args.identity,
+        &args.network,
+    )?;
     let session = Session::new(None, CollisionConfig::default(), None)?;
     let mut run = live::run_blocking(&options, session, Some(&args.out), shutdown)?;
     let finished = run.session.finish();
@@ -489,6 +521,29 @@ fn print_links(run: &LiveRun) {
         println!(
             "  latency received -> processed: p50 {} us, p99 {} us, max {} us over {} chunks",
             l.p50_us, l.p99_us, l.max_us, l.chunks
+        );
+    }
+    if let Some(f) = &r.forward {
+        let c = &f.counts;
+        println!(
+            "  forwarded to {}: {} frame(s) out, {} in, {} unroutable, {} corrupt",
+            f.stations.join(", "),
+            c.to_stations,
+            c.from_stations,
+            c.unroutable,
+            c.corrupt
+        );
+    }
+    if let Some(s) = &r.signing {
+        println!(
+            "  signing: {} signed in, {} sent signed; dropped {} unsigned, {} bad signature(s), \
+             {} replayed; {} unsigned taken",
+            s.signed,
+            s.sent_signed,
+            s.unsigned_dropped,
+            s.bad_signature,
+            s.replayed,
+            s.unsigned_accepted
         );
     }
 }

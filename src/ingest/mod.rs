@@ -11,6 +11,8 @@
 //! - [`live`]: tokio sockets: chunks in, addressed bytes out.
 //! - [`outbox`]: what savsim sends, encoded as one identity.
 //! - [`supervisor`]: per-vehicle routes, stream requests and their supervision (pure).
+//! - [`forward`]: `--forward`, routing between vehicles and ground stations (pure).
+//! - [`signing`]: MAVLink 2 signing of what savsim sends, and judging what it receives.
 //!
 //! Every MAVLink frame funnels into [`Ingestor::frame`], so replay and live decode identically;
 //! autopilot logs join at the reports (`Session::on_report`).
@@ -19,9 +21,11 @@ pub mod address;
 pub mod dataflash;
 pub mod decode;
 pub mod flightlog;
+pub mod forward;
 pub mod frame;
 pub mod live;
 pub mod outbox;
+pub mod signing;
 pub mod stats;
 pub mod stream;
 pub mod supervisor;

@@ -1,16 +1,23 @@
 //! Encoding what savsim sends: MAVLink 2 frames from one identity (system, component) with its
-//! own sequence. The GCS (requests, heartbeat) and the closed-loop feed are two outboxes.
+//! own sequence, signed when a key is given (`--signing-key`). The GCS (requests, heartbeat)
+//! and the closed-loop feed are two outboxes.
+
+use std::sync::Arc;
 
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
 
 use crate::ingest::frame::MAX_FRAME_LEN;
+use crate::ingest::signing::Signing;
 use crate::ingest::stats::SenderId;
 
 /// Encodes one identity's messages.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Outbox {
     header: MavHeader,
+    signing: Option<Arc<Signing>>,
+    /// Frames signed so far.
+    pub signed: u64,
 }
 
 impl Outbox {
@@ -22,11 +29,25 @@ impl Outbox {
                 component_id: from.component_id,
                 sequence: 0,
             },
+            signing: None,
+            signed: 0,
         }
+    }
+
+    /// The same outbox, signing every frame with `signing`.
+    pub fn signed_with(mut self, signing: Option<Arc<Signing>>) -> Self {
+        self.signing = signing;
+        self
     }
 
     /// `message` as a MAVLink 2 frame; the sequence advances.
     pub fn encode(&mut self, message: &MavMessage) -> Vec<u8> {
+        if let Some(signing) = &self.signing {
+            let bytes = signing.encode(self.header, message);
+            self.header.sequence = self.header.sequence.wrapping_add(1);
+            self.signed += 1;
+            return bytes;
+        }
         let mut bytes = Vec::with_capacity(MAX_FRAME_LEN);
         // Writing into a Vec cannot fail.
         let _ = mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, self.header, message);

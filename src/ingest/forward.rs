@@ -1,0 +1,198 @@
+//! `--forward`: savsim as a router between its vehicles and ground stations (pure).
+//!
+//! Links are either vehicles' (`--connect`) or stations' (`--forward`). The rules are
+//! mavlink-router's, with the vehicles on one side and the stations on the other:
+//!
+//! - A frame from a vehicle link goes, unchanged (its sequence and signature too), to every
+//!   station endpoint: each fixed one (udpout, a TCP connection) and each udpin address heard
+//!   in the last [`HEARD_FOR_S`]. Never back to a vehicle link, and not savsim's own traffic
+//!   echoed by a router, nor what a vehicle addressed to savsim itself.
+//! - A frame from a station goes to the vehicle it targets (MAVLink's `target_system`, and
+//!   `target_component` where a vehicle of that system has it): the endpoint where that
+//!   autopilot was last heard. An untargeted frame (a station's heartbeat) or a broadcast
+//!   (target 0) goes to every vehicle endpoint and to the other stations. A target no vehicle
+//!   was heard as is dropped and counted (`unroutable`).
+//! - Frames whose checksum failed are not forwarded; frames of messages the dialect does not
+//!   know are (their checksum cannot be checked: another dialect's), to the stations only.
+
+use std::collections::BTreeMap;
+
+use mavlink::dialects::ardupilotmega::MavMessage;
+use mavlink::Message;
+use serde::Serialize;
+
+use crate::ingest::frame::{FrameStatus, RawFrame};
+use crate::ingest::stats::SenderId;
+use crate::ingest::supervisor::{Endpoint, LinkId};
+
+/// A udpin station address heard within this long gets the vehicles' traffic, s.
+pub const HEARD_FOR_S: f64 = 10.0;
+
+/// What the forwarder did, for the summary's `link.forward`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct ForwardCounts {
+    /// Frames from vehicles handed to a station (one per station).
+    pub to_stations: u64,
+    /// Frames from stations handed to a vehicle or another station (one per endpoint).
+    pub from_stations: u64,
+    /// Station frames aimed at a system no vehicle was heard as: dropped.
+    pub unroutable: u64,
+    /// Frames not forwarded because their checksum failed.
+    pub corrupt: u64,
+    /// savsim's own frames shown to the stations (`--forward-own`).
+    pub own: u64,
+}
+
+/// Routes frames between vehicle and station links.
+#[derive(Debug, Clone)]
+pub struct Forwarder {
+    /// Links from this index on are stations'.
+    first_station: LinkId,
+    /// Station endpoints known without hearing them (udpout, TCP).
+    fixed: Vec<Endpoint>,
+    /// Station addresses heard, with the last time (receive clock, s).
+    heard: BTreeMap<Endpoint, f64>,
+    /// savsim's own identities (its GCS and its feed): never forwarded from a vehicle link.
+    own: Vec<SenderId>,
+    /// Counters.
+    pub counts: ForwardCounts,
+}
+
+/// The target a frame names: system and component (0 = any), or none for an untargeted
+/// message. Unknown or unparsable messages count as untargeted.
+pub fn target_of(frame: &RawFrame<'_>) -> Option<(u8, u8)> {
+    let message = MavMessage::parse(frame.version, frame.message_id, frame.payload).ok()?;
+    let system = message.target_system_id()?;
+    Some((system, message.target_component_id().unwrap_or(0)))
+}
+
+impl Forwarder {
+    /// A forwarder whose station links are those from `first_station` on, with the fixed
+    /// endpoints among them; `own` are savsim's identities.
+    pub fn new(first_station: LinkId, fixed: Vec<Endpoint>, own: Vec<SenderId>) -> Self {
+        Self {
+            first_station,
+            fixed,
+            heard: BTreeMap::new(),
+            own,
+            counts: ForwardCounts::default(),
+        }
+    }
+
+    /// Whether `link` is a station's.
+    pub fn is_station(&self, link: LinkId) -> bool {
+        link >= self.first_station
+    }
+
+    /// Every station endpoint that gets traffic at `t_s`, but `except`.
+    fn stations(&self, t_s: f64, except: Option<Endpoint>) -> impl Iterator<Item = Endpoint> + '_ {
+        let heard = self
+            .heard
+            .iter()
+            .filter(move |(e, last)| t_s - **last <= HEARD_FOR_S && !self.fixed.contains(e))
+            .map(|(e, _)| *e);
+        self.fixed
+            .iter()
+            .copied()
+            .chain(heard)
+            .filter(move |e| Some(*e) != except)
+    }
+
+    /// Where a frame from a vehicle link goes: every station (`send` once each).
+    pub fn from_vehicle(&mut self, t_s: f64, frame: &RawFrame<'_>, mut send: impl FnMut(Endpoint)) {
+        if frame.status == FrameStatus::BadCrc || frame.status == FrameStatus::BadIncompatFlags {
+            self.counts.corrupt += 1;
+            return;
+        }
+        let sender = SenderId {
+            system_id: frame.system_id,
+            component_id: frame.component_id,
+        };
+        if self.own.contains(&sender) {
+            return;
+        }
+        if let Some((system, component)) = target_of(frame) {
+            let to_own = self
+                .own
+                .iter()
+                .any(|o| o.system_id == system && (component == 0 || o.component_id == component));
+            if to_own && system != 0 {
+                return;
+            }
+        }
+        let mut sent = 0;
+        for e in self.stations(t_s, None) {
+            send(e);
+            sent += 1;
+        }
+        self.counts.to_stations += sent;
+    }
+
+    /// Where a frame from a station at `from` goes, given the vehicles' `routes` (each
+    /// autopilot and where it was last heard) and the vehicle links' fixed endpoints.
+    pub fn from_station(
+        &mut self,
+        from: Endpoint,
+        t_s: f64,
+        frame: &RawFrame<'_>,
+        routes: impl Iterator<Item = (SenderId, Endpoint)>,
+        vehicle_fixed: &[Endpoint],
+        mut send: impl FnMut(Endpoint),
+    ) {
+        if from.peer.is_some() {
+            self.heard.insert(from, t_s);
+        }
+        if frame.status == FrameStatus::BadCrc || frame.status == FrameStatus::BadIncompatFlags {
+            self.counts.corrupt += 1;
+            return;
+        }
+        let mut to: Vec<Endpoint> = Vec::new();
+        let add = |e: Endpoint, to: &mut Vec<Endpoint>| {
+            if !to.contains(&e) {
+                to.push(e);
+            }
+        };
+        match target_of(frame) {
+            Some((system, component)) if system != 0 => {
+                let routes: Vec<(SenderId, Endpoint)> =
+                    routes.filter(|(id, _)| id.system_id == system).collect();
+                let exact = routes.iter().any(|(id, _)| id.component_id == component);
+                for (id, e) in &routes {
+                    if component == 0 || !exact || id.component_id == component {
+                        add(*e, &mut to);
+                    }
+                }
+                if to.is_empty() {
+                    self.counts.unroutable += 1;
+                    return;
+                }
+            }
+            _ => {
+                for (_, e) in routes {
+                    add(e, &mut to);
+                }
+                for e in vehicle_fixed {
+                    if !to.iter().any(|t| t.link == e.link) {
+                        add(*e, &mut to);
+                    }
+                }
+                let others: Vec<Endpoint> = self.stations(t_s, Some(from)).collect();
+                for e in others {
+                    add(e, &mut to);
+                }
+            }
+        }
+        self.counts.from_stations += to.len() as u64;
+        to.into_iter().for_each(&mut send);
+    }
+
+    /// Where savsim's own frame goes when the stations are to see it (`--forward-own`).
+    pub fn own_frame(&mut self, t_s: f64, mut send: impl FnMut(Endpoint)) {
+        let mut sent = 0;
+        for e in self.stations(t_s, None) {
+            send(e);
+            sent += 1;
+        }
+        self.counts.own += sent;
+    }
+}
