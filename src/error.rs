@@ -55,6 +55,22 @@ pub enum Error {
     /// A command-line value that parses but makes no sense.
     #[error("{0}")]
     Usage(String),
+    /// The feed was asked for vehicles that share one endpoint (behind one router address):
+    /// its messages carry no target, so each would read the other's sectors.
+    #[error(
+        "the feed is refused: vehicles {vehicles} are heard on one endpoint ({endpoint}), and \
+         DISTANCE_SENSOR, OBSTACLE_DISTANCE and ADSB_VEHICLE name no target, so each vehicle \
+         would take the others' readings as its own. Give each vehicle its own link: one \
+         --connect per SITL (its own port), or one router output per vehicle (MAVProxy: a \
+         separate instance per SITL; mavlink-router: an endpoint per SITL with a filter on its \
+         system id); or run without --feed to mirror them only"
+    )]
+    SharedEndpoint {
+        /// The vehicles, as `1/1 and 2/1`.
+        vehicles: String,
+        /// Where they were heard.
+        endpoint: String,
+    },
 }
 
 impl Error {

@@ -21,8 +21,8 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::forward::{ForwardCounts, Forwarder};
-use crate::ingest::frame::{FrameStatus, RawFrame};
-use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Link, Network, Outgoing};
+use crate::ingest::frame::{scan, FrameStatus, RawFrame, Scan};
+use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Link, Network, Outgoing, Sender};
 use crate::ingest::outbox::Outbox;
 use crate::ingest::signing::{Signing, SigningCounts, SigningKey};
 use crate::ingest::stats::SenderId;
@@ -251,6 +251,8 @@ pub struct LiveSession {
     /// `--forward`: the router, the vehicle links' fixed endpoints, what to send, how long
     /// it waited.
     forward: Option<Forwarding>,
+    /// The frames of the chunk at hand, between routing and mirroring.
+    kept: Kept,
     /// `--signing-key`: the judge, and what it judged.
     signing: Option<(Arc<Signing>, SigningCounts)>,
 }
@@ -259,9 +261,53 @@ pub struct LiveSession {
 struct Forwarding {
     router: Forwarder,
     vehicle_fixed: Vec<Endpoint>,
-    /// Frames to hand to the links when the chunk is done.
+    /// The links (none when driven without a network, as the fuzz target does).
+    sender: Option<Sender>,
+    /// Frames routed from the chunk at hand, handed to the links once it is framed.
     pending: Vec<Outgoing>,
     latency_us: hdrhistogram::Histogram<u64>,
+}
+
+impl Forwarding {
+    fn route_from_vehicle(&mut self, t_s: f64, frame: &RawFrame<'_>) {
+        let pending = &mut self.pending;
+        self.router.from_vehicle(t_s, frame, |to| {
+            pending.push(Outgoing {
+                to,
+                bytes: frame.bytes.to_vec(),
+            })
+        });
+    }
+
+    fn route_from_station(&mut self, chunk: &Chunk, frame: &RawFrame<'_>, supervisor: &Supervisor) {
+        let pending = &mut self.pending;
+        self.router.from_station(
+            chunk.endpoint(),
+            chunk.t_s,
+            frame,
+            supervisor.routes(),
+            &self.vehicle_fixed,
+            |to| {
+                pending.push(Outgoing {
+                    to,
+                    bytes: frame.bytes.to_vec(),
+                })
+            },
+        );
+    }
+
+    /// Hand what was routed to the links, noting how long after `received_t_s`.
+    fn flush(&mut self, received_t_s: f64) {
+        if self.pending.is_empty() {
+            return;
+        }
+        match &self.sender {
+            Some(sender) => self.pending.drain(..).for_each(|out| sender.send(out)),
+            None => self.pending.clear(),
+        }
+        let waited_us = ((unix_now_s() - received_t_s) * 1e6).max(0.0) as u64;
+        self.latency_us.saturating_record(waited_us);
+    }
 }
 
 /// Sends the session's feed messages to each vehicle's route, as the feed's identity.
@@ -353,15 +399,23 @@ impl LiveSession {
             result: Ok(()),
             forward: None,
             signing: None,
+            kept: Kept::default(),
         }
     }
 
-    /// Route between vehicles and stations with `router`; `vehicle_fixed` are the vehicle
-    /// links' endpoints known before anything is heard (a station's heartbeat goes there).
-    pub fn forward_with(&mut self, router: Forwarder, vehicle_fixed: Vec<Endpoint>) {
+    /// Route between vehicles and stations with `router`, sending with `sender`;
+    /// `vehicle_fixed` are the vehicle links' endpoints known before anything is heard (a
+    /// station's heartbeat goes there).
+    pub fn forward_with(
+        &mut self,
+        router: Forwarder,
+        vehicle_fixed: Vec<Endpoint>,
+        sender: Option<Sender>,
+    ) {
         self.forward = Some(Forwarding {
             router,
             vehicle_fixed,
+            sender,
             pending: Vec::new(),
             latency_us: new_histogram(),
         });
@@ -370,21 +424,6 @@ impl LiveSession {
     /// Judge every vehicle frame with `signing` before anything else sees it.
     pub fn sign_with(&mut self, signing: Arc<Signing>) {
         self.signing = Some((signing, SigningCounts::default()));
-    }
-
-    /// Hand what the last chunk routed to the links (`--forward`), noting how long it waited.
-    pub fn send_forwarded(&mut self, network: &Network, received_t_s: f64) {
-        let Some(f) = self.forward.as_mut() else {
-            return;
-        };
-        if f.pending.is_empty() {
-            return;
-        }
-        for out in f.pending.drain(..) {
-            network.send(out);
-        }
-        let waited_us = ((unix_now_s() - received_t_s) * 1e6).max(0.0) as u64;
-        f.latency_us.saturating_record(waited_us);
     }
 
     /// Show a frame savsim sent to the stations (`--forward-own`).
@@ -405,43 +444,11 @@ impl LiveSession {
         let Some(f) = self.forward.as_mut() else {
             return;
         };
-        let from = chunk.endpoint();
         let supervisor = &self.supervisor;
-        let mut on_frame = |frame: &RawFrame<'_>| {
-            let Forwarding {
-                router,
-                vehicle_fixed,
-                pending,
-                ..
-            } = &mut *f;
-            router.from_station(
-                from,
-                chunk.t_s,
-                frame,
-                supervisor.routes(),
-                vehicle_fixed,
-                |to| {
-                    pending.push(Outgoing {
-                        to,
-                        bytes: frame.bytes.to_vec(),
-                    })
-                },
-            );
-        };
-        match chunk.kind {
-            ChunkKind::Datagram => {
-                frames_in_datagram(&chunk.bytes, &mut on_frame);
-            }
-            ChunkKind::Connected => {
-                self.framers.insert(chunk.link, StreamFramer::default());
-            }
-            ChunkKind::Stream => {
-                self.framers
-                    .entry(chunk.link)
-                    .or_default()
-                    .push(&chunk.bytes, &mut on_frame);
-            }
-        }
+        frame_chunk(&mut self.framers, chunk, |frame| {
+            f.route_from_station(chunk, frame, supervisor);
+        });
+        f.flush(chunk.t_s);
     }
 
     /// The session.
@@ -473,6 +480,19 @@ impl LiveSession {
                     feed.unrouted += 1;
                     continue;
                 };
+                if let Some(other) = self
+                    .supervisor
+                    .routes()
+                    .find(|(id, e)| *e == to && *id != m.to)
+                {
+                    if self.result.is_ok() {
+                        self.result = Err(Error::SharedEndpoint {
+                            vehicles: format!("{} and {}", m.to, other.0),
+                            endpoint: to.to_string(),
+                        });
+                    }
+                    return;
+                }
                 if !feed.endpoints.contains(&to) {
                     feed.endpoints.push(to);
                 }
@@ -495,7 +515,8 @@ impl LiveSession {
     }
 
     /// Frame, judge (signing), route (forwarding), supervise, record and run one chunk
-    /// through the session.
+    /// through the session. Routing comes first for the whole chunk: the stations get its
+    /// frames before any of the mirroring work.
     pub fn process(&mut self, chunk: &Chunk) {
         if self
             .forward
@@ -505,18 +526,15 @@ impl LiveSession {
             self.process_station(chunk);
             return;
         }
-        let from = chunk.endpoint();
-        let t_us = (chunk.t_s * 1e6) as u64;
+        let mut kept = std::mem::take(&mut self.kept);
+        kept.clear();
         let Self {
-            session,
-            supervisor,
-            recorder,
-            result,
+            framers,
             forward,
             signing,
             ..
         } = self;
-        let mut on_frame = |frame: &RawFrame<'_>| {
+        let skipped = frame_chunk(framers, chunk, |frame| {
             if let Some((judge, counts)) = signing.as_mut() {
                 let intact = !matches!(
                     frame.status,
@@ -527,48 +545,95 @@ impl LiveSession {
                 }
             }
             if let Some(f) = forward.as_mut() {
-                let pending = &mut f.pending;
-                f.router.from_vehicle(chunk.t_s, frame, |to| {
-                    pending.push(Outgoing {
-                        to,
-                        bytes: frame.bytes.to_vec(),
-                    })
-                });
+                f.route_from_vehicle(chunk.t_s, frame);
             }
-            if supervisor.observe(from, chunk.t_s, frame).rebooted {
-                let sender = SenderId {
-                    system_id: frame.system_id,
-                    component_id: frame.component_id,
-                };
-                session.stats_mut().restart_sequence(sender, frame.sequence);
+            kept.push(frame.bytes);
+        });
+        if let Some(f) = self.forward.as_mut() {
+            f.flush(chunk.t_s);
+        }
+        for bytes in kept.frames() {
+            if let Scan::Frame(frame) = scan(bytes) {
+                self.mirror(chunk, &frame);
             }
-            if let Some(rec) = recorder.as_mut() {
-                if let Err(e) = rec.write_record(t_us, frame.bytes) {
-                    *result = Err(Error::file("recording", e));
-                }
-            }
-            if let Err(e) = session.on_frame(chunk.t_s, frame) {
-                *result = Err(e);
-            }
-        };
-        let skipped = match chunk.kind {
-            ChunkKind::Datagram => frames_in_datagram(&chunk.bytes, &mut on_frame),
-            ChunkKind::Connected => {
-                // A new byte stream: what the last connection left half-framed is gone.
-                self.framers.insert(chunk.link, StreamFramer::default());
-                Skipped::default()
-            }
-            ChunkKind::Stream => self
-                .framers
-                .entry(chunk.link)
-                .or_default()
-                .push(&chunk.bytes, &mut on_frame),
-        };
+        }
+        self.kept = kept;
         skipped.count_into(self.session.stats_mut());
         if chunk.kind != ChunkKind::Connected {
             let waited_us = ((unix_now_s() - chunk.t_s) * 1e6).max(0.0) as u64;
             self.latency_us.saturating_record(waited_us);
         }
+    }
+
+    /// Supervise, record and run one frame of a vehicle's chunk through the session.
+    fn mirror(&mut self, chunk: &Chunk, frame: &RawFrame<'_>) {
+        if self
+            .supervisor
+            .observe(chunk.endpoint(), chunk.t_s, frame)
+            .rebooted
+        {
+            let sender = SenderId {
+                system_id: frame.system_id,
+                component_id: frame.component_id,
+            };
+            self.session
+                .stats_mut()
+                .restart_sequence(sender, frame.sequence);
+        }
+        if let Some(rec) = self.recorder.as_mut() {
+            if let Err(e) = rec.write_record((chunk.t_s * 1e6) as u64, frame.bytes) {
+                self.result = Err(Error::file("recording", e));
+            }
+        }
+        if let Err(e) = self.session.on_frame(chunk.t_s, frame) {
+            self.result = Err(e);
+        }
+    }
+}
+
+/// Every frame of a chunk, through the link's framer (a datagram alone; a TCP read after
+/// what the connection left; a new connection restarts it); the bytes that were no frame.
+fn frame_chunk(
+    framers: &mut BTreeMap<LinkId, StreamFramer>,
+    chunk: &Chunk,
+    mut on_frame: impl FnMut(&RawFrame<'_>),
+) -> Skipped {
+    match chunk.kind {
+        ChunkKind::Datagram => frames_in_datagram(&chunk.bytes, &mut on_frame),
+        ChunkKind::Connected => {
+            // A new byte stream: what the last connection left half-framed is gone.
+            framers.insert(chunk.link, StreamFramer::default());
+            Skipped::default()
+        }
+        ChunkKind::Stream => framers
+            .entry(chunk.link)
+            .or_default()
+            .push(&chunk.bytes, &mut on_frame),
+    }
+}
+
+/// The frames of one chunk kept for the mirroring after routing: their bytes end to end,
+/// and where each is (both reused from chunk to chunk).
+#[derive(Debug, Default)]
+struct Kept {
+    bytes: Vec<u8>,
+    spans: Vec<std::ops::Range<usize>>,
+}
+
+impl Kept {
+    fn clear(&mut self) {
+        self.bytes.clear();
+        self.spans.clear();
+    }
+
+    fn push(&mut self, frame: &[u8]) {
+        let at = self.bytes.len();
+        self.bytes.extend_from_slice(frame);
+        self.spans.push(at..self.bytes.len());
+    }
+
+    fn frames(&self) -> impl Iterator<Item = &[u8]> + '_ {
+        self.spans.iter().map(|r| &self.bytes[r.clone()])
     }
 }
 
@@ -643,7 +708,7 @@ pub fn run_links(
             station_fixed,
             vec![options.gcs, options.feed_from],
         );
-        thread.forward_with(router, vehicle_fixed);
+        thread.forward_with(router, vehicle_fixed, Some(network.sender()));
     }
     if let Some(path) = &options.feed_out {
         if !feeding {
@@ -670,7 +735,6 @@ pub fn run_links(
             Ok(chunk) => {
                 network.taken();
                 thread.process(&chunk);
-                thread.send_forwarded(&network, chunk.t_s);
                 if feeding {
                     thread.send_feed(&network, chunk.t_s);
                 }
@@ -727,13 +791,6 @@ pub fn run_links(
         } else {
             thread.process(&chunk);
         }
-    }
-    // The links are stopped: what the drain routed is not sent (counted as unsent).
-    if let Some(f) = thread.forward.as_mut() {
-        counters
-            .unsent
-            .fetch_add(f.pending.len() as u64, Ordering::Relaxed);
-        f.pending.clear();
     }
     if let Some(rec) = thread.recorder.as_mut() {
         if let Err(e) = rec.flush() {

@@ -220,9 +220,30 @@ pub fn unix_now_s() -> f64 {
     unix_s + instant.elapsed().as_secs_f64()
 }
 
+/// A handle that queues bytes for the links, for a part of the session thread that sends
+/// on its own (`--forward`); cloned from [`Network::sender`].
+#[derive(Debug, Clone)]
+pub struct Sender {
+    outgoing: Vec<mpsc::Sender<Outgoing>>,
+    counters: Arc<LinkCounters>,
+}
+
+impl Sender {
+    /// Queue bytes for an endpoint; never waits (a full queue drops and counts).
+    pub fn send(&self, out: Outgoing) {
+        let sent = self
+            .outgoing
+            .get(usize::from(out.to.link))
+            .is_some_and(|tx| tx.try_send(out).is_ok());
+        if !sent {
+            self.counters.unsent.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
 /// The running link tasks.
 pub struct Network {
-    outgoing: Vec<mpsc::Sender<Outgoing>>,
+    sender: Sender,
     stop: watch::Sender<bool>,
     tasks: Vec<JoinHandle<Result<()>>>,
     runtime: tokio::runtime::Handle,
@@ -281,7 +302,10 @@ impl Network {
             }));
         }
         let network = Network {
-            outgoing,
+            sender: Sender {
+                outgoing,
+                counters: counters.clone(),
+            },
             stop,
             tasks,
             runtime: runtime.clone(),
@@ -308,13 +332,12 @@ impl Network {
 
     /// Queue bytes for an endpoint; never waits (a full queue drops and counts).
     pub fn send(&self, out: Outgoing) {
-        let sent = self
-            .outgoing
-            .get(usize::from(out.to.link))
-            .is_some_and(|tx| tx.try_send(out).is_ok());
-        if !sent {
-            self.counters.unsent.fetch_add(1, Ordering::Relaxed);
-        }
+        self.sender.send(out);
+    }
+
+    /// A handle that sends as [`Network::send`] does.
+    pub fn sender(&self) -> Sender {
+        self.sender.clone()
     }
 
     /// True while every link task runs (a task ends early only on an error).

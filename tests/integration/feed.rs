@@ -673,3 +673,76 @@ fn traffic_the_vehicle_re_streams_is_not_read_back_as_traffic() {
         summary["feed"]
     );
 }
+
+/// Two vehicles behind one router address (one socket sends both, as MAVProxy's or
+/// mavlink-router's output does): the feed names no target, so it is refused with an error
+/// that says what to do, and nothing was sent to the shared address; without the feed both
+/// are mirrored.
+#[test]
+fn the_feed_is_refused_for_vehicles_behind_one_router_address() {
+    let run = |feeding: bool| {
+        let rt = runtime();
+        let (link, savsim_at) = udp_link(&rt);
+        let router = rt.block_on(UdpSocket::bind("127.0.0.1:0")).unwrap();
+        let run_for = Duration::from_millis(1500);
+        rt.spawn(async move {
+            let plane = LocalTangentPlane::new(ORIGIN);
+            let hb = heartbeat(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
+            let (mut seq, start) = ([0u8; 2], tokio::time::Instant::now());
+            let mut tick = tokio::time::interval(Duration::from_millis(50));
+            let mut n = 0u32;
+            while start.elapsed() < run_for {
+                tick.tick().await;
+                for (k, sysid) in [1u8, 2].into_iter().enumerate() {
+                    let mut bytes = Vec::new();
+                    if n.is_multiple_of(10) {
+                        bytes.extend(frame_v2(sysid, 1, seq[k], &hb));
+                        seq[k] = seq[k].wrapping_add(1);
+                    }
+                    let pose = (DVec3::new(f64::from(sysid) * 5.0, 0.0, 30.0), 0.0, 0.0, 0.0);
+                    bytes.extend(pose_frames(
+                        &plane,
+                        sysid,
+                        &mut seq[k],
+                        30_000 + 50 * n,
+                        pose,
+                    ));
+                    let _ = router.send_to(&bytes, savsim_at).await;
+                }
+                n += 1;
+            }
+        });
+        let scene = Arc::new(scene_at(ORIGIN, &boxes_scene()));
+        let mut session = Session::new(Some(scene), CollisionConfig::default(), None).unwrap();
+        if feeding {
+            session.start_feed(config("proximity")).unwrap();
+        }
+        let options = savsim::app::live::LiveOptions {
+            duration: Some(run_for),
+            ..Default::default()
+        };
+        let shutdown = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        savsim::app::live::run_links(rt.handle(), vec![link], &options, session, None, shutdown)
+            .unwrap()
+    };
+    let refused = run(true);
+    let err = refused.ended.expect_err("the feed is refused").to_string();
+    assert!(
+        err.contains("vehicles 1/1 and 2/1") || err.contains("vehicles 2/1 and 1/1"),
+        "{err}"
+    );
+    assert!(err.contains("its own link"), "{err}");
+    // Before the second vehicle is heard the address is the first one's alone: at most its
+    // first frame of sectors (9 messages) went there; nothing once both were heard.
+    let sent = refused.report.feed.as_ref().unwrap().sent;
+    assert!(sent <= 9, "{sent} feed messages went to the shared address");
+
+    let mirrored = run(false);
+    mirrored.ended.unwrap();
+    assert_eq!(
+        mirrored.report.vehicles.len(),
+        2,
+        "{:?}",
+        mirrored.report.vehicles
+    );
+}

@@ -77,6 +77,7 @@ mod shared_fixtures;
 mod signing;
 mod sitl;
 mod sitl_feed;
+mod sitl_forward;
 mod sitl_px4;
 mod sitl_px4_feed;
 mod study;

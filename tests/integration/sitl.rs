@@ -42,7 +42,7 @@ impl Drop for Sitl {
     }
 }
 
-fn start_sitl(
+pub(crate) fn start_sitl(
     bin: &PathBuf,
     instance: u8,
     sysid: u8,
