@@ -1,24 +1,33 @@
 //! Datagrams and TCP pieces from several senders on two links, through the live session
 //! thread exactly as `savsim live` runs it (`app::live::LiveSession`): routing and stream
-//! supervision, sequence bookkeeping across reboots and silences, decode and world store.
-//! The input chooses, per chunk, its link and sender address, the time since the last chunk
-//! (up to 5 s: silences, stale streams, returns) and its bytes. Checked: every request goes to
-//! a vehicle the supervisor routes, at the endpoint it was last heard on.
+//! supervision, sequence bookkeeping across reboots and silences, decode and world store;
+//! `--forward` with a station on a third link, and signing (accepting or requiring) when the
+//! input's first byte says so. The input chooses, per chunk, its link and sender address, the
+//! time since the last chunk (up to 5 s: silences, stale streams, returns) and its bytes.
+//! Checked: every request goes to a vehicle the supervisor routes, at the endpoint it was last
+//! heard on.
 #![no_main]
 
 use std::net::SocketAddr;
+use std::sync::Arc;
 
 use libfuzzer_sys::fuzz_target;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use savsim::app::live::LiveSession;
 use savsim::collision::pipeline::CollisionConfig;
+use savsim::ingest::forward::Forwarder;
 use savsim::ingest::live::{Chunk, ChunkKind};
-use savsim::ingest::supervisor::{Supervisor, SupervisorConfig};
+use savsim::ingest::signing::{Signing, SigningKey};
+use savsim::ingest::supervisor::{Supervisor, SupervisorConfig, DEFAULT_GCS};
 use savsim::session::Session;
 
 fuzz_target!(|data: &[u8]| {
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
     let mut live = LiveSession::new(session, Supervisor::new(SupervisorConfig::default()), None);
+    live.forward_with(Forwarder::new(2, Vec::new(), vec![DEFAULT_GCS]), Vec::new(), None);
+    if let Some(mode) = data.first().filter(|m| *m & 1 == 1) {
+        live.sign_with(Arc::new(Signing::new(&SigningKey([7; 32]), mode & 2 != 0)));
+    }
     let mut t_s = 1.0e9;
     let mut rest = data;
     while let [who, step, len, tail @ ..] = rest {
@@ -26,9 +35,10 @@ fuzz_target!(|data: &[u8]| {
         let (bytes, next) = tail.split_at(len);
         rest = next;
         t_s += f64::from(*step) * 0.02;
-        // Link 0 is UDP with four senders; link 1 is a TCP stream, reconnected now and then.
-        let link = u16::from(who >> 7);
-        let (from, kind) = if link == 0 {
+        // Link 0 is UDP with four senders; link 1 is a TCP stream, reconnected now and then;
+        // link 2 a station's UDP link.
+        let link = if who & 0x30 == 0x30 { 2 } else { u16::from(who >> 7) };
+        let (from, kind) = if link != 1 {
             let port = 5000 + u16::from(who & 3);
             (
                 Some(SocketAddr::from(([127, 0, 0, 1], port))),

@@ -196,3 +196,153 @@ impl Forwarder {
         self.counts.own += sent;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ingest::frame::{scan, Scan};
+    use mavlink::dialects::ardupilotmega::{
+        MavCmd, MavMessage, COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
+    };
+    use mavlink::{MavHeader, MavlinkVersion};
+
+    fn bytes(from: (u8, u8), m: &MavMessage) -> Vec<u8> {
+        let mut out = Vec::new();
+        let header = MavHeader {
+            system_id: u32::from(from.0),
+            component_id: from.1,
+            sequence: 0,
+        };
+        mavlink::write_versioned_msg(&mut out, MavlinkVersion::V2, header, m).unwrap();
+        out
+    }
+
+    fn with_frame(b: &[u8], f: impl FnOnce(&RawFrame<'_>)) {
+        match scan(b) {
+            Scan::Frame(frame) => f(&frame),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn command(target: (u8, u8)) -> MavMessage {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+            target_system: target.0,
+            target_component: target.1,
+            ..Default::default()
+        })
+    }
+
+    const GCS: SenderId = SenderId {
+        system_id: 245,
+        component_id: 190,
+    };
+
+    fn at(link: LinkId, port: Option<u16>) -> Endpoint {
+        Endpoint {
+            link,
+            peer: port.map(|p| SocketAddr::from(([127, 0, 0, 1], p))),
+        }
+    }
+
+    use std::net::SocketAddr;
+
+    /// Links 0 and 1 are vehicles'; 2 a udpout station, 3 a udpin one.
+    fn router() -> Forwarder {
+        Forwarder::new(2, vec![at(2, Some(14550))], vec![GCS])
+    }
+
+    fn routes() -> Vec<(SenderId, Endpoint)> {
+        vec![
+            (
+                SenderId {
+                    system_id: 1,
+                    component_id: 1,
+                },
+                at(0, Some(5000)),
+            ),
+            (
+                SenderId {
+                    system_id: 2,
+                    component_id: 1,
+                },
+                at(1, None),
+            ),
+        ]
+    }
+
+    fn from_station(r: &mut Forwarder, from: Endpoint, t_s: f64, m: &MavMessage) -> Vec<Endpoint> {
+        let b = bytes((255, 190), m);
+        let mut to = Vec::new();
+        with_frame(&b, |f| {
+            r.from_station(from, t_s, f, routes().into_iter(), &[at(1, None)], |e| {
+                to.push(e)
+            })
+        });
+        to
+    }
+
+    #[test]
+    fn a_targeted_command_goes_to_its_vehicle_only_and_an_unknown_target_nowhere() {
+        let mut r = router();
+        let station = at(3, Some(6000));
+        assert_eq!(
+            from_station(&mut r, station, 0.0, &command((2, 1))),
+            [at(1, None)]
+        );
+        assert_eq!(
+            from_station(&mut r, station, 0.0, &command((1, 0))),
+            [at(0, Some(5000))]
+        );
+        assert!(from_station(&mut r, station, 0.0, &command((9, 1))).is_empty());
+        assert_eq!(r.counts.unroutable, 1);
+    }
+
+    #[test]
+    fn a_heartbeat_or_a_broadcast_goes_to_every_vehicle_and_the_other_stations_not_back() {
+        let mut r = router();
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+        let from = at(3, Some(6000));
+        let to = from_station(&mut r, from, 0.0, &hb);
+        assert_eq!(to, [at(0, Some(5000)), at(1, None), at(2, Some(14550))]);
+        let to = from_station(&mut r, at(2, Some(14550)), 1.0, &command((0, 0)));
+        // The udpin station was heard: it gets it; the sender does not.
+        assert_eq!(to, [at(0, Some(5000)), at(1, None), from]);
+    }
+
+    #[test]
+    fn vehicle_frames_go_to_every_station_heard_lately_but_not_savsims_own() {
+        let mut r = router();
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+        from_station(&mut r, at(3, Some(6000)), 0.0, &hb);
+        let position = bytes(
+            (1, 1),
+            &MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default()),
+        );
+        let mut to = Vec::new();
+        with_frame(&position, |f| r.from_vehicle(5.0, f, |e| to.push(e)));
+        assert_eq!(to, [at(2, Some(14550)), at(3, Some(6000))]);
+        // 10 s after the udpin station was last heard, only the fixed one.
+        to.clear();
+        with_frame(&position, |f| r.from_vehicle(10.5, f, |e| to.push(e)));
+        assert_eq!(to, [at(2, Some(14550))]);
+        // savsim's own echo, and what the vehicle addressed to savsim: nowhere.
+        to.clear();
+        let echo = bytes(
+            (245, 190),
+            &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
+        );
+        with_frame(&echo, |f| r.from_vehicle(10.5, f, |e| to.push(e)));
+        let ack = bytes((1, 1), &command((245, 190)));
+        with_frame(&ack, |f| r.from_vehicle(10.5, f, |e| to.push(e)));
+        assert!(to.is_empty(), "{to:?}");
+        // A corrupt frame: counted, not forwarded.
+        let mut bad = position.clone();
+        let n = bad.len();
+        bad[n - 1] ^= 0xff;
+        with_frame(&bad, |f| r.from_vehicle(10.5, f, |e| to.push(e)));
+        assert!(to.is_empty());
+        assert_eq!(r.counts.corrupt, 1);
+        assert_eq!(r.counts.to_stations, 3);
+    }
+}

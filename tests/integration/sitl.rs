@@ -49,10 +49,22 @@ pub(crate) fn start_sitl(
     serial0: &str,
     dir: &std::path::Path,
 ) -> Sitl {
+    start_sitl_at(bin, instance, sysid, serial0, dir, 1)
+}
+
+/// [`start_sitl`] at `speedup` times real time.
+pub(crate) fn start_sitl_at(
+    bin: &PathBuf,
+    instance: u8,
+    sysid: u8,
+    serial0: &str,
+    dir: &std::path::Path,
+    speedup: u32,
+) -> Sitl {
     let mut command = Command::new(bin);
     command
         .current_dir(dir)
-        .args(["--model", "+", "--speedup", "1", "--wipe"])
+        .args(["--model", "+", "--speedup", &speedup.to_string(), "--wipe"])
         .args(["-I", &instance.to_string(), "--sysid", &sysid.to_string()])
         .args(["--home", "-35.363261,149.165230,584,353"])
         .args(["--serial0", serial0])

@@ -7,7 +7,7 @@
 //!   the vehicle, message for message.
 //! - behind a router: real MAVProxy in front of two ArduCopters, savsim on its one output with
 //!   the feed: refused with the error that says what to do; both vehicles mirrored until then.
-//! - signing: ArduCopter given a key over SERIAL0 (SETUP_SIGNING, as MAVProxy's `signing
+//! - signing: ArduCopter at speedup 10 given a key over SERIAL0 (SETUP_SIGNING, as MAVProxy's `signing
 //!   setup` sends it); on SERIAL1 (which, unlike SERIAL0, drops unsigned frames) savsim with
 //!   the key is answered, savsim without it is not.
 
@@ -27,7 +27,7 @@ use savsim::ingest::supervisor::RequestState;
 use savsim::session::Session;
 
 use crate::common::{python, root, runtime};
-use crate::sitl::{arducopter, inside_own_network_namespace, start_sitl, Sitl};
+use crate::sitl::{arducopter, inside_own_network_namespace, start_sitl, start_sitl_at, Sitl};
 
 /// A child process killed (and reaped) when dropped.
 struct Killed(Child);
@@ -342,7 +342,9 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
     }
     const PASSPHRASE: &str = "savsim sitl signing";
     let dir = tempfile::tempdir().unwrap();
-    let _sitl = start_sitl(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "sitl"));
+    // At 10x its signing clock runs ten times ahead of savsim's: savsim's own timestamps must
+    // follow the vehicle's (more than a minute behind, ArduPilot would drop them).
+    let _sitl = start_sitl_at(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "sitl"), 10);
     assert!(
         set_up_signing(PASSPHRASE),
         "ArduCopter signs once given the key"
@@ -376,10 +378,11 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
         unsigned.report.vehicles
     );
 
-    // With it, and requiring it: answered, every frame from the vehicle signed.
+    // With it, and requiring it: answered, every frame from the vehicle signed, also after
+    // 20 s (200 s of the vehicle's clock).
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
     let options = LiveOptions {
-        duration: Some(Duration::from_secs(8)),
+        duration: Some(Duration::from_secs(20)),
         signing_key: Some(SigningKey::from_passphrase(PASSPHRASE)),
         signing_require: true,
         ..Default::default()
