@@ -177,12 +177,21 @@ const ULOG_POSITION: [&str; 3] = [
     "sensor_gps",
 ];
 
+/// Every topic a ULog is read for: the positions', the attitude's and the traffic's.
+const ULOG_TOPICS: [&str; 5] = [
+    "vehicle_global_position",
+    "vehicle_gps_position",
+    "sensor_gps",
+    "vehicle_attitude",
+    "transponder_report",
+];
+
 /// A PX4 ULog's reports: positions from `vehicle_global_position` (else the GPS topic),
 /// instance 0; attitudes from `vehicle_attitude` instance 0; traffic from
 /// `transponder_report`.
 pub fn read_ulog(data: &[u8]) -> Result<FlightLog, UlogError> {
     let position_topic = ulog_position_topic(data)?;
-    let mut reader = UlogReader::new(data)?;
+    let mut reader = UlogReader::new(data)?.only(&ULOG_TOPICS);
     let mut summary = LogSummary::default();
     let mut taken = Vec::new();
     let mut positions = Positions::default();
@@ -257,7 +266,7 @@ fn traffic_sender(report: &Report, vehicle: SenderId) -> SenderId {
 
 /// The first of [`ULOG_POSITION`] the log has samples of (a pass over its data).
 fn ulog_position_topic(data: &[u8]) -> Result<Option<&'static str>, UlogError> {
-    let mut reader = UlogReader::new(data)?;
+    let mut reader = UlogReader::new(data)?.only(&ULOG_POSITION);
     let mut found = [false; ULOG_POSITION.len()];
     while let Some(s) = reader.next_sample() {
         if let Some(i) = ULOG_POSITION.iter().position(|t| *t == s.topic) {

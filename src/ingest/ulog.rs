@@ -9,6 +9,7 @@
 //! end of the file is counted, and the read resumes at the next sync marker.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 /// The first bytes of every ULog file.
 pub const MAGIC: [u8; 7] = *b"ULog\x01\x12\x35";
@@ -96,6 +97,8 @@ impl Primitive {
 pub struct Layout {
     fields: Vec<(Box<str>, usize, Primitive)>,
     size: usize,
+    /// Where the `timestamp` field (a `uint64_t`) is, found once.
+    timestamp: Option<usize>,
 }
 
 impl Layout {
@@ -128,9 +131,7 @@ impl Sample<'_> {
 
     /// The sample's time, microseconds on the log's clock.
     pub fn timestamp_us(&self) -> Option<u64> {
-        let (offset, Primitive::U64) = self.layout.field("timestamp")? else {
-            return None;
-        };
+        let offset = self.layout.timestamp?;
         Some(u64::from_le_bytes(
             self.data.get(offset..offset + 8)?.try_into().ok()?,
         ))
@@ -166,6 +167,10 @@ pub struct UlogCounts {
 struct Subscription {
     topic: Box<str>,
     instance: u8,
+    /// Whether the reader hands its samples out (see [`UlogReader::only`]).
+    wanted: bool,
+    /// Its topic's layout, once resolved (until a format message changes the formats).
+    layout: Option<Arc<Layout>>,
 }
 
 /// Reads the samples of a ULog file held in memory.
@@ -174,8 +179,9 @@ pub struct UlogReader<'a> {
     offset: usize,
     /// Raw format texts by topic name (resolved into layouts on first use).
     formats: HashMap<Box<str>, Box<str>>,
-    layouts: HashMap<Box<str>, Layout>,
     subscriptions: HashMap<u16, Subscription>,
+    /// The topics whose samples are handed out (all when `None`).
+    only: Option<&'a [&'a str]>,
     parameters: HashMap<Box<str>, f64>,
     /// Where appended data starts (from the flag bits), ascending; passed ones removed.
     appended: Vec<usize>,
@@ -196,13 +202,19 @@ impl<'a> UlogReader<'a> {
             data,
             offset: HEADER_LEN,
             formats: HashMap::new(),
-            layouts: HashMap::new(),
             subscriptions: HashMap::new(),
+            only: None,
             parameters: HashMap::new(),
             appended: Vec::new(),
             start_us,
             counts: UlogCounts::default(),
         })
+    }
+
+    /// Hand out only the samples of these topics (the others are counted, not decoded).
+    pub fn only(mut self, topics: &'a [&'a str]) -> Self {
+        self.only = Some(topics);
+        self
     }
 
     /// What the read has met so far.
@@ -237,18 +249,23 @@ impl<'a> UlogReader<'a> {
                 self.counts.corrupt += 1;
                 continue;
             };
-            if !self.layouts.contains_key(&*sub.topic) {
-                let topic = sub.topic.clone();
-                let layout = self.resolve(&topic, 0).unwrap_or_default();
-                self.layouts.insert(topic, layout);
-            }
             self.counts.samples += 1;
+            if !sub.wanted {
+                continue;
+            }
+            if sub.layout.is_none() {
+                let layout = Arc::new(self.resolve(&sub.topic, 0).unwrap_or_default());
+                // The same topic's other instances share it.
+                let topic = sub.topic.clone();
+                for s in self.subscriptions.values_mut().filter(|s| s.topic == topic) {
+                    s.layout = Some(layout.clone());
+                }
+            }
             let sub = &self.subscriptions[&id];
-            let layout = &self.layouts[&*sub.topic];
             return Some(Sample {
                 topic: &sub.topic,
                 instance: sub.instance,
-                layout,
+                layout: sub.layout.as_deref()?,
                 data: &payload[2..],
             });
         }
@@ -305,18 +322,23 @@ impl<'a> UlogReader<'a> {
                     .and_then(|s| s.split_once(':'))
                 {
                     self.formats.insert(name.into(), fields.into());
-                    self.layouts.clear();
+                    for s in self.subscriptions.values_mut() {
+                        s.layout = None;
+                    }
                 }
             }
             b'A' if payload.len() > 3 => {
                 let id = u16::from_le_bytes([payload[1], payload[2]]);
                 let topic = String::from_utf8_lossy(&payload[3..]);
                 let topic = topic.trim_end_matches('\0');
+                let wanted = self.only.is_none_or(|only| only.contains(&topic));
                 self.subscriptions.insert(
                     id,
                     Subscription {
                         topic: topic.into(),
                         instance: payload[0],
+                        wanted,
+                        layout: None,
                     },
                 );
             }
@@ -399,6 +421,11 @@ impl<'a> UlogReader<'a> {
                 }
             }
         }
+        layout.timestamp = layout
+            .fields
+            .iter()
+            .find(|(n, _, p)| &**n == "timestamp" && *p == Primitive::U64)
+            .map(|&(_, offset, _)| offset);
         Some(layout)
     }
 }
