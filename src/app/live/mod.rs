@@ -1,0 +1,573 @@
+//! `savsim live` and `savsim record`: the session thread and its wiring.
+//!
+//! The network runtime's worker runs one task per link ([`crate::ingest::live`]); this thread
+//! frames each chunk (one framer per TCP link, restarted at each connection), lets the
+//! [`Supervisor`] route and supervise, records, runs the session, and sends what the
+//! supervisor says is due to the endpoint it names. It stops on SIGINT/SIGTERM, at the
+//! deadline, or when a link fails; what was queued is still processed, so the summary counts
+//! every byte received (after a signal, for at most [`STOP_DRAIN`]; the rest is counted as
+//! unprocessed).
+
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::ingest::address::ConnectAddress;
+use crate::ingest::forward::{ForwardCounts, Forwarder};
+use crate::ingest::live::{unix_now_s, Chunk, Link, LinkCounters, Network, Outgoing};
+use crate::ingest::outbox::Outbox;
+use crate::ingest::signing::{Signing, SigningCounts, SigningKey};
+use crate::ingest::stats::SenderId;
+use crate::ingest::supervisor::Endpoint;
+use crate::ingest::supervisor::{
+    LinkId, Supervisor, SupervisorConfig, SupervisorCounts, VehicleLink,
+};
+use crate::ingest::tlog::TlogWriter;
+use crate::session::Session;
+
+mod feed;
+mod forwarding;
+mod session;
+
+use feed::FeedSender;
+pub use session::LiveSession;
+
+/// How a live run behaves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiveOptions {
+    /// Where to connect: one link per address.
+    pub connect: Vec<ConnectAddress>,
+    /// Rate asked for GLOBAL_POSITION_INT and ATTITUDE, Hz. Default 20.
+    pub rate_hz: f64,
+    /// Stop after this long (default: run until shutdown).
+    pub duration: Option<Duration>,
+    /// savsim's own identity as a GCS (`--sysid`, `--compid`). Default 245/190
+    /// ([`crate::ingest::supervisor::DEFAULT_GCS`]).
+    pub gcs: SenderId,
+    /// Chunks the channel to the session thread holds before dropping. Default 65536.
+    pub queue_len: usize,
+    /// The closed-loop feed's own identity (docs/closed-loop.md): savsim's system,
+    /// MAV_COMP_ID_OBSTACLE_AVOIDANCE (196). Default 245/196.
+    pub feed_from: SenderId,
+    /// Record every frame the feed sends (its heartbeats too) to this tlog, stamped with the
+    /// time it was handed to the link (`--feed-out`). Default none.
+    pub feed_out: Option<PathBuf>,
+    /// Raised when the session first counts a collision (`savsim study` ends a row there).
+    /// Default none.
+    pub collided: Option<Flag>,
+    /// Ground stations to route the vehicles to (`--forward`): the last links of a run, after
+    /// the `connect` ones (docs/live.md). Default none.
+    pub forward: Vec<ConnectAddress>,
+    /// Show the stations savsim's own frames too (its heartbeat, requests and feed;
+    /// `--forward-own`). Default false.
+    pub forward_own: bool,
+    /// Sign every frame sent, and judge every frame received, with this key (`--signing-key`).
+    pub signing_key: Option<SigningKey>,
+    /// Drop unsigned frames (`--signing require`); without it they are taken. Needs a key.
+    pub signing_require: bool,
+}
+
+/// A flag shared between threads; two are equal when they are the same flag.
+#[derive(Debug, Clone, Default)]
+pub struct Flag(pub Arc<AtomicBool>);
+
+impl PartialEq for Flag {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl Flag {
+    /// Whether it was raised.
+    pub fn is_raised(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+impl Default for LiveOptions {
+    fn default() -> Self {
+        Self {
+            connect: Vec::new(),
+            rate_hz: 20.0,
+            duration: None,
+            gcs: SupervisorConfig::default().gcs,
+            queue_len: 65_536,
+            feed_from: FEED_FROM,
+            feed_out: None,
+            collided: None,
+            forward: Vec::new(),
+            forward_own: false,
+            signing_key: None,
+            signing_require: false,
+        }
+    }
+}
+
+/// Datagram (or TCP read) received -> its frames decoded, run through the session and their
+/// events written, microseconds.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Latency {
+    /// Chunks measured.
+    pub chunks: u64,
+    /// Median.
+    pub p50_us: u64,
+    /// 99th percentile.
+    pub p99_us: u64,
+    /// Largest.
+    pub max_us: u64,
+}
+
+/// The feed's component: MAV_COMP_ID_OBSTACLE_AVOIDANCE.
+pub const FEED_COMPONENT: u8 = 196;
+
+/// The feed's identity by default: savsim's default system, [`FEED_COMPONENT`]. Never the
+/// vehicle's own (ArduPilot drops its own system's messages as a routing loop).
+pub const FEED_FROM: SenderId = SenderId {
+    system_id: crate::ingest::supervisor::DEFAULT_GCS.system_id,
+    component_id: FEED_COMPONENT,
+};
+
+/// What the closed-loop feed sent, for the summary's `link.feed`.
+#[derive(Debug, Clone, Serialize)]
+pub struct FeedLinkReport {
+    /// Messages sent to a vehicle's link.
+    pub sent: u64,
+    /// Messages for a vehicle with no route yet (not heard as an autopilot): not sent.
+    pub unrouted: u64,
+    /// The feed component's heartbeats sent.
+    pub heartbeats: u64,
+    /// Datagram (or read) with the pose received -> its feed frame handed to the link.
+    pub latency: Option<Latency>,
+}
+
+/// After a signal, what the links had queued is processed for at most this long; the rest is
+/// counted, not processed, so that a run behind its stream still stops promptly.
+pub const STOP_DRAIN: Duration = Duration::from_secs(1);
+
+/// A link that brings nothing for this long is logged (once per silence), s.
+const SILENT_LINK_S: f64 = 5.0;
+
+/// What the links did, for the summary's `link` object.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkReport {
+    /// The addresses, in `--connect` order (a link's index).
+    pub endpoints: Vec<String>,
+    /// Requests, re-requests, reboots, heartbeats.
+    #[serde(flatten)]
+    pub counts: SupervisorCounts,
+    /// Each autopilot: where it was last heard, its requests, reboots and returns.
+    pub vehicles: Vec<VehicleLink>,
+    /// Chunks dropped because the session thread was behind.
+    pub dropped_chunks: u64,
+    /// Bytes in those.
+    pub dropped_bytes: u64,
+    /// Chunks still queued when a signal stopped the run and [`STOP_DRAIN`] had passed: not
+    /// processed (0 when the run ended otherwise: then the whole queue is processed).
+    pub unprocessed_chunks: u64,
+    /// Bytes in those.
+    pub unprocessed_bytes: u64,
+    /// Messages to send that could not be (no connection yet, a full queue, an error).
+    pub unsent: u64,
+    /// TCP connections made or accepted.
+    pub connects: u64,
+    /// TCP connections the peer closed.
+    pub closes: u64,
+    /// Times a link brought nothing for 5 s (each logged as a warning).
+    pub silences: u64,
+    /// The most chunks that waited for the session thread at once (of `LiveOptions::queue_len`).
+    pub queue_peak: u64,
+    /// Receive -> processed.
+    pub latency: Option<Latency>,
+    /// The closed-loop feed, when on.
+    pub feed: Option<FeedLinkReport>,
+    /// `--forward`: what was routed to and from the ground stations.
+    pub forward: Option<ForwardReport>,
+    /// `--signing-key`: what signing judged and signed.
+    pub signing: Option<SigningCounts>,
+}
+
+/// What `--forward` did, for the summary's `link.forward`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ForwardReport {
+    /// The stations' links, in `--forward` order.
+    pub stations: Vec<String>,
+    /// Frames routed each way, dropped and shown.
+    #[serde(flatten)]
+    pub counts: ForwardCounts,
+    /// A chunk received -> its frames handed to the other side's links.
+    pub latency: Option<Latency>,
+}
+
+/// A finished live run: the session (for its summary), what the links did, and how the run
+/// ended (a link's error, a recording that could not be written). The summary is written
+/// whatever the ending.
+pub struct LiveRun {
+    /// The session.
+    pub session: Session,
+    /// The links.
+    pub report: LinkReport,
+    /// Ok, or why the run ended early.
+    pub ended: Result<()>,
+}
+
+/// Open every link `options` names on a runtime of its own and run until the end.
+pub fn run_blocking(
+    options: &LiveOptions,
+    session: Session,
+    record: Option<&Path>,
+    shutdown: Arc<AtomicBool>,
+) -> Result<LiveRun> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .thread_name("savsim-net")
+        .enable_all()
+        .build()
+        .map_err(|source| Error::Net {
+            what: "start the network runtime".into(),
+            source,
+        })?;
+    let links = runtime.block_on(async {
+        let mut links = Vec::new();
+        for address in options.connect.iter().chain(&options.forward) {
+            links.push(Link::open(address).await?);
+        }
+        Ok::<_, Error>(links)
+    })?;
+    run_links(runtime.handle(), links, options, session, record, shutdown)
+}
+
+/// A latency histogram, microseconds: 1 us to an hour at 3 significant figures (fixed bounds:
+/// `saturating_record` does not grow an auto-resizing one, it clamps to its initial range).
+pub(super) fn new_histogram() -> hdrhistogram::Histogram<u64> {
+    hdrhistogram::Histogram::new_with_bounds(1, 3_600_000_000, 3).expect("valid bounds")
+}
+
+fn latency(h: &hdrhistogram::Histogram<u64>) -> Option<Latency> {
+    (!h.is_empty()).then(|| Latency {
+        chunks: h.len(),
+        p50_us: h.value_at_quantile(0.5),
+        p99_us: h.value_at_quantile(0.99),
+        max_us: h.max(),
+    })
+}
+
+/// [`run_blocking`] on links already open on `runtime` (tests bind them to port 0): the
+/// vehicles' first, then `options.forward.len()` stations'.
+pub fn run_links(
+    runtime: &tokio::runtime::Handle,
+    links: Vec<Link>,
+    options: &LiveOptions,
+    session: Session,
+    record: Option<&Path>,
+    shutdown: Arc<AtomicBool>,
+) -> Result<LiveRun> {
+    let recorder = record
+        .map(|p| {
+            std::fs::File::create(p)
+                .map(|f| TlogWriter::new(BufWriter::new(f)))
+                .map_err(|e| Error::file(p, e))
+        })
+        .transpose()?;
+    let Wiring {
+        supervisor,
+        vehicle_fixed,
+        station_fixed,
+        first_station,
+        endpoints,
+    } = Wiring::of(&links, options)?;
+    let feeding = session.feed().is_some();
+    if options.feed_out.is_some() && !feeding {
+        return Err(Error::Usage("--feed-out needs --feed".into()));
+    }
+    if options.signing_require && options.signing_key.is_none() {
+        return Err(Error::Usage("--signing require needs --signing-key".into()));
+    }
+    let signing = options
+        .signing_key
+        .as_ref()
+        .map(|key| Arc::new(Signing::new(key, options.signing_require)));
+    let mut outbox = Outbox::new(options.gcs).signed_with(signing.clone());
+    let mut thread = session_thread(session, supervisor, recorder, options, signing)?;
+    let (network, chunks) = Network::start(runtime, links, options.queue_len);
+    if !options.forward.is_empty() {
+        let router = Forwarder::new(
+            first_station as LinkId,
+            station_fixed,
+            vec![options.gcs, options.feed_from],
+        );
+        thread.forward_with(router, vehicle_fixed, Some(network.sender()));
+    }
+    let deadline = options.duration.map(|d| Instant::now() + d);
+    let mut chores = Chores::new(endpoints.len());
+    loop {
+        let stop = shutdown.load(Ordering::Relaxed)
+            || deadline.is_some_and(|d| Instant::now() >= d)
+            || !network.running()
+            || thread.result.is_err();
+        if stop {
+            break;
+        }
+        match chunks.recv_timeout(Duration::from_millis(20)) {
+            Ok(chunk) => {
+                network.taken();
+                thread.take(&chunk, &network, feeding, options.collided.as_ref());
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        chores.run(
+            &mut thread,
+            &network,
+            &mut outbox,
+            &endpoints,
+            options.forward_own,
+        );
+    }
+    let counters = network.counters.clone();
+    let stopped = network.stop();
+    let unprocessed = drain(&mut thread, &chunks, shutdown.load(Ordering::Relaxed));
+    if let Some(rec) = thread.recorder.as_mut() {
+        if let Err(e) = rec.flush() {
+            thread.result = thread.result.and(Err(Error::file("recording", e)));
+        }
+    }
+    if let Some((path, rec)) = thread.feed.record.as_mut() {
+        if let Err(e) = rec.flush() {
+            thread.result = thread.result.and(Err(Error::file(path.clone(), e)));
+        }
+    }
+    thread
+        .session
+        .set_interrupted(shutdown.load(Ordering::Relaxed));
+    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    thread.session.stats_mut().dropped_chunks = load(&counters.dropped_chunks);
+    thread.session.stats_mut().dropped_bytes = load(&counters.dropped_bytes);
+    let ending = Ending {
+        endpoints,
+        first_station,
+        unprocessed,
+        silences: chores.silences,
+        gcs_signed: outbox.signed,
+        feeding,
+    };
+    let report = link_report(&thread, &counters, ending);
+    Ok(LiveRun {
+        session: thread.session,
+        report,
+        ended: stopped.and(thread.result),
+    })
+}
+
+/// What the end of a run adds to the session thread's counts for its report.
+struct Ending {
+    endpoints: Vec<String>,
+    first_station: usize,
+    /// Chunks and bytes left unprocessed.
+    unprocessed: (u64, u64),
+    silences: u64,
+    /// Frames the GCS outbox signed.
+    gcs_signed: u64,
+    feeding: bool,
+}
+
+fn link_report(thread: &LiveSession, counters: &LinkCounters, end: Ending) -> LinkReport {
+    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    LinkReport {
+        counts: thread.supervisor.counts,
+        vehicles: thread.supervisor.vehicles(),
+        dropped_chunks: load(&counters.dropped_chunks),
+        dropped_bytes: load(&counters.dropped_bytes),
+        unprocessed_chunks: end.unprocessed.0,
+        unprocessed_bytes: end.unprocessed.1,
+        unsent: load(&counters.unsent),
+        silences: end.silences,
+        queue_peak: load(&counters.queue_peak),
+        connects: load(&counters.connects),
+        closes: load(&counters.closes),
+        latency: latency(&thread.latency_us),
+        feed: end.feeding.then(|| thread.feed.report()),
+        forward: thread.forward.as_ref().map(|f| ForwardReport {
+            stations: end.endpoints[end.first_station..].to_vec(),
+            counts: f.router.counts,
+            latency: latency(&f.latency_us),
+        }),
+        signing: thread.signing.as_ref().map(|(_, counts)| SigningCounts {
+            sent_signed: end.gcs_signed + thread.feed.outbox.signed,
+            ..*counts
+        }),
+        endpoints: end.endpoints,
+    }
+}
+
+/// The session thread's state for a run: the feed's identity, signing and recording as
+/// `options` say.
+fn session_thread(
+    session: Session,
+    supervisor: Supervisor,
+    recorder: Option<TlogWriter<BufWriter<std::fs::File>>>,
+    options: &LiveOptions,
+    signing: Option<Arc<Signing>>,
+) -> Result<LiveSession> {
+    let mut thread = LiveSession::new(session, supervisor, recorder);
+    thread.feed = FeedSender::new(options.feed_from);
+    thread.feed.outbox = Outbox::new(options.feed_from).signed_with(signing.clone());
+    thread.feed.shown = options.forward_own;
+    if let Some(path) = &options.feed_out {
+        let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
+        thread.feed.record = Some((path.clone(), TlogWriter::new(BufWriter::new(file))));
+    }
+    if let Some(signing) = signing {
+        thread.sign_with(signing);
+    }
+    thread.session.set_own(vec![options.gcs, options.feed_from]);
+    Ok(thread)
+}
+
+/// How a run's links divide: the vehicles' (with the supervisor that knows their fixed
+/// endpoints) and the stations' (from `first_station` on), and what each is called.
+struct Wiring {
+    supervisor: Supervisor,
+    vehicle_fixed: Vec<Endpoint>,
+    station_fixed: Vec<Endpoint>,
+    first_station: usize,
+    endpoints: Vec<String>,
+}
+
+impl Wiring {
+    fn of(links: &[Link], options: &LiveOptions) -> Result<Self> {
+        let Some(first_station) = links.len().checked_sub(options.forward.len()) else {
+            return Err(Error::Usage("more --forward stations than links".into()));
+        };
+        let mut supervisor = Supervisor::new(SupervisorConfig {
+            gcs: options.gcs,
+            rate_hz: options.rate_hz,
+            ..SupervisorConfig::default()
+        });
+        let (mut vehicle_fixed, mut station_fixed) = (Vec::new(), Vec::new());
+        for (index, link) in links.iter().enumerate() {
+            let Some(endpoint) = link.fixed_endpoint(index as LinkId) else {
+                continue;
+            };
+            if index < first_station {
+                supervisor.add_fixed(endpoint);
+                vehicle_fixed.push(endpoint);
+            } else {
+                station_fixed.push(endpoint);
+            }
+        }
+        // What the user typed names the links best; links opened by a caller describe
+        // themselves.
+        let typed: Vec<String> = options
+            .connect
+            .iter()
+            .chain(&options.forward)
+            .map(ToString::to_string)
+            .collect();
+        let endpoints = if typed.len() == links.len() {
+            typed
+        } else {
+            links.iter().map(Link::describe).collect()
+        };
+        Ok(Self {
+            supervisor,
+            vehicle_fixed,
+            station_fixed,
+            first_station,
+            endpoints,
+        })
+    }
+}
+
+/// What the session thread does every 20 ms between chunks: log links that went silent, and
+/// send what the supervisor says is due.
+struct Chores {
+    /// Per link: whether its present silence was logged.
+    silence_logged: Vec<bool>,
+    silences: u64,
+    next_due_t_s: f64,
+}
+
+impl Chores {
+    fn new(links: usize) -> Self {
+        Self {
+            silence_logged: vec![false; links],
+            silences: 0,
+            next_due_t_s: f64::NEG_INFINITY,
+        }
+    }
+
+    fn run(
+        &mut self,
+        thread: &mut LiveSession,
+        network: &Network,
+        outbox: &mut Outbox,
+        endpoints: &[String],
+        show_own: bool,
+    ) {
+        let now_s = unix_now_s();
+        if now_s < self.next_due_t_s {
+            return;
+        }
+        self.next_due_t_s = now_s + 0.02;
+        for (index, logged) in self.silence_logged.iter_mut().enumerate() {
+            let silent = now_s - network.last_heard_s(index as LinkId) > SILENT_LINK_S;
+            if !silent {
+                *logged = false;
+            } else if !*logged {
+                *logged = true;
+                self.silences += 1;
+                tracing::warn!(
+                    "{}: nothing received for {SILENT_LINK_S} s",
+                    endpoints[index]
+                );
+            }
+        }
+        for (to, message) in thread.supervisor.due(now_s) {
+            let bytes = outbox.encode(&message);
+            if show_own {
+                thread.show_own(network, &bytes);
+            }
+            network.send(Outgoing { to, bytes });
+        }
+    }
+}
+
+/// What the links had queued when they stopped is still processed: all of it, or after a
+/// signal what [`STOP_DRAIN`] allows. Returns the chunks and bytes left unprocessed.
+fn drain(thread: &mut LiveSession, chunks: &Receiver<Chunk>, signalled: bool) -> (u64, u64) {
+    let drain_until = signalled.then(|| Instant::now() + STOP_DRAIN);
+    let (mut unprocessed_chunks, mut unprocessed_bytes) = (0u64, 0u64);
+    while let Ok(chunk) = chunks.try_recv() {
+        if drain_until.is_some_and(|d| Instant::now() >= d) {
+            unprocessed_chunks += 1;
+            unprocessed_bytes += chunk.bytes.len() as u64;
+        } else {
+            thread.process(&chunk);
+        }
+    }
+    (unprocessed_chunks, unprocessed_bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latencies_are_recorded_as_they_are() {
+        let mut h = new_histogram();
+        for us in [3, 40, 5_000, 2_000_000] {
+            h.saturating_record(us);
+        }
+        let l = latency(&h).unwrap();
+        assert_eq!(l.chunks, 4);
+        assert_eq!(l.p50_us, 40, "{l:?}");
+        assert!((1_999_000..=2_001_000).contains(&l.p99_us), "{l:?}");
+        assert!((1_999_000..=2_001_000).contains(&l.max_us), "{l:?}");
+    }
+}
