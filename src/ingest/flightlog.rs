@@ -370,6 +370,12 @@ pub fn read_dataflash(data: &[u8]) -> FlightLog {
                 reports.push((t_us, a));
             }
         }
+        if m.name() == "ADSB" {
+            if let Some(a) = df_traffic(&m) {
+                summary.traffic += 1;
+                reports.push((t_us, a));
+            }
+        }
     }
     let sender = vehicle(system_id);
     summary.position_source = position;
@@ -379,7 +385,7 @@ pub fn read_dataflash(data: &[u8]) -> FlightLog {
         .into_iter()
         .map(|(t_us, report)| Timed {
             t_us,
-            sender,
+            sender: traffic_sender(&report, sender),
             report,
         })
         .collect();
@@ -387,6 +393,33 @@ pub fn read_dataflash(data: &[u8]) -> FlightLog {
         reports: in_time_order(reports),
         summary,
     }
+}
+
+/// An `ADSB` message (what ArduPilot's ADS-B receiver heard, logged with `ADSB_LOG` 1 or 2)
+/// as traffic. Its columns are ADSB_VEHICLE's fields as received (AP_ADSB::write_log): Lat
+/// and Lng in 1e-7 degrees, Alt in millimetres (the log's FMTU says centimetres; ArduPilot
+/// logs the MAVLink field, which is millimetres), Heading in centidegrees, Hor_vel and
+/// Ver_vel in cm/s (up positive). The message has neither validity flags nor the altitude's
+/// type: a position at 0, 0 is skipped as no fix, and the altitude is taken as geometric.
+fn df_traffic(m: &Message<'_>) -> Option<Report> {
+    let position = Geodetic::new(
+        m.get("Lat")? * 1e-7,
+        m.get("Lng")? * 1e-7,
+        m.get("Alt")? * 1e-3,
+    );
+    if !position.is_valid() || (position.lat_deg == 0.0 && position.lon_deg == 0.0) {
+        return None;
+    }
+    Some(Report::Adsb(AdsbReport {
+        icao_address: m.get("ICAO_address")? as u32,
+        position,
+        heading_deg: (m.get("Heading")? * 0.01).rem_euclid(360.0),
+        horizontal_speed_mps: m.get("Hor_vel")? * 0.01,
+        vertical_speed_mps: m.get("Ver_vel")? * 0.01,
+        pressure_altitude: false,
+        emitter_type: 0,
+        callsign: [0; 9],
+    }))
 }
 
 /// GPS messages of newer logs carry an instance column `I`: only instance 0 is the vehicle's

@@ -288,3 +288,73 @@ fn batch_rows_replay_autopilot_logs() {
     let ticks: Vec<u64> = t.values().to_vec();
     assert_eq!(ticks, expected);
 }
+
+/// A DataFlash log of ArduCopter SITL (Copter-4.5.6, `ADSB_LOG=2`, an ADS-B intruder fed by
+/// savsim; trimmed to POS, ATT, ADSB and PARM by tests/fixtures/trim_dataflash.py): every
+/// ADSB message is traffic, as pymavlink's DFReader reads it (raw columns: Lat/Lng 1e-7
+/// degrees, Alt millimetres, Heading centidegrees, velocities cm/s).
+#[test]
+fn dataflash_adsb_messages_are_traffic_as_dfreader_reads_them() {
+    if !crate::common::have_pymavlink() {
+        return;
+    }
+    let path = crate::common::root().join("tests/fixtures/arducopter_adsb.bin");
+    let code = format!(
+        "import json\n\
+         from pymavlink import DFReader\n\
+         r = DFReader.DFReader_binary({:?}, zero_time_base=False)\n\
+         out = []\n\
+         while True:\n\
+         \x20   m = r.recv_msg()\n\
+         \x20   if m is None: break\n\
+         \x20   if m.get_type() == 'ADSB' and (m.Lat, m.Lng) != (0, 0):\n\
+         \x20       out.append([m.TimeUS, m.ICAO_address, m.Lat, m.Lng, m.Alt, m.Heading, m.Hor_vel, m.Ver_vel])\n\
+         print(json.dumps(out))",
+        path.display().to_string()
+    );
+    let out = std::process::Command::new("python3")
+        .args(["-c", &code])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let expected: Vec<[f64; 8]> = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(expected.len() > 100, "{} ADSB messages", expected.len());
+
+    let log = read_dataflash(&std::fs::read(&path).unwrap());
+    let traffic: Vec<_> = log
+        .reports
+        .iter()
+        .filter_map(|r| match &r.report {
+            Report::Adsb(a) => Some((r.t_us, r.sender, *a)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(log.summary.traffic, expected.len() as u64);
+    assert_eq!(traffic.len(), expected.len());
+    for ((t_us, sender, a), e) in traffic.iter().zip(&expected) {
+        assert_eq!(*t_us as f64, e[0]);
+        assert_eq!(f64::from(a.icao_address), e[1]);
+        assert!(
+            (a.position.lat_deg - e[2] * 1e-7).abs() < 1e-12,
+            "{a:?} {e:?}"
+        );
+        assert!(
+            (a.position.lon_deg - e[3] * 1e-7).abs() < 1e-12,
+            "{a:?} {e:?}"
+        );
+        assert!((a.position.alt_m - e[4] * 1e-3).abs() < 1e-9, "{a:?} {e:?}");
+        assert!((a.heading_deg - e[5] * 0.01).abs() < 1e-9);
+        assert!((a.horizontal_speed_mps - e[6] * 0.01).abs() < 1e-9);
+        assert!((a.vertical_speed_mps - e[7] * 0.01).abs() < 1e-9);
+        // Heard by the vehicle's receiver, never the vehicle itself.
+        assert_eq!(sender.component_id, 156);
+    }
+    // The intruder was flown 37 m above home (584 m): the altitude is millimetres.
+    let alt = traffic[0].2.position.alt_m;
+    assert!((600.0..640.0).contains(&alt), "{alt} m");
+    assert!(log.summary.positions > 1000 && log.summary.attitudes > 1000);
+}
