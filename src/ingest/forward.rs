@@ -116,16 +116,16 @@ impl Forwarder {
                 .own
                 .iter()
                 .any(|o| o.system_id == system && (component == 0 || o.component_id == component));
-            if to_own && system != 0 {
+            if to_own {
                 return;
             }
         }
-        let mut sent = 0;
-        for e in self.stations(t_s, None) {
-            send(e);
-            sent += 1;
-        }
-        self.counts.to_stations += sent;
+        self.counts.to_stations += self.every_station(t_s, &mut send);
+    }
+
+    /// `send` to every station at `t_s`; how many.
+    fn every_station(&self, t_s: f64, send: &mut impl FnMut(Endpoint)) -> u64 {
+        self.stations(t_s, None).map(send).count() as u64
     }
 
     /// Where a frame from a station at `from` goes, given the vehicles' `routes` (each
@@ -188,12 +188,7 @@ impl Forwarder {
 
     /// Where savsim's own frame goes when the stations are to see it (`--forward-own`).
     pub fn own_frame(&mut self, t_s: f64, mut send: impl FnMut(Endpoint)) {
-        let mut sent = 0;
-        for e in self.stations(t_s, None) {
-            send(e);
-            sent += 1;
-        }
-        self.counts.own += sent;
+        self.counts.own += self.every_station(t_s, &mut send);
     }
 }
 

@@ -16,6 +16,17 @@ use sha2::{Digest, Sha256};
 use crate::error::{Error, Result};
 use crate::ingest::frame::{RawFrame, IFLAG_SIGNED, MAX_FRAME_LEN};
 
+/// Why a key file gives no key.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum KeyFileError {
+    /// Not 32 bytes, and not text either.
+    #[error("{0} bytes: neither a 32-byte key nor a UTF-8 passphrase")]
+    NotText(usize),
+    /// Nothing in it (but a newline).
+    #[error("empty: give a 32-byte key or a passphrase")]
+    Empty,
+}
+
 /// A 32-byte secret key.
 #[derive(Clone, PartialEq, Eq)]
 pub struct SigningKey(pub [u8; 32]);
@@ -41,20 +52,15 @@ impl SigningKey {
 
     /// A key file's bytes: exactly 32 bytes are the key itself; anything else is a passphrase
     /// (UTF-8, one trailing newline ignored).
-    pub fn from_file_bytes(bytes: &[u8]) -> std::result::Result<Self, String> {
+    pub fn from_file_bytes(bytes: &[u8]) -> std::result::Result<Self, KeyFileError> {
         if let Ok(key) = <[u8; 32]>::try_from(bytes) {
             return Ok(Self(key));
         }
-        let text = std::str::from_utf8(bytes).map_err(|_| {
-            format!(
-                "{} bytes: neither a 32-byte key nor a UTF-8 passphrase",
-                bytes.len()
-            )
-        })?;
+        let text = std::str::from_utf8(bytes).map_err(|_| KeyFileError::NotText(bytes.len()))?;
         let text = text.strip_suffix('\n').unwrap_or(text);
         let text = text.strip_suffix('\r').unwrap_or(text);
         if text.is_empty() {
-            return Err("empty: give a 32-byte key or a passphrase".into());
+            return Err(KeyFileError::Empty);
         }
         Ok(Self::from_passphrase(text))
     }
