@@ -173,6 +173,11 @@ pub enum StudyCommand {
         /// Random seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// With `--kind encounters`: the intruder's track sampled from this MIT LL encounter
+        /// model (e.g. scenes/encounter-models/uncor_1200code_v2p1.txt: turns, climbs and
+        /// speed changes) instead of a straight line; misses drawn wider (docs/study.md).
+        #[arg(long)]
+        model: Option<PathBuf>,
         /// Where the manifest and its scenes go (created).
         #[arg(long)]
         out: PathBuf,

@@ -33,7 +33,7 @@ const MAX_TRACK_TRIES: usize = 10_000;
 
 /// A sampled track, turned by `heading_rad` about its start and moved so that it is at
 /// `at_enu_m` at `tca_s`: its waypoints.
-fn placed(
+pub(crate) fn placed(
     track: &[TrackPoint],
     heading_rad: f64,
     tca_s: usize,
@@ -55,7 +55,11 @@ fn waypoints(points: &[(f64, DVec3)]) -> String {
         .join("; ")
 }
 
-fn sample(model: &Model, seconds: usize, rng: &mut ChaCha8Rng) -> Result<Vec<TrackPoint>> {
+pub(crate) fn sample(
+    model: &Model,
+    seconds: usize,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<TrackPoint>> {
     for _ in 0..MAX_TRACK_TRIES {
         if let Some(t) = track(model, seconds, rng) {
             return Ok(t);
@@ -67,7 +71,7 @@ fn sample(model: &Model, seconds: usize, rng: &mut ChaCha8Rng) -> Result<Vec<Tra
 }
 
 /// The velocity at `k` along placed waypoints (the second after it, or before it at the end).
-fn velocity(points: &[(f64, DVec3)], k: usize) -> DVec3 {
+pub(crate) fn velocity(points: &[(f64, DVec3)], k: usize) -> DVec3 {
     if k + 1 < points.len() {
         points[k + 1].1 - points[k].1
     } else {

@@ -28,8 +28,9 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
             autopilot,
             n,
             seed,
+            model,
             out,
-        }) => gen(*kind, autopilot, *n, *seed, out),
+        }) => gen(*kind, autopilot, *n, *seed, model.as_deref(), out),
         None => study(args, shutdown),
     }
 }
@@ -273,9 +274,19 @@ fn report(results: &[StudyResult], path: &Path) -> String {
 }
 
 /// `study gen`: the manifest `study.csv` in `out`, and one scene per approach.
-fn gen(kind: StudyGenKind, autopilot: &str, n: usize, seed: u64, out: &Path) -> Result<()> {
+fn gen(
+    kind: StudyGenKind,
+    autopilot: &str,
+    n: usize,
+    seed: u64,
+    model: Option<&Path>,
+    out: &Path,
+) -> Result<()> {
     if n == 0 || n > 1_000_000 {
         return Err(Error::Usage(format!("--n {n}: give 1 to 1000000")));
+    }
+    if model.is_some() && kind != StudyGenKind::Encounters {
+        return Err(Error::Usage("--model: only with --kind encounters".into()));
     }
     let px4 = match (autopilot, kind) {
         ("arducopter", _) => false,
@@ -302,10 +313,18 @@ fn gen(kind: StudyGenKind, autopilot: &str, n: usize, seed: u64, out: &Path) -> 
             }
             approaches.into_iter().flat_map(|a| a.rows).collect()
         }
-        StudyGenKind::Encounters => crate::study::gen::encounters(n, seed)
-            .into_iter()
-            .flatten()
-            .collect(),
+        StudyGenKind::Encounters => match model {
+            None => crate::study::gen::encounters(n, seed),
+            Some(path) => {
+                let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+                let model = crate::daa::encounter_model::Model::parse(&text)
+                    .map_err(|e| Error::Usage(format!("--model {}: {e}", path.display())))?;
+                crate::study::gen::model_encounters(n, seed, &model)?
+            }
+        }
+        .into_iter()
+        .flatten()
+        .collect(),
     };
     let path = out.join("study.csv");
     let file = std::fs::File::create(&path).map_err(|e| Error::file(&path, e))?;

@@ -78,6 +78,60 @@ fn study_gen_puts_every_box_across_its_path_and_the_scenes_load() {
     }
 }
 
+/// `study gen --kind encounters --model`: each intruder flies a track of the MIT LL model
+/// (1 s waypoints that turn, climb and change speed) and, at the encounter's TCA, passes the
+/// hovering copter (30 m over home) within the drawn miss distances.
+#[test]
+fn study_gen_model_encounters_pass_the_copter_at_tca_within_the_drawn_misses() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = savsim()
+        .args(["study", "gen", "--kind", "encounters", "--n", "20", "--seed", "4"])
+        .arg("--model")
+        .arg(crate::common::root().join("scenes/encounter-models/uncor_1200code_v2p1.txt"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_ran(&out);
+    let rows = savsim::study::manifest::load(&dir.path().join("study.csv")).unwrap();
+    assert_eq!(rows.len(), 40);
+    let tca_s = savsim::study::gen::ENCOUNTER_TCA_S;
+    let mut turned = 0;
+    for pair in rows.chunks(2) {
+        assert_eq!(pair[0].intruder, pair[1].intruder);
+        assert_eq!(pair[1].feed.as_deref(), Some("adsb"));
+        let points: Vec<Vec<f64>> = pair[0]
+            .intruder
+            .as_deref()
+            .unwrap()
+            .split(';')
+            .map(|p| p.split_whitespace().map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(points.len(), 151, "1 s steps over the row's 150 s");
+        let at = points.iter().find(|p| p[0] == tca_s).unwrap();
+        let horizontal = at[1].hypot(at[2]);
+        let vertical = at[3] - 30.0;
+        assert!(horizontal <= 300.0 + 0.01, "{horizontal} m");
+        assert!((-20.01..=100.01).contains(&vertical), "{vertical} m");
+        // A model track, not a straight line: its heading changes somewhere.
+        let heading = |a: &[f64], b: &[f64]| (b[2] - a[2]).atan2(b[1] - a[1]);
+        let first = heading(&points[0], &points[1]);
+        turned += usize::from(points.windows(2).any(|w| {
+            let d = (heading(&w[0], &w[1]) - first).abs();
+            d.min(std::f64::consts::TAU - d) > 0.2
+        }));
+    }
+    assert!(turned >= 2, "{turned} of 20 intruders turned");
+    let bad = savsim()
+        .args(["study", "gen", "--kind", "encounters", "--n", "1", "--model"])
+        .arg(dir.path().join("none.txt"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(1), "a missing model is a file error");
+}
+
 #[test]
 fn a_study_without_sitl_writes_each_row_with_its_error() {
     let dir = tempfile::tempdir().unwrap();
