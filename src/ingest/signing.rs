@@ -3,7 +3,8 @@
 //! and the timestamp rules are the mavlink crate's (`mav2-message-signing`, as the spec at
 //! mavlink.io/en/guide/message_signing.html says): SHA-256 of key, frame and timestamp; a
 //! stream (link id, system, component) must move its timestamp forward; a new stream may be
-//! at most a minute older than the newest timestamp seen. savsim's own timestamps follow the
+//! at most a minute older than savsim's signing clock (its own clock, or the newest timestamp
+//! accepted when that is later). savsim's own timestamps follow the
 //! newest it accepted, so a SITL whose signing clock runs ahead at a speedup still takes them.
 
 use std::path::Path;

@@ -85,7 +85,16 @@ fn study_gen_puts_every_box_across_its_path_and_the_scenes_load() {
 fn study_gen_model_encounters_pass_the_copter_at_tca_within_the_drawn_misses() {
     let dir = tempfile::tempdir().unwrap();
     let out = savsim()
-        .args(["study", "gen", "--kind", "encounters", "--n", "20", "--seed", "4"])
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "20",
+            "--seed",
+            "4",
+        ])
         .arg("--model")
         .arg(crate::common::root().join("scenes/encounter-models/uncor_1200code_v2p1.txt"))
         .arg("--out")
@@ -123,13 +132,25 @@ fn study_gen_model_encounters_pass_the_copter_at_tca_within_the_drawn_misses() {
     }
     assert!(turned >= 2, "{turned} of 20 intruders turned");
     let bad = savsim()
-        .args(["study", "gen", "--kind", "encounters", "--n", "1", "--model"])
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "1",
+            "--model",
+        ])
         .arg(dir.path().join("none.txt"))
         .arg("--out")
         .arg(dir.path())
         .output()
         .unwrap();
-    assert_eq!(bad.status.code(), Some(1), "a missing model is a file error");
+    assert_eq!(
+        bad.status.code(),
+        Some(1),
+        "a missing model is a file error"
+    );
 }
 
 #[test]
