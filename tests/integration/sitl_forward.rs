@@ -342,8 +342,8 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
     }
     const PASSPHRASE: &str = "savsim sitl signing";
     let dir = tempfile::tempdir().unwrap();
-    // At 10x its signing clock runs ten times ahead of savsim's: savsim's own timestamps must
-    // follow the vehicle's (more than a minute behind, ArduPilot would drop them).
+    // At 10x: the vehicle's clock runs ahead of the wall; its signing clock starts a minute
+    // ahead of the wall (seen: 59.9 s); savsim's own timestamps follow the newest it accepted.
     let _sitl = start_sitl_at(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "sitl"), 10);
     assert!(
         set_up_signing(PASSPHRASE),
