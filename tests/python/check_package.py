@@ -112,6 +112,12 @@ def main():
     row = savsim.replay(DEMO, scene=CITY)
     assert row["collisions"] == 1 and row["first_collision_obstacle"] == "b2150", row
     print("checked: errors are SavsimError with savsim's message; replay() returns the row")
+    # An autopilot's own log: ArduCopter SITL's DataFlash of an ADS-B encounter (its POS, ATT
+    # and the ADSB traffic its receiver logged), replayed in open air.
+    row = savsim.replay(os.path.join(ROOT, "tests", "fixtures", "arducopter_adsb.bin"))
+    assert row["ticks"] == 1387 and row["nmac"] and row["cpa_track"] == "icao:F00000", row
+    assert abs(row["cpa_horizontal_m"] - 112.5) < 0.5, row
+    print("checked: replay() reads a DataFlash log and its ADS-B traffic")
 
     if with_ray:
         out = os.path.join(work, "ray")
