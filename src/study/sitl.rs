@@ -41,6 +41,20 @@ pub struct Sitl {
 }
 
 impl Sitl {
+    /// Start `command` in `dir`, its console to `dir/sitl.log`, the pilot to connect at
+    /// `pilot_port`.
+    fn spawn(mut command: Command, dir: &Path, pilot_port: u16) -> std::io::Result<Sitl> {
+        command
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(dir.join("sitl.log"))?)
+            .stderr(Stdio::null());
+        Ok(Sitl {
+            child: command.spawn()?,
+            dir: dir.to_path_buf(),
+            pilot_port,
+        })
+    }
+
     /// Whether the process has ended, and how.
     pub fn exited(&mut self) -> Option<std::process::ExitStatus> {
         self.child.try_wait().ok().flatten()
@@ -115,15 +129,8 @@ impl ArduCopter {
             // the row whatever the wall-clock delay (at speedup 100 a second of waiting would
             // be 100 s of its clock).
             .args(["--serial1", "tcp:2:wait"])
-            .args(["--defaults", &defaults.join(",")])
-            .stdin(Stdio::null())
-            .stdout(std::fs::File::create(start.dir.join("sitl.log"))?)
-            .stderr(Stdio::null());
-        Ok(Sitl {
-            child: command.spawn()?,
-            dir: start.dir.to_path_buf(),
-            pilot_port: serial1_port(start.instance),
-        })
+            .args(["--defaults", &defaults.join(",")]);
+        Sitl::spawn(command, start.dir, serial1_port(start.instance))
     }
 }
 
@@ -184,7 +191,7 @@ impl Px4 {
     }
 
     /// Start PX4 SIH (quadrotor, airframe 10040) for one row, home at `start.home`, at
-    /// `start.speedup` (PX4_SIM_SPEED_FACTOR), in the row's folder (`px4.log` its console).
+    /// `start.speedup` (PX4_SIM_SPEED_FACTOR), in the row's folder (`sitl.log` its console).
     /// The row's parameters are set over MAVLink by the pilot (PX4 has no defaults file).
     pub fn start(&self, start: &Start<'_>) -> std::io::Result<Sitl> {
         std::fs::create_dir_all(start.dir)?;
@@ -214,15 +221,8 @@ impl Px4 {
             .env("PX4_SIM_SPEED_FACTOR", start.speedup.to_string())
             .env("PX4_HOME_LAT", home(start.home.lat_deg))
             .env("PX4_HOME_LON", home(start.home.lon_deg))
-            .env("PX4_HOME_ALT", format!("{:.2}", start.home.alt_m))
-            .stdin(Stdio::null())
-            .stdout(std::fs::File::create(start.dir.join("sitl.log"))?)
-            .stderr(Stdio::null());
-        Ok(Sitl {
-            child: command.spawn()?,
-            dir: start.dir.to_path_buf(),
-            pilot_port: px4_onboard_ports(start.instance).1,
-        })
+            .env("PX4_HOME_ALT", format!("{:.2}", start.home.alt_m));
+        Sitl::spawn(command, start.dir, px4_onboard_ports(start.instance).1)
     }
 }
 

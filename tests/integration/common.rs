@@ -83,6 +83,16 @@ pub fn python(script: &Path, args: &[&str]) -> String {
     String::from_utf8(out.stdout).expect("utf-8")
 }
 
+/// `python3 -c code`'s standard output; its standard error is the failure message.
+pub fn python_code(code: &str) -> String {
+    let out = Command::new("python3")
+        .args(["-c", code])
+        .output()
+        .expect("python3 runs");
+    assert_ran(&out);
+    String::from_utf8(out.stdout).expect("utf-8")
+}
+
 /// A sample at `t_s` at ENU position `p` (relative to `origin`), flying along `velocity`,
 /// with the nose along the velocity (or east when still).
 pub fn sample(origin: Geodetic, t_s: f64, p: DVec3, velocity: DVec3) -> TrackSample {

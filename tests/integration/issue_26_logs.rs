@@ -312,16 +312,7 @@ fn dataflash_adsb_messages_are_traffic_as_dfreader_reads_them() {
          print(json.dumps(out))",
         path.display().to_string()
     );
-    let out = std::process::Command::new("python3")
-        .args(["-c", &code])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let expected: Vec<[f64; 8]> = serde_json::from_slice(&out.stdout).unwrap();
+    let expected: Vec<[f64; 8]> = serde_json::from_str(&crate::common::python_code(&code)).unwrap();
     assert!(expected.len() > 100, "{} ADSB messages", expected.len());
 
     let log = read_dataflash(&std::fs::read(&path).unwrap());

@@ -156,14 +156,9 @@ fn a_key_file_is_the_key_or_a_passphrase_hashed_as_mavproxy_does() {
     // MAVProxy: hashlib.sha256(passphrase.encode('utf-8')).digest()
     let from_file = SigningKey::from_file_bytes(b"secret\n").unwrap();
     assert_eq!(from_file, SigningKey::from_passphrase("secret"));
-    let python = Command::new("python3")
-        .args([
-            "-c",
-            "import hashlib; print(hashlib.sha256(b'secret').hexdigest())",
-        ])
-        .output()
-        .unwrap();
+    let python =
+        crate::common::python_code("import hashlib; print(hashlib.sha256(b'secret').hexdigest())");
     let hex: String = from_file.0.iter().map(|b| format!("{b:02x}")).collect();
-    assert_eq!(String::from_utf8_lossy(&python.stdout).trim(), hex);
+    assert_eq!(python.trim(), hex);
     assert!(SigningKey::from_file_bytes(&[0xff, 0xfe, 0x00]).is_err());
 }

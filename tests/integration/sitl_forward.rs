@@ -26,7 +26,7 @@ use savsim::ingest::signing::SigningKey;
 use savsim::ingest::supervisor::RequestState;
 use savsim::session::Session;
 
-use crate::common::{python, root, runtime};
+use crate::common::{python, python_code, root, runtime};
 use crate::sitl::{arducopter, inside_own_network_namespace, start_sitl, start_sitl_at, Sitl};
 
 /// A child process killed (and reaped) when dropped.
@@ -236,16 +236,6 @@ fn find_file(dir: &Path, name: &str) -> Option<std::path::PathBuf> {
     None
 }
 
-fn python_eval(code: &str) -> String {
-    let out = Command::new("python3").args(["-c", code]).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
 #[test]
 fn the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters() {
     let Some(bin) = arducopter() else { return };
@@ -311,7 +301,7 @@ fn the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters() {
 /// SETUP_SIGNING for vehicle 1/1 with `key`, sent on its SERIAL0 (TCP 5760) as MAVProxy's
 /// `signing setup` does; true once the vehicle's frames there come signed.
 fn set_up_signing(passphrase: &str) -> bool {
-    python_eval(&format!(
+    python_code(&format!(
         "import os, time, hashlib\n\
          os.environ['MAVLINK20'] = '1'\n\
          from pymavlink import mavutil\n\
