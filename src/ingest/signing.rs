@@ -26,7 +26,13 @@ pub enum KeyFileError {
     /// Nothing in it (but a newline).
     #[error("empty: give a 32-byte key or a passphrase")]
     Empty,
+    /// Longer than any key or passphrase (`/dev/zero`, a log given by mistake).
+    #[error("over {MAX_KEY_FILE} bytes: not a key or a passphrase")]
+    TooLarge,
 }
+
+/// The longest key file read, bytes; a longer one is refused, never read to its end.
+pub const MAX_KEY_FILE: usize = 64 * 1024;
 
 /// A 32-byte secret key.
 #[derive(Clone, PartialEq, Eq)]
@@ -66,11 +72,19 @@ impl SigningKey {
         Ok(Self::from_passphrase(text))
     }
 
-    /// Read a key file ([`SigningKey::from_file_bytes`]).
+    /// Read a key file ([`SigningKey::from_file_bytes`]), at most [`MAX_KEY_FILE`] bytes of it.
     pub fn read(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
-        Self::from_file_bytes(&bytes)
-            .map_err(|why| Error::Usage(format!("--signing-key {}: {why}", path.display())))
+        use std::io::Read;
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_KEY_FILE as u64 + 1).read_to_end(&mut bytes))
+            .map_err(|e| Error::file(path, e))?;
+        let key = if bytes.len() > MAX_KEY_FILE {
+            Err(KeyFileError::TooLarge)
+        } else {
+            Self::from_file_bytes(&bytes)
+        };
+        key.map_err(|why| Error::Usage(format!("--signing-key {}: {why}", path.display())))
     }
 }
 

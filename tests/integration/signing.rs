@@ -147,6 +147,23 @@ fn signing_flags_are_checked() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("empty"), "{err}");
+
+    // An endless file is refused after 64 KiB, not read to its end.
+    let out = crate::cli::savsim()
+        .args([
+            "live",
+            "--connect",
+            "udpin:127.0.0.1:0",
+            "--duration-s",
+            "1",
+            "--signing-key",
+        ])
+        .arg("/dev/zero")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("not a key or a passphrase"), "{err}");
 }
 
 #[test]
