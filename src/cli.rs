@@ -246,9 +246,10 @@ pub enum BatchCommand {
         /// Collision mode for every encounter.
         #[arg(long, value_enum, default_value_t = ModeArg::Exact)]
         mode: ModeArg,
-        /// Length of each encounter, seconds.
-        #[arg(long, default_value_t = 180.0)]
-        duration_s: f64,
+        /// Length of each encounter, seconds (default 180; with `--pairing`, the file's
+        /// `sample_time`).
+        #[arg(long)]
+        duration_s: Option<f64>,
         /// Ownship samples per second.
         #[arg(long, default_value_t = 10.0)]
         rate_hz: f64,
@@ -259,6 +260,12 @@ pub enum BatchCommand {
         /// scenes/encounter-models/uncor_1200code_v2p1.txt) instead of straight lines (docs/batch.md).
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Pair the model's tracks by importance sampling with the settings of this
+        /// em-pairing-uncor-importancesampling `.ini` file (e.g.
+        /// scenes/encounter-models/pairing.ini), each encounter with its weight `w`
+        /// (docs/daa.md). Needs `--model`.
+        #[arg(long, requires = "model")]
+        pairing: Option<PathBuf>,
         /// Write the manifest here (.csv; default: stdout).
         #[arg(long)]
         out: Option<PathBuf>,

@@ -11,6 +11,24 @@ use crate::cli::{BatchArgs, BatchCommand};
 use crate::collision::pipeline::Mode;
 use crate::error::{Error, Result};
 
+/// An MIT LL encounter model file.
+fn read_model(path: &Path) -> Result<crate::daa::encounter_model::Model> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    crate::daa::encounter_model::Model::parse(&text).map_err(|e| Error::Daa {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// An em-pairing-uncor-importancesampling `.ini` file's pairing settings.
+fn read_pairing(path: &Path) -> Result<crate::daa::pairing_ini::PairingSettings> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    crate::daa::pairing_ini::PairingSettings::parse(&text).map_err(|e| Error::Daa {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
 /// Run `savsim batch ...`.
 pub fn run(args: &BatchArgs) -> Result<()> {
     if let Some(BatchCommand::GenEncounters {
@@ -22,6 +40,7 @@ pub fn run(args: &BatchArgs) -> Result<()> {
         rate_hz,
         intruder_kind,
         model,
+        pairing,
         out,
     }) = &args.command
     {
@@ -29,25 +48,32 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             .as_ref()
             .map(|p| std::fs::canonicalize(p).map_err(|e| Error::file(p, e)))
             .transpose()?;
-        let options = GenOptions {
+        let mut options = GenOptions {
             n: *n,
             seed: *seed,
             scene: scene.map(|p| p.to_string_lossy().into_owned()),
             mode: Mode::from(*mode).name().into(),
-            duration_s: *duration_s,
+            duration_s: duration_s.unwrap_or(180.0),
             rate_hz: *rate_hz,
             intruder_kind: intruder_kind.clone(),
         };
-        let runs = match model {
-            None => gen::encounters(&options)?,
-            Some(path) => {
-                let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
-                let model =
-                    crate::daa::encounter_model::Model::parse(&text).map_err(|e| Error::Daa {
-                        path: path.clone(),
-                        message: e.to_string(),
-                    })?;
-                crate::batch::gen_model::encounters(&options, &model)?
+        let runs = match (model, pairing) {
+            (None, _) => gen::encounters(&options)?,
+            (Some(path), None) => {
+                crate::batch::gen_model::encounters(&options, &read_model(path)?)?
+            }
+            (Some(path), Some(ini)) => {
+                let settings = read_pairing(ini)?;
+                let length = settings.duration_s as f64;
+                if duration_s.is_some_and(|d| d != length) {
+                    return Err(Error::Usage(format!(
+                        "--duration-s: {} s, but {} sets sample_time = {length} s: give one",
+                        duration_s.unwrap_or_default(),
+                        ini.display()
+                    )));
+                }
+                options.duration_s = length;
+                crate::batch::gen_pairing::encounters(&options, &read_model(path)?, &settings)?
             }
         };
         let csv_error = |path: &Path, e: csv::Error| Error::file(path, std::io::Error::other(e));

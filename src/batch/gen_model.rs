@@ -47,7 +47,7 @@ pub(crate) fn placed(
         .collect()
 }
 
-fn waypoints(points: &[(f64, DVec3)]) -> String {
+pub(crate) fn waypoints(points: &[(f64, DVec3)]) -> String {
     points
         .iter()
         .map(|(t, p)| format!("{t} {:.3} {:.3} {:.3}", p.x, p.y, p.z))

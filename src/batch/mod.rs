@@ -18,6 +18,7 @@ pub mod command;
 pub mod encounter;
 pub mod gen;
 pub mod gen_model;
+pub mod gen_pairing;
 pub mod manifest;
 pub mod row;
 pub mod run;

@@ -500,7 +500,7 @@ fn uncor_model() -> savsim::daa::encounter_model::Model {
 
 /// The p-value of a chi-square test of `observed` counts against `probabilities` (bins
 /// expected under 5 merged into one).
-fn chi_square_p(observed: &[f64], probabilities: &[f64]) -> f64 {
+pub(crate) fn chi_square_p(observed: &[f64], probabilities: &[f64]) -> f64 {
     use statrs::distribution::{ChiSquared, ContinuousCDF};
     let n: f64 = observed.iter().sum();
     let (mut stat, mut cells) = (0.0, 0usize);

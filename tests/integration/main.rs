@@ -36,6 +36,8 @@
 //!   each failing before its fix.
 //! - `issue_24_daa`: well clear and alerting against values worked by hand, `savsim daa`'s
 //!   CSV, and parity with DAIDALUS's DaidalusAlerting (needs `SAVSIM_DAIDALUS`).
+//! - `pairing`: importance-sampled pairing of model tracks against its distributions and the
+//!   model's own, weights included.
 //! - `issue_26_logs`: PX4 ULog and ArduPilot DataFlash logs of ../shared/fixtures/realdata
 //!   against pyulog's and pymavlink's readings of them; bad logs.
 //! - `study`: `savsim study`: the generator's boxes across their paths, bad rows, the results
@@ -71,6 +73,7 @@ mod issue_24_daa;
 mod issue_26_logs;
 mod live;
 mod osm;
+mod pairing;
 mod properties;
 mod scenes;
 mod shared_fixtures;

@@ -9,6 +9,8 @@
 //! - [`alerting_run`]: a state file's alerting, row by row, as `DaidalusAlerting` reports it.
 //! - [`episodes`]: losses of well clear over a flight, for events, summaries and batch rows.
 //! - [`encounter_model`]: MIT LL's encounter models read and sampled into tracks.
+//! - [`pairing`], [`pairing_ini`]: importance-sampled pairing of model tracks (MIT LL's
+//!   em-pairing-uncor-importancesampling) and its `.ini` settings.
 //! - [`ratios`]: weighted NMAC and loss-of-well-clear rates and risk ratios over encounters.
 
 pub mod alerting;
@@ -16,6 +18,8 @@ pub mod alerting_run;
 pub mod conf;
 pub mod encounter_model;
 pub mod episodes;
+pub mod pairing;
+pub mod pairing_ini;
 pub mod projection;
 pub mod ratios;
 pub mod scenario;
