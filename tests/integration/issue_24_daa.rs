@@ -359,7 +359,7 @@ fn savsim_daa_matches_daidalus_cell_by_cell() {
 }
 
 /// `savsim batch MANIFEST --out OUT` on one job, checked to have run.
-fn batch_on_one_job(manifest: &Path, out: &Path) -> std::process::Output {
+pub(crate) fn batch_on_one_job(manifest: &Path, out: &Path) -> std::process::Output {
     let run = crate::batch::savsim(&[
         "batch",
         manifest.to_str().unwrap(),
@@ -374,7 +374,7 @@ fn batch_on_one_job(manifest: &Path, out: &Path) -> std::process::Output {
 }
 
 /// The rows of the one shard a one-shard run wrote to `out`.
-fn only_shard(out: &Path) -> arrow_array::RecordBatch {
+pub(crate) fn only_shard(out: &Path) -> arrow_array::RecordBatch {
     crate::batch::read(&out.join("part-00000-of-00001.parquet"))
 }
 

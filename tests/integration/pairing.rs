@@ -280,3 +280,108 @@ fn gen_encounters_with_a_pairing_file_writes_weights_and_refuses_a_second_length
     let same = run(&["--duration-s", "180"]);
     assert!(same.status.success());
 }
+
+/// The exact closest approach of two aircraft linear between their states (sampled at the
+/// same times): per interval, the minimum of a quadratic. Metres and seconds.
+fn linear_cpa(times: &[f64], own: &[DVec3], int: &[DVec3]) -> (f64, f64) {
+    let mut best = (f64::INFINITY, 0.0);
+    for k in 0..times.len() - 1 {
+        let (d0, d1) = (int[k] - own[k], int[k + 1] - own[k + 1]);
+        let dd = d1 - d0;
+        let u = if dd.length_squared() > 0.0 {
+            (-d0.dot(dd) / dd.length_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let d = (d0 + dd * u).length();
+        if d < best.0 {
+            best = (d, times[k] + u * (times[k + 1] - times[k]));
+        }
+    }
+    best
+}
+
+#[test]
+fn mit_ll_trajectory_outputs_are_batch_rows() {
+    use arrow_array::{Array, Float64Array, StringArray};
+    // Its Example_Outputs/1.txt (X11 licence, tests/fixtures/mitll/README.md): OWNSHIP and
+    // INTRUDER at 10 Hz, `east, north, alt` in feet, read here by splitting its lines.
+    let file = root().join("tests/fixtures/mitll/example_output_1.txt");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let (mut times, mut own, mut int) = (Vec::new(), Vec::new(), Vec::new());
+    for line in text.lines().skip(2) {
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let p = DVec3::new(
+            f[1].parse().unwrap(),
+            f[2].parse().unwrap(),
+            f[3].parse().unwrap(),
+        ) * FT;
+        match f[0] {
+            "OWNSHIP" => {
+                times.push(f[7].parse::<f64>().unwrap());
+                own.push(p);
+            }
+            _ => int.push(p),
+        }
+    }
+    assert_eq!((own.len(), int.len()), (1800, 1800));
+    let (cpa_m, cpa_t_s) = linear_cpa(&times, &own, &int);
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(&manifest, format!("id,daa\nmitll-1,{}\n", file.display())).unwrap();
+    let out = dir.path().join("out");
+    crate::issue_24_daa::batch_on_one_job(&manifest, &out);
+    let batch = crate::issue_24_daa::only_shard(&out);
+    let error = crate::batch::column::<StringArray>(&batch, "error");
+    assert!(error.is_null(0), "{}", error.value(0));
+    let got = crate::batch::column::<Float64Array>(&batch, "cpa_m").value(0);
+    let got_t = crate::batch::column::<Float64Array>(&batch, "cpa_t_s").value(0);
+    assert!(
+        (got - cpa_m).abs() < 0.01,
+        "cpa {got} m, the file's {cpa_m} m"
+    );
+    assert!(
+        (got_t - cpa_t_s).abs() < 0.1,
+        "at {got_t} s, the file's {cpa_t_s} s"
+    );
+    // And `savsim daa` reads it as a Euclidean state file: a row per time step, its
+    // horizontal separation (column 7, nmi) the file's own.
+    let conf = dir.path().join("suas.conf");
+    std::fs::write(
+        &conf,
+        "lookahead_time = 180 [s]\nalerters = A\nA_alert_1_detector = d\n\
+         A_alert_1_alerting_time = 30 [s]\nA_alert_1_region = MID\nA_d_WCV_DTHR = 2000 [ft]\n\
+         A_d_WCV_ZTHR = 250 [ft]\nA_d_WCV_TTHR = 0 [s]\nA_d_WCV_TCOA = 0 [s]\n\
+         A_load_core_detection_d = gov.nasa.larcfm.ACCoRD.WCV_TAUMOD\n",
+    )
+    .unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .arg("daa")
+        .arg(&file)
+        .arg("--conf")
+        .arg(&conf)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = String::from_utf8(run.stdout).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(2)
+        .map(|l| l.split(',').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 1800);
+    let k = times.iter().position(|t| *t == 150.0).unwrap();
+    let row = rows
+        .iter()
+        .find(|r| r[0].parse::<f64>().unwrap() == 150.0)
+        .unwrap();
+    let separation_nmi = (int[k] - own[k]).truncate().length() / 1852.0;
+    assert!(
+        (row[6].parse::<f64>().unwrap() - separation_nmi).abs() < 2e-6,
+        "{row:?} vs {separation_nmi}"
+    );
+}

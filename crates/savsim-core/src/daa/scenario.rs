@@ -3,7 +3,8 @@
 //!
 //! Columns, case-insensitive, in any order: the name (`name`, `aircraft`, `id`); the position,
 //! geodetic (`lat`, `lon`, `alt`; default units deg, deg, ft) or Euclidean (`sx`, `sy`, `sz`;
-//! nmi, nmi, ft); the velocity, Cartesian (`vx`, `vy`, `vz`: east, north, up; knot, knot, fpm)
+//! nmi, nmi, ft; `east` and `north` are read as `sx` and `sy`, as MIT LL's encounter tools
+//! write their trajectory files); the velocity, Cartesian (`vx`, `vy`, `vz`: east, north, up; knot, knot, fpm)
 //! or polar (`trk`, `gs`, `vs`; deg from north, knot, fpm); the time (`time`, `clock`, `tm`,
 //! `st`; s, or `hh:mm:ss`); optionally `alerter` (the alerter's number or name). A units line
 //! (`[deg]`, `[ft]`, `unitless`...) overrides the defaults column by column. Other columns
@@ -68,7 +69,7 @@ pub enum ScenarioError {
     Empty,
     /// A required column is absent.
     #[error(
-        "no {0} column (the header needs name, lat|sx, lon|sy, alt|sz, vx|trk, vy|gs, vz|vs, time)"
+        "no {0} column (the header needs name, lat|sx|east, lon|sy|north, alt|sz, vx|trk, vy|gs, vz|vs, time)"
     )]
     MissingColumn(&'static str),
     /// A unit the reader does not know.
@@ -136,8 +137,10 @@ struct Columns {
 /// Most rows a state file may hold (`savsim daa` reads it whole).
 pub const MAX_ROWS: usize = 10_000_000;
 
-/// Read a state file's steps, in file order (rows of one time together; a row whose time
-/// differs from the one before starts a new step).
+/// Read a state file's steps, in time order: every row of one time is one step, wherever it
+/// is in the file (as DAIDALUS's `SequenceReader` keys states by time), its aircraft in the
+/// order of their first appearance in the file, so the file's first aircraft is the ownship
+/// at every step. (MIT LL's trajectory files list one aircraft's rows, then the other's.)
 ///
 /// ```
 /// use savsim_core::daa::scenario::{parse, Position};
@@ -149,6 +152,12 @@ pub const MAX_ROWS: usize = 10_000_000;
 /// assert_eq!(steps.len(), 1);
 /// assert_eq!(steps[0].aircraft[1].position, Position::Euclidean(glam::DVec3::new(1000.0, 0.0, 100.0)));
 /// assert_eq!(steps[0].aircraft[1].velocity_enu_mps.x, -10.0);
+/// // One aircraft's rows, then the other's: the same steps.
+/// let by_aircraft = "NAME east north alt trk gs vs time\n\
+///     OWN 0 0 0 0 1 0 0\nOWN 0 1 0 0 1 0 1\nINT 5 0 0 0 1 0 0\nINT 5 1 0 0 1 0 1\n";
+/// let steps = parse(by_aircraft).unwrap();
+/// assert_eq!(steps.len(), 2);
+/// assert_eq!((steps[1].aircraft[0].name.as_str(), steps[1].aircraft[1].name.as_str()), ("OWN", "INT"));
 /// ```
 pub fn parse(text: &str) -> Result<Vec<Step>, ScenarioError> {
     let mut lines = text
@@ -171,11 +180,10 @@ pub fn parse(text: &str) -> Result<Vec<Step>, ScenarioError> {
         _ => None,
     };
     let columns = columns(&headers, units.as_deref())?;
-    let mut steps: Vec<Step> = Vec::new();
-    let mut rows = 0usize;
+    let mut rows: Vec<(f64, usize, State)> = Vec::new();
+    let mut ranks: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
     for (line, row) in pending.into_iter().chain(lines) {
-        rows += 1;
-        if rows > MAX_ROWS {
+        if rows.len() >= MAX_ROWS {
             return Err(ScenarioError::Row {
                 line,
                 problem: RowError::TooMany(MAX_ROWS),
@@ -183,6 +191,15 @@ pub fn parse(text: &str) -> Result<Vec<Step>, ScenarioError> {
         }
         let (time_s, state) =
             read_row(&columns, row).map_err(|problem| ScenarioError::Row { line, problem })?;
+        let next = ranks.len();
+        let rank = *ranks.entry(state.name.clone()).or_insert(next);
+        rows.push((time_s, rank, state));
+    }
+    // By time, then by each aircraft's first appearance in the file (stable: repeated rows
+    // keep their order).
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut steps: Vec<Step> = Vec::new();
+    for (time_s, _, state) in rows {
         match steps.last_mut() {
             Some(step) if step.time_s == time_s => step.aircraft.push(state),
             _ => steps.push(Step {
@@ -244,8 +261,8 @@ fn columns(headers: &[String], units: Option<&[String]>) -> Result<Columns, Scen
         ]
     } else {
         [
-            at(&["sx"], "sx", "nmi")?,
-            at(&["sy"], "sy", "nmi")?,
+            at(&["sx", "east"], "sx", "nmi")?,
+            at(&["sy", "north"], "sy", "nmi")?,
             at(&["sz", "alt", "altitude"], "sz", "ft")?,
         ]
     };

@@ -28,7 +28,7 @@ pub fn si_per(unit: &str) -> Option<f64> {
         "m/s" | "mps" => 1.0,
         "knot" | "kn" | "kts" => NMI_M / 3600.0,
         "fpm" | "ft/min" => FT_M / 60.0,
-        "ft/s" | "fps" => FT_M,
+        "ft/s" | "fps" | "ftps" => FT_M,
         "km/h" | "kph" => 1000.0 / 3600.0,
         "deg" => std::f64::consts::PI / 180.0,
         "rad" => 1.0,
