@@ -97,7 +97,10 @@ impl Run {
         anchor(&mut self.daa);
         anchor(&mut self.scene);
         for track in [&mut self.own, &mut self.intruder] {
-            if track.as_deref().is_some_and(is_tlog_path) {
+            if track
+                .as_deref()
+                .is_some_and(|t| is_tlog_path(t) || crate::batch::trajectory::is_trajectory_path(t))
+            {
                 anchor(track);
             }
         }

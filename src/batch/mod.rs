@@ -25,6 +25,7 @@ pub mod run;
 pub mod shard;
 pub mod summarize;
 pub mod table;
+pub mod trajectory;
 
 use rayon::prelude::*;
 

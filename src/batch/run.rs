@@ -11,6 +11,7 @@ use std::time::Instant;
 use crate::batch::encounter::{self, Encounter};
 use crate::batch::manifest::{is_tlog_path, Run};
 use crate::batch::row::RunRow;
+use crate::batch::trajectory::{is_trajectory_path, track_from_trajectory};
 use crate::collision::approach::Approaches;
 use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::daa::well_clear::Volume;
@@ -218,12 +219,14 @@ fn fly_encounter(
     Ok(())
 }
 
-/// A track given as waypoints or as a tlog path.
+/// A track given as waypoints, a tlog path or a trajectory file.
 fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypoint>, String> {
     let track = if is_tlog_path(text) {
         let (track, tlog_stats) = encounter::track_from_tlog(Path::new(text.trim()), scene)?;
         stats.merge(&tlog_stats);
         track
+    } else if is_trajectory_path(text) {
+        track_from_trajectory(Path::new(text.trim()), scene)?
     } else {
         encounter::parse_waypoints(text)?
     };

@@ -385,3 +385,66 @@ fn mit_ll_trajectory_outputs_are_batch_rows() {
         "{row:?} vs {separation_nmi}"
     );
 }
+
+#[test]
+fn a_trajectory_file_is_a_track_placed_by_wgs84() {
+    use arrow_array::{Array, Float64Array, StringArray};
+    // Its Example_Trajectory_Encounters/1.csv (tests/fixtures/mitll/README.md): due north from
+    // 0 N 0 E at a constant `speed_kts`, `alt_AGL_ft` up, its `lat`, `lon` and `alt_MSL_ft`
+    // written by MIT LL's own conversion of that straight line. Over a scene whose origin is
+    // 0 N 0 E at height 0, savsim's track must be that line again: a still intruder put where
+    // speed x 100 s puts the ownship is met there, at 100 s.
+    let file = root().join("tests/fixtures/mitll/trajectory_1.csv");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let first: Vec<f64> = text
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let (agl_ft, speed_kts) = (first[4], first[5]);
+    let north_m = speed_kts * 1852.0 / 3600.0 * 100.0;
+    let up_m = agl_ft * FT;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("equator.toml");
+    std::fs::write(
+        &scene,
+        "[origin]\nlat_deg = 0.0\nlon_deg = 0.0\nalt_m = 0.0\n",
+    )
+    .unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        format!(
+            "id,scene,own,intruder\ntrajectory,{},{},0 0 {north_m} {up_m}; 182 0 {north_m} {up_m}\n",
+            scene.display(),
+            file.display()
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    crate::issue_24_daa::batch_on_one_job(&manifest, &out);
+    let batch = crate::issue_24_daa::only_shard(&out);
+    let error = crate::batch::column::<StringArray>(&batch, "error");
+    assert!(error.is_null(0), "{}", error.value(0));
+    let cpa = crate::batch::column::<Float64Array>(&batch, "cpa_m").value(0);
+    let t = crate::batch::column::<Float64Array>(&batch, "cpa_t_s").value(0);
+    assert!(cpa < 0.5, "{cpa} m from the line");
+    assert!((t - 100.0).abs() < 0.05, "at {t} s");
+    // A file without the columns is the row's error, naming what it needs.
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "Time,lat,lon\n0,0,0\n").unwrap();
+    std::fs::write(
+        &manifest,
+        format!(
+            "id,own,intruder\nbad,{},0 0 0 100; 10 0 0 100\n",
+            bad.display()
+        ),
+    )
+    .unwrap();
+    crate::issue_24_daa::batch_on_one_job(&manifest, &out.join("bad"));
+    let batch = crate::issue_24_daa::only_shard(&out.join("bad"));
+    let error = crate::batch::column::<StringArray>(&batch, "error");
+    assert!(error.value(0).contains("alt_MSL_ft"), "{}", error.value(0));
+}
