@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::batch::error::TrackError;
 use crate::collision::approach::Approaches;
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::events::Event;
@@ -61,7 +62,7 @@ pub struct Flown {
 /// assert_eq!(w[1].position_enu_m, [600.0, 0.0, 100.0]);
 /// assert!(savsim::batch::encounter::parse_waypoints("0 0 0").is_err());
 /// ```
-pub fn parse_waypoints(text: &str) -> Result<Vec<Waypoint>, String> {
+pub fn parse_waypoints(text: &str) -> Result<Vec<Waypoint>, WaypointError> {
     let mut out: Vec<Waypoint> = Vec::new();
     for (i, point) in text.split(';').map(str::trim).enumerate() {
         if point.is_empty() && i > 0 {
@@ -72,20 +73,12 @@ pub fn parse_waypoints(text: &str) -> Result<Vec<Waypoint>, String> {
             .filter(|s| !s.is_empty())
             .map(|s| s.parse::<f64>().ok().filter(|v| v.abs() <= MAX_ENU_M))
             .collect::<Option<_>>()
-            .ok_or_else(|| {
-                format!(
-                    "waypoint {} {point:?}: give numbers within {MAX_ENU_M:e} (seconds, metres)",
-                    i + 1
-                )
-            })?;
+            .ok_or_else(|| WaypointError::at(i, point, WaypointProblem::NotNumbers))?;
         let [t_s, e, n, u] = numbers[..] else {
-            return Err(format!(
-                "waypoint {} {point:?}: give four numbers, `t_s e_m n_m u_m`",
-                i + 1
-            ));
+            return Err(WaypointError::at(i, point, WaypointProblem::NotFour));
         };
         if out.last().is_some_and(|last| t_s <= last.t_s) {
-            return Err(format!("waypoint {} {point:?}: times must increase", i + 1));
+            return Err(WaypointError::at(i, point, WaypointProblem::TimeNotAfter));
         }
         out.push(Waypoint {
             t_s,
@@ -95,10 +88,54 @@ pub fn parse_waypoints(text: &str) -> Result<Vec<Waypoint>, String> {
     Ok(out)
 }
 
+/// Why a waypoint list could not be read: the waypoint (from 1), as written, and what is
+/// wrong with it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("waypoint {index} {text:?}: {problem}")]
+pub struct WaypointError {
+    /// Which waypoint, from 1.
+    pub index: usize,
+    /// The waypoint as written.
+    pub text: String,
+    /// What is wrong.
+    pub problem: WaypointProblem,
+}
+
+impl WaypointError {
+    fn at(i: usize, text: &str, problem: WaypointProblem) -> Self {
+        Self {
+            index: i + 1,
+            text: text.to_owned(),
+            problem,
+        }
+    }
+}
+
+/// What is wrong with a waypoint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum WaypointProblem {
+    /// A word that is not a number, or one beyond [`MAX_ENU_M`].
+    #[error("give numbers within {MAX_ENU_M:e} (seconds, metres)")]
+    NotNumbers,
+    /// Not four numbers.
+    #[error("give four numbers, `t_s e_m n_m u_m`")]
+    NotFour,
+    /// A time not after the one before.
+    #[error("times must increase")]
+    TimeNotAfter,
+}
+
 /// The first vehicle's positions in a tlog as a track in `scene`'s ENU frame, its clock
 /// starting at 0, with the file's ingest counters.
-pub fn track_from_tlog(path: &Path, scene: &Scene) -> Result<(Vec<Waypoint>, IngestStats), String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn track_from_tlog(
+    path: &Path,
+    scene: &Scene,
+) -> Result<(Vec<Waypoint>, IngestStats), TrackError> {
+    let failed = |source| TrackError::Tlog {
+        path: path.to_owned(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(failed)?;
     let mut reader = TlogReader::new(std::io::BufReader::new(file));
     let mut ingestor = Ingestor::default();
     let mut world = WorldStore::new(scene.origin, WorldConfig::default());
@@ -106,9 +143,7 @@ pub fn track_from_tlog(path: &Path, scene: &Scene) -> Result<(Vec<Waypoint>, Ing
     let mut first_t_s = None;
     let mut track: Vec<Waypoint> = Vec::new();
     loop {
-        let record = reader
-            .next_record(&mut ingestor.stats)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let record = reader.next_record(&mut ingestor.stats).map_err(failed)?;
         let Some(record) = record else { break };
         let t_s = ingestor
             .stats
@@ -134,7 +169,7 @@ pub fn track_from_tlog(path: &Path, scene: &Scene) -> Result<(Vec<Waypoint>, Ing
         }
     }
     if track.is_empty() {
-        return Err(format!("{}: no vehicle position in it", path.display()));
+        return Err(TrackError::NoPosition(path.to_owned()));
     }
     Ok((track, ingestor.stats))
 }
@@ -230,10 +265,12 @@ fn ownship_sample(plane: &LocalTangentPlane, track: &[Waypoint], t_s: f64) -> Tr
 /// in the scene's ENU frame by WGS84 (their altitude as the height), Euclidean ones as ENU
 /// metres from the scene's origin. Each track's velocity columns are not used: the track is
 /// linear between its states, as any waypoint track.
-pub fn tracks_from_daa(path: &Path, scene: &Scene) -> Result<DaaTracks, String> {
-    let text = crate::daa_csv::read(path).map_err(|e| e.to_string())?;
-    let steps =
-        crate::daa::scenario::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn tracks_from_daa(path: &Path, scene: &Scene) -> Result<DaaTracks, DaaTracksError> {
+    let text = crate::daa_csv::read(path).map_err(|e| DaaTracksError::Read(Box::new(e)))?;
+    let steps = crate::daa::scenario::parse(&text).map_err(|source| DaaTracksError::Parse {
+        path: path.to_owned(),
+        source,
+    })?;
     let plane = LocalTangentPlane::new(scene.origin);
     let t0 = steps.first().map_or(0.0, |s| s.time_s);
     let mut own: Vec<Waypoint> = Vec::new();
@@ -275,12 +312,28 @@ pub fn tracks_from_daa(path: &Path, scene: &Scene) -> Result<DaaTracks, String> 
         }
     }
     if own.is_empty() || intruders.is_empty() {
-        return Err(format!(
-            "{}: an encounter needs an ownship and at least one intruder",
-            path.display()
-        ));
+        return Err(DaaTracksError::NoPair(path.to_owned()));
     }
     Ok(DaaTracks { own, intruders })
+}
+
+/// Why a DAIDALUS state file gave no encounter.
+#[derive(Debug, thiserror::Error)]
+pub enum DaaTracksError {
+    /// The file could not be read (its path is in the error).
+    #[error(transparent)]
+    Read(Box<crate::error::Error>),
+    /// The file is not a state file.
+    #[error("{}: {source}", path.display())]
+    Parse {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong with it.
+        source: crate::daa::scenario::ScenarioError,
+    },
+    /// Fewer than two aircraft.
+    #[error("{}: an encounter needs an ownship and at least one intruder", .0.display())]
+    NoPair(std::path::PathBuf),
 }
 
 /// The tracks of a DAIDALUS state file.

@@ -4,6 +4,7 @@
 //! - [`manifest`]: the runs, from CSV, TOML or JSON.
 //! - [`run`](mod@run): one run, its failure kept as its row's error.
 //! - [`encounter`]: an ownship and an intruder track through the collision pipeline.
+//! - [`error`]: why a row, or one of its tracks, could not run.
 //! - [`row`]: what a run's row holds.
 //! - [`table`]: rows as Arrow and Parquet.
 //! - [`shard`]: which rows a process runs, and its file.
@@ -16,6 +17,7 @@
 
 pub mod command;
 pub mod encounter;
+pub mod error;
 pub mod gen;
 pub mod gen_model;
 pub mod gen_pairing;

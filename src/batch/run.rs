@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use crate::batch::encounter::{self, Encounter};
+use crate::batch::error::{RowError, TrackError};
 use crate::batch::manifest::{is_tlog_path, Run};
 use crate::batch::row::RunRow;
 use crate::batch::trajectory::{is_trajectory_path, track_from_trajectory};
@@ -17,7 +18,7 @@ use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::daa::well_clear::Volume;
 use crate::ingest::stats::IngestStats;
 use crate::replay::{replay, Speed};
-use crate::scene::{self, Kind, Scene, Waypoint};
+use crate::scene::{self, Kind, Scene, SceneError, Waypoint};
 use crate::session::Session;
 use savsim_core::bounds::{positive, MAX_DURATION_S, MAX_RATE_HZ, MAX_SAMPLES};
 
@@ -30,7 +31,7 @@ pub const DEFAULT_RATE_HZ: f64 = 10.0;
 /// shapes and meshes.
 pub struct Scenes {
     open_air: Arc<Scene>,
-    by_path: HashMap<String, Result<Arc<Scene>, String>>,
+    by_path: HashMap<String, Result<Arc<Scene>, Arc<SceneError>>>,
     pipelines: Mutex<HashMap<(String, Mode), Arc<Pipeline>>>,
 }
 
@@ -40,9 +41,7 @@ impl Scenes {
         let mut by_path = HashMap::new();
         for path in runs.iter().filter_map(|r| r.scene.as_deref()) {
             if !path.is_empty() && !by_path.contains_key(path) {
-                let loaded = scene::load(Path::new(path))
-                    .map(Arc::new)
-                    .map_err(|e| e.to_string());
+                let loaded = scene::load(Path::new(path)).map(Arc::new).map_err(Arc::new);
                 by_path.insert(path.to_owned(), loaded);
             }
         }
@@ -67,14 +66,14 @@ impl Scenes {
         (*built).clone()
     }
 
-    fn get(&self, path: Option<&str>) -> Result<Arc<Scene>, String> {
+    fn get(&self, path: Option<&str>) -> Result<Arc<Scene>, RowError> {
         match path.filter(|p| !p.is_empty()) {
             None => Ok(self.open_air.clone()),
-            Some(p) => self
-                .by_path
-                .get(p)
-                .cloned()
-                .unwrap_or_else(|| Err(format!("{p}: scene not loaded"))),
+            Some(p) => match self.by_path.get(p) {
+                Some(Ok(scene)) => Ok(scene.clone()),
+                Some(Err(e)) => Err(RowError::Scene(e.clone())),
+                None => Err(RowError::SceneNotLoaded(p.to_owned())),
+            },
         }
     }
 }
@@ -92,12 +91,10 @@ pub fn open_air() -> Scene {
 }
 
 /// The mode a row asks for (`exact` when it says nothing).
-fn mode_of(run: &Run) -> Result<Mode, String> {
+fn mode_of(run: &Run) -> Result<Mode, RowError> {
     match run.mode.as_deref().filter(|m| !m.is_empty()) {
         None => Ok(Mode::Exact),
-        Some(m) => Mode::from_name(m).ok_or_else(|| {
-            format!("mode {m:?}: give one of none, box, mesh, paper, exact, reference")
-        }),
+        Some(m) => Mode::from_name(m).ok_or_else(|| RowError::Mode(m.to_owned())),
     }
 }
 
@@ -122,17 +119,12 @@ pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
     );
     let outcome = mode.and_then(|mode| {
         std::panic::catch_unwind(AssertUnwindSafe(|| execute(run, mode, scenes, &mut row)))
-            .unwrap_or_else(|panic| {
-                Err(format!(
-                    "internal error, please report it: {}",
-                    panic_message(&*panic)
-                ))
-            })
+            .unwrap_or_else(|panic| Err(RowError::Internal(panic_message(&*panic))))
     });
     if let Err(e) = outcome {
         // Nothing half-done stays in a failed row: its inputs and the error.
         row = RunRow {
-            error: Some(e),
+            error: Some(e.to_string()),
             ..RunRow::of_inputs(index, run, &row.mode)
         };
     }
@@ -140,9 +132,9 @@ pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
     row
 }
 
-fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(), String> {
+fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(), RowError> {
     if let Some(w) = run.w {
-        savsim_core::bounds::within("w", w, 0.0, 1e300).map_err(|e| e.to_string())?;
+        savsim_core::bounds::within("w", w, 0.0, 1e300)?;
     }
     let scene = scenes.get(run.scene.as_deref())?;
     let config = CollisionConfig {
@@ -156,9 +148,8 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
         }
         (None, Some(own), Some(intruder), None) => {
             let mut stats = IngestStats::default();
-            let own = track(own, &scene, &mut stats).map_err(|e| format!("own: {e}"))?;
-            let intruder =
-                track(intruder, &scene, &mut stats).map_err(|e| format!("intruder: {e}"))?;
+            let own = track(own, &scene, &mut stats).map_err(RowError::Own)?;
+            let intruder = track(intruder, &scene, &mut stats).map_err(RowError::Intruder)?;
             row.record_ingest(&stats);
             let intruders = vec![(Arc::from("intruder"), intruder)];
             fly_encounter(run, &scene, pipeline, own, intruders, row)
@@ -167,7 +158,7 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
             let tracks = encounter::tracks_from_daa(Path::new(daa), &scene)?;
             fly_encounter(run, &scene, pipeline, tracks.own, tracks.intruders, row)
         }
-        _ => Err("give either `tlog`, or both `own` and `intruder`, or `daa`".into()),
+        _ => Err(RowError::Columns),
     }
 }
 
@@ -179,30 +170,28 @@ fn fly_encounter(
     own: Vec<Waypoint>,
     intruders: Vec<(Arc<str>, Vec<Waypoint>)>,
     row: &mut RunRow,
-) -> Result<(), String> {
+) -> Result<(), RowError> {
     let duration_s = match run.duration_s {
-        Some(d) => positive("duration_s", d, MAX_DURATION_S).map_err(|e| e.to_string())?,
+        Some(d) => positive("duration_s", d, MAX_DURATION_S)?,
         None => own.last().map_or(0.0, |w| w.t_s),
     };
     let rate_hz = positive(
         "rate_hz",
         run.rate_hz.unwrap_or(DEFAULT_RATE_HZ),
         MAX_RATE_HZ,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     if duration_s * rate_hz > MAX_SAMPLES {
-        return Err(format!(
-            "duration_s {duration_s} x rate_hz {rate_hz}: at most {MAX_SAMPLES} samples a row"
-        ));
+        return Err(RowError::TooManySamples {
+            duration_s,
+            rate_hz,
+        });
     }
     let encounter = Encounter {
         own,
         intruders,
         intruder_kind: match run.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
             None => Kind::Dji,
-            Some(k) => {
-                Kind::from_name(k).ok_or_else(|| format!("intruder_kind {k:?}: not a kind"))?
-            }
+            Some(k) => Kind::from_name(k).ok_or_else(|| RowError::IntruderKind(k.to_owned()))?,
         },
         rate_hz,
         duration_s,
@@ -220,7 +209,7 @@ fn fly_encounter(
 }
 
 /// A track given as waypoints, a tlog path or a trajectory file.
-fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypoint>, String> {
+fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypoint>, TrackError> {
     let track = if is_tlog_path(text) {
         let (track, tlog_stats) = encounter::track_from_tlog(Path::new(text.trim()), scene)?;
         stats.merge(&tlog_stats);
@@ -231,25 +220,20 @@ fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypo
         encounter::parse_waypoints(text)?
     };
     if track.is_empty() {
-        return Err("no waypoints".into());
+        return Err(TrackError::Empty);
     }
     Ok(track)
 }
 
 /// The row's well-clear volume (small UAS when it names none; `None` for `none`).
-fn well_clear(run: &Run) -> Result<Option<Volume>, String> {
+fn well_clear(run: &Run) -> Result<Option<Volume>, RowError> {
     let name = run
         .well_clear
         .as_deref()
         .map(str::trim)
         .filter(|w| !w.is_empty());
-    crate::daa::well_clear::setting(name.unwrap_or("small-uas")).ok_or_else(|| {
-        format!(
-            "well_clear {:?}: {}",
-            name.unwrap_or(""),
-            crate::daa::well_clear::SETTING_HELP
-        )
-    })
+    crate::daa::well_clear::setting(name.unwrap_or("small-uas"))
+        .ok_or_else(|| RowError::WellClear(name.unwrap_or("").to_owned()))
 }
 
 fn replay_tlog(
@@ -258,12 +242,12 @@ fn replay_tlog(
     pipeline: Pipeline,
     volume: Option<Volume>,
     row: &mut RunRow,
-) -> Result<(), String> {
-    let mut session = Session::with_pipeline(scene, pipeline, None).map_err(|e| e.to_string())?;
+) -> Result<(), RowError> {
+    let mut session = Session::with_pipeline(scene, pipeline, None)?;
     session.set_approaches(Approaches::with_volume(volume));
     let never = AtomicBool::new(false);
-    replay(path, Speed::Max, false, None, &mut session, &never).map_err(|e| e.to_string())?;
-    session.finish().map_err(|e| e.to_string())?;
+    replay(path, Speed::Max, false, None, &mut session, &never)?;
+    session.finish()?;
     let t0_s = session.stats().time_span_s.map_or(0.0, |(first, _)| first);
     row.record_ingest(session.stats());
     if let Some(p) = session.pipeline() {

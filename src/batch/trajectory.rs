@@ -7,6 +7,7 @@
 
 use std::path::Path;
 
+use crate::batch::error::TrackError;
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::scene::{Scene, Waypoint};
 use savsim_core::bounds::MAX_SAMPLES;
@@ -19,24 +20,73 @@ pub fn is_trajectory_path(track: &str) -> bool {
     track.trim_end().to_ascii_lowercase().ends_with(".csv")
 }
 
+/// Why a trajectory file could not be read (the path is added by [`TrackError`]).
+#[derive(Debug, thiserror::Error)]
+pub enum TrajectoryError {
+    /// The file could not be opened, or its header read.
+    #[error("{0}")]
+    Open(csv::Error),
+    /// A column the track needs is not in the header.
+    #[error("no `{0}` column (needs Time, lat, lon, alt_MSL_ft)")]
+    NoColumn(&'static str),
+    /// A row that could not be read.
+    #[error("line {line}: {source}")]
+    Row {
+        /// The line, from 1 (the header is line 1).
+        line: usize,
+        /// What the CSV reader said.
+        source: csv::Error,
+    },
+    /// More rows than a track may have.
+    #[error("more than {MAX_SAMPLES:e} rows")]
+    TooLong,
+    /// A cell that is not a finite number.
+    #[error("line {line}: column {column}: not a number")]
+    NotANumber {
+        /// The line, from 1.
+        line: usize,
+        /// The column, from 1.
+        column: usize,
+    },
+    /// A latitude, longitude or altitude no place has.
+    #[error("line {line}: {lat_deg}, {lon_deg}, {alt_ft} ft: not a place")]
+    NotAPlace {
+        /// The line, from 1.
+        line: usize,
+        /// Its latitude, degrees.
+        lat_deg: f64,
+        /// Its longitude, degrees.
+        lon_deg: f64,
+        /// Its altitude, feet.
+        alt_ft: f64,
+    },
+    /// A time not after the one before.
+    #[error("line {0}: times must increase")]
+    TimeNotAfter(usize),
+    /// A header and nothing else.
+    #[error("no rows")]
+    Empty,
+}
+
 /// The track of a trajectory file, in `scene`'s ENU frame.
-pub fn track_from_trajectory(path: &Path, scene: &Scene) -> Result<Vec<Waypoint>, String> {
-    let name = path.display();
+pub fn track_from_trajectory(path: &Path, scene: &Scene) -> Result<Vec<Waypoint>, TrackError> {
+    read(path, scene).map_err(|source| TrackError::Trajectory {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+fn read(path: &Path, scene: &Scene) -> Result<Vec<Waypoint>, TrajectoryError> {
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(path)
-        .map_err(|e| format!("{name}: {e}"))?;
-    let headers = reader
-        .headers()
-        .map_err(|e| format!("{name}: {e}"))?
-        .clone();
-    let column = |wanted: &str| {
+        .map_err(TrajectoryError::Open)?;
+    let headers = reader.headers().map_err(TrajectoryError::Open)?.clone();
+    let column = |wanted: &'static str| {
         headers
             .iter()
             .position(|h| h.eq_ignore_ascii_case(wanted))
-            .ok_or_else(|| {
-                format!("{name}: no `{wanted}` column (needs Time, lat, lon, alt_MSL_ft)")
-            })
+            .ok_or(TrajectoryError::NoColumn(wanted))
     };
     let at = [
         column("Time")?,
@@ -49,26 +99,32 @@ pub fn track_from_trajectory(path: &Path, scene: &Scene) -> Result<Vec<Waypoint>
     let mut t0 = None;
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
-        let record = record.map_err(|e| format!("{name}: line {line}: {e}"))?;
+        let record = record.map_err(|source| TrajectoryError::Row { line, source })?;
         if track.len() as f64 >= MAX_SAMPLES {
-            return Err(format!("{name}: more than {MAX_SAMPLES:e} rows"));
+            return Err(TrajectoryError::TooLong);
         }
-        let value = |k: usize| -> Result<f64, String> {
+        let value = |k: usize| {
             record
                 .get(at[k])
                 .and_then(|v| v.parse::<f64>().ok())
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("{name}: line {line}: column {}: not a number", at[k] + 1))
+                .ok_or(TrajectoryError::NotANumber {
+                    line,
+                    column: at[k] + 1,
+                })
         };
         let (t, lat_deg, lon_deg, alt_ft) = (value(0)?, value(1)?, value(2)?, value(3)?);
         if lat_deg.abs() > 90.0 || lon_deg.abs() > 360.0 || alt_ft.abs() > 1e7 {
-            return Err(format!(
-                "{name}: line {line}: {lat_deg}, {lon_deg}, {alt_ft} ft: not a place"
-            ));
+            return Err(TrajectoryError::NotAPlace {
+                line,
+                lat_deg,
+                lon_deg,
+                alt_ft,
+            });
         }
         let t_s = t - *t0.get_or_insert(t);
         if track.last().is_some_and(|w| t_s <= w.t_s) {
-            return Err(format!("{name}: line {line}: times must increase"));
+            return Err(TrajectoryError::TimeNotAfter(line));
         }
         let enu = plane.enu_m_from_geodetic(&Geodetic {
             lat_deg,
@@ -81,7 +137,7 @@ pub fn track_from_trajectory(path: &Path, scene: &Scene) -> Result<Vec<Waypoint>
         });
     }
     if track.is_empty() {
-        return Err(format!("{name}: no rows"));
+        return Err(TrajectoryError::Empty);
     }
     Ok(track)
 }

@@ -20,7 +20,7 @@ use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::live::Link;
 use crate::ingest::stats::SenderId;
-use crate::scene::{self, Kind, Scene, Waypoint};
+use crate::scene::{self, Kind, Scene, SceneError, Waypoint};
 use crate::session::Session;
 use crate::study::fly::{fly, fly_px4, Flown};
 use crate::study::manifest::StudyRow;
@@ -66,6 +66,9 @@ pub enum RowError {
     /// The plan.
     #[error(transparent)]
     Plan(#[from] PlanError),
+    /// The row's scene did not load.
+    #[error("scene: {0}")]
+    Scene(Arc<SceneError>),
     /// The autopilot's binary is not there.
     #[error("{0}")]
     NoAutopilot(String),
@@ -99,7 +102,7 @@ pub struct Setup {
     pub work: PathBuf,
     /// Raised by a signal: every row stops and its SITL with it.
     pub stop: Arc<AtomicBool>,
-    scenes: HashMap<String, Result<Arc<Scene>, String>>,
+    scenes: HashMap<String, Result<Arc<Scene>, Arc<SceneError>>>,
     open_air: Arc<Scene>,
 }
 
@@ -115,9 +118,7 @@ impl Setup {
         let mut scenes = HashMap::new();
         for path in rows.iter().filter_map(|r| r.scene.as_deref()) {
             if !path.is_empty() && !scenes.contains_key(path) {
-                let loaded = scene::load(Path::new(path))
-                    .map(Arc::new)
-                    .map_err(|e| e.to_string());
+                let loaded = scene::load(Path::new(path)).map(Arc::new).map_err(Arc::new);
                 scenes.insert(path.to_owned(), loaded);
             }
         }
@@ -135,12 +136,11 @@ impl Setup {
     fn scene(&self, path: Option<&str>) -> Result<Arc<Scene>, RowError> {
         match path.filter(|p| !p.is_empty()) {
             None => Ok(self.open_air.clone()),
-            Some(p) => self
-                .scenes
-                .get(p)
-                .cloned()
-                .unwrap_or_else(|| Err("not loaded".into()))
-                .map_err(|why| input("scene", format!("{p}: {why}"))),
+            Some(p) => match self.scenes.get(p) {
+                Some(Ok(scene)) => Ok(scene.clone()),
+                Some(Err(e)) => Err(RowError::Scene(e.clone())),
+                None => Err(input("scene", format!("{p}: not loaded"))),
+            },
         }
     }
 }
@@ -185,7 +185,10 @@ fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
         .intruder
         .as_deref()
         .filter(|t| !t.trim().is_empty())
-        .map(|t| crate::batch::encounter::parse_waypoints(t).map_err(|why| input("intruder", why)))
+        .map(|t| {
+            crate::batch::encounter::parse_waypoints(t)
+                .map_err(|why| input("intruder", why.to_string()))
+        })
         .transpose()?
         .map(|w| (kind, w));
     let duration_s = row.duration_s.unwrap_or(DEFAULT_DURATION_S);

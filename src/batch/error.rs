@@ -1,0 +1,90 @@
+//! Why a manifest row could not run (its `error` cell), and why one of its tracks could not
+//! be read.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::batch::encounter::{DaaTracksError, WaypointError};
+use crate::batch::trajectory::TrajectoryError;
+use crate::daa::well_clear::SETTING_HELP;
+use crate::scene::SceneError;
+use savsim_core::bounds::{OutOfRange, MAX_SAMPLES};
+
+/// Why a row could not run. Its text is the row's `error` cell.
+#[derive(Debug, thiserror::Error)]
+pub enum RowError {
+    /// A number outside its range (`w`, `duration_s`, `rate_hz`).
+    #[error(transparent)]
+    OutOfRange(#[from] OutOfRange),
+    /// The row's scene did not load (the error is shared by every row naming it).
+    #[error(transparent)]
+    Scene(Arc<SceneError>),
+    /// A scene that was not loaded with the manifest (a bug of the caller).
+    #[error("{0}: scene not loaded")]
+    SceneNotLoaded(String),
+    /// A `mode` savsim does not have.
+    #[error("mode {0:?}: give one of none, box, mesh, paper, exact, reference")]
+    Mode(String),
+    /// An `intruder_kind` that is not an obstacle kind.
+    #[error("intruder_kind {0:?}: not a kind")]
+    IntruderKind(String),
+    /// A `well_clear` that names no volume.
+    #[error("well_clear {0:?}: {SETTING_HELP}")]
+    WellClear(String),
+    /// Neither a tlog, nor an encounter, nor a DAIDALUS file; or more than one.
+    #[error("give either `tlog`, or both `own` and `intruder`, or `daa`")]
+    Columns,
+    /// A length and rate that make more samples than a row may have.
+    #[error("duration_s {duration_s} x rate_hz {rate_hz}: at most {MAX_SAMPLES} samples a row")]
+    TooManySamples {
+        /// The row's length, seconds.
+        duration_s: f64,
+        /// Its rate, Hz.
+        rate_hz: f64,
+    },
+    /// The ownship's track.
+    #[error("own: {0}")]
+    Own(TrackError),
+    /// The intruder's track.
+    #[error("intruder: {0}")]
+    Intruder(TrackError),
+    /// The DAIDALUS state file.
+    #[error(transparent)]
+    Daa(#[from] DaaTracksError),
+    /// The replay or its session (a tlog that cannot be read, a session that cannot start).
+    #[error(transparent)]
+    Run(#[from] crate::error::Error),
+    /// A panic caught while running the row: a bug.
+    #[error("internal error, please report it: {0}")]
+    Internal(String),
+}
+
+/// Why a track (waypoints, a tlog or a trajectory file) could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum TrackError {
+    /// A waypoint list.
+    #[error(transparent)]
+    Waypoints(#[from] WaypointError),
+    /// A tlog that could not be opened or read.
+    #[error("{}: {source}", path.display())]
+    Tlog {
+        /// The file.
+        path: PathBuf,
+        /// What the OS or the reader said.
+        source: std::io::Error,
+    },
+    /// A tlog with no position of a vehicle in it.
+    #[error("{}: no vehicle position in it", .0.display())]
+    NoPosition(PathBuf),
+    /// A trajectory file.
+    #[error("{}: {source}", path.display())]
+    Trajectory {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        source: TrajectoryError,
+    },
+    /// A track with no waypoint.
+    #[error("no waypoints")]
+    Empty,
+}
