@@ -127,11 +127,7 @@ pub fn summary_json(all: &Outcomes, nominal: &str) -> serde_json::Value {
 
 /// The summary for a person at a terminal.
 pub fn summary_text(all: &Outcomes, nominal: &str) -> String {
-    let e = |x: &Estimate| match (x.value, x.low, x.high) {
-        (Some(v), Some(l), Some(h)) => format!("{v:.4} [{l:.4}, {h:.4}]"),
-        (Some(v), _, _) => format!("{v:.4} [interval undefined]"),
-        _ => "undefined".to_string(),
-    };
+    let e = |x: &Estimate| x.text(4);
     let mut text = format!(
         "{} runs from {} files ({} failed, left out); 95% intervals: bootstrap over pairs\n",
         all.outcomes.len(),

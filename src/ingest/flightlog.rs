@@ -196,7 +196,7 @@ pub fn read_ulog(data: &[u8]) -> Result<FlightLog, UlogError> {
     let mut taken = Vec::new();
     let mut positions = Positions::default();
     let mut resets: Option<(f64, f64)> = None;
-    while let Some(s) = reader.next_sample() {
+    while let Some(s) = reader.next_sample()? {
         let Some(t_us) = s.timestamp_us() else {
             continue;
         };
@@ -268,7 +268,7 @@ fn traffic_sender(report: &Report, vehicle: SenderId) -> SenderId {
 fn ulog_position_topic(data: &[u8]) -> Result<Option<&'static str>, UlogError> {
     let mut reader = UlogReader::new(data)?.only(&ULOG_POSITION);
     let mut found = [false; ULOG_POSITION.len()];
-    while let Some(s) = reader.next_sample() {
+    while let Some(s) = reader.next_sample()? {
         if let Some(i) = ULOG_POSITION.iter().position(|t| *t == s.topic) {
             found[i] |= s.instance == 0;
         }

@@ -26,7 +26,37 @@ pub enum UlogError {
     /// The file ends inside the 16-byte header.
     #[error("ULog file cut inside its 16-byte header")]
     CutHeader,
+    /// A topic's format that no data message could fill: more than [`MAX_LAYOUT_BYTES`]
+    /// bytes, an array count beyond that, nesting deeper than [`MAX_NESTING`], a type that
+    /// contains itself, or a field that is not `type name`.
+    #[error("ULog format of topic {topic:?}: {why}")]
+    BadFormat {
+        /// The topic whose samples were to be read.
+        topic: String,
+        /// What is wrong with its format (or a nested type's).
+        why: FormatProblem,
+    },
 }
+
+/// What is wrong with a ULog format.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FormatProblem {
+    /// The flattened layout is larger than any message's payload.
+    #[error("larger than a message's {MAX_LAYOUT_BYTES}-byte payload")]
+    TooLarge,
+    /// Nested more deeply than [`MAX_NESTING`] (or a type that contains itself).
+    #[error("types nested more than {MAX_NESTING} deep")]
+    TooDeep,
+    /// A field that is not `type name` or `type[count] name`.
+    #[error("field {0:?} is not `type name` or `type[count] name`")]
+    BadField(String),
+}
+
+/// The largest payload a ULog message can carry (its size is a `u16`), less the data
+/// message's 2-byte id: no layout may be larger, so none has more fields.
+pub const MAX_LAYOUT_BYTES: usize = u16::MAX as usize - 2;
+/// The deepest nesting of types a format may use (PX4's messages nest two or three deep).
+pub const MAX_NESTING: usize = 8;
 
 /// A field's primitive type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -100,6 +130,13 @@ pub struct Layout {
     /// Where the `timestamp` field (a `uint64_t`) is, found once.
     timestamp: Option<usize>,
 }
+
+/// A layout with no fields.
+static NO_FIELDS: Layout = Layout {
+    fields: Vec::new(),
+    size: 0,
+    timestamp: None,
+};
 
 impl Layout {
     fn field(&self, name: &str) -> Option<(usize, Primitive)> {
@@ -179,6 +216,9 @@ pub struct UlogReader<'a> {
     offset: usize,
     /// Raw format texts by topic name (resolved into layouts on first use).
     formats: HashMap<Box<str>, Box<str>>,
+    /// Layouts resolved so far, by type name (`None`: no format for it); cleared when a
+    /// format message arrives.
+    resolved: HashMap<Box<str>, Option<Arc<Layout>>>,
     subscriptions: HashMap<u16, Subscription>,
     /// The topics whose samples are handed out (all when `None`).
     only: Option<&'a [&'a str]>,
@@ -202,6 +242,7 @@ impl<'a> UlogReader<'a> {
             data,
             offset: HEADER_LEN,
             formats: HashMap::new(),
+            resolved: HashMap::new(),
             subscriptions: HashMap::new(),
             only: None,
             parameters: HashMap::new(),
@@ -232,15 +273,19 @@ impl<'a> UlogReader<'a> {
         self.parameters.get(name).copied()
     }
 
-    /// The next data sample, or `None` at the end of the file.
-    pub fn next_sample(&mut self) -> Option<Sample<'_>> {
+    /// The next data sample, `None` at the end of the file, or an error when a topic to be
+    /// handed out has a format no message could fill ([`UlogError::BadFormat`]).
+    pub fn next_sample(&mut self) -> Result<Option<Sample<'_>>, UlogError> {
         loop {
-            let (kind, start, end) = self.next_message()?;
+            let Some((kind, start, end)) = self.next_message() else {
+                return Ok(None);
+            };
             if kind != b'D' {
                 self.take(kind, start, end);
                 continue;
             }
-            let payload = &self.data[start..end];
+            let data: &'a [u8] = self.data;
+            let payload = &data[start..end];
             let Some(id) = payload.get(..2).map(|b| u16::from_le_bytes([b[0], b[1]])) else {
                 self.counts.corrupt += 1;
                 continue;
@@ -254,20 +299,22 @@ impl<'a> UlogReader<'a> {
                 continue;
             }
             if sub.layout.is_none() {
-                let layout = Arc::new(self.resolve(&sub.topic, 0).unwrap_or_default());
-                // The same topic's other instances share it.
                 let topic = sub.topic.clone();
+                let layout = self.layout(&topic)?.unwrap_or_default();
+                // The same topic's other instances share it.
                 for s in self.subscriptions.values_mut().filter(|s| s.topic == topic) {
                     s.layout = Some(layout.clone());
                 }
             }
             let sub = &self.subscriptions[&id];
-            return Some(Sample {
+            // Set just above; an empty layout would do if it were not.
+            let layout = sub.layout.as_deref().unwrap_or(&NO_FIELDS);
+            return Ok(Some(Sample {
                 topic: &sub.topic,
                 instance: sub.instance,
-                layout: sub.layout.as_deref()?,
+                layout,
                 data: &payload[2..],
-            });
+            }));
         }
     }
 
@@ -322,6 +369,7 @@ impl<'a> UlogReader<'a> {
                     .and_then(|s| s.split_once(':'))
                 {
                     self.formats.insert(name.into(), fields.into());
+                    self.resolved.clear();
                     for s in self.subscriptions.values_mut() {
                         s.layout = None;
                     }
@@ -388,44 +436,221 @@ impl<'a> UlogReader<'a> {
         }
     }
 
-    /// The flattened layout of `topic` from its format (nested types resolved; `None` for a
-    /// type with no format, or nesting deeper than any PX4 message).
-    fn resolve(&self, topic: &str, depth: usize) -> Option<Layout> {
-        if depth > 8 {
-            return None;
+    /// The flattened layout of `topic` from its format, nested types resolved once each (and
+    /// kept in `resolved` until a format message changes the formats). `Ok(None)` for a type
+    /// with no format; an error for a format no message could fill.
+    fn layout(&mut self, topic: &str) -> Result<Option<Arc<Layout>>, UlogError> {
+        resolve(&self.formats, &mut self.resolved, topic, 0).map_err(|why| UlogError::BadFormat {
+            topic: topic.to_owned(),
+            why,
+        })
+    }
+}
+
+/// `topic`'s layout from `formats`, memoised in `resolved`: each type is flattened once, so a
+/// type used as an array of nested types costs its fields, not the fields of every element
+/// resolved again. Sizes are checked before anything is allocated for them.
+fn resolve(
+    formats: &HashMap<Box<str>, Box<str>>,
+    resolved: &mut HashMap<Box<str>, Option<Arc<Layout>>>,
+    topic: &str,
+    depth: usize,
+) -> Result<Option<Arc<Layout>>, FormatProblem> {
+    if let Some(known) = resolved.get(topic) {
+        return Ok(known.clone());
+    }
+    if depth > MAX_NESTING {
+        return Err(FormatProblem::TooDeep);
+    }
+    let Some(format) = formats.get(topic) else {
+        return Ok(None);
+    };
+    let mut layout = Layout::default();
+    for field in format.split(';').filter(|f| !f.is_empty()) {
+        let bad = || FormatProblem::BadField(field.chars().take(80).collect());
+        let (kind, name) = field.split_once(' ').ok_or_else(bad)?;
+        let (kind, count, array) = match kind.split_once('[') {
+            Some((k, n)) => {
+                let n = n.strip_suffix(']').ok_or_else(bad)?;
+                let count = n.parse::<usize>().map_err(|_| bad())?;
+                if count > MAX_LAYOUT_BYTES {
+                    return Err(FormatProblem::TooLarge);
+                }
+                (k, count, true)
+            }
+            None => (kind, 1, false),
+        };
+        let element = match Primitive::parse(kind) {
+            Some(p) => Element::Primitive(p),
+            None => match resolve(formats, resolved, kind, depth + 1)? {
+                Some(nested) => Element::Nested(nested),
+                // A nested type with no format: the topic cannot be read (as before).
+                None => return Ok(None),
+            },
+        };
+        let element_size = element.size();
+        if layout.size + count.saturating_mul(element_size) > MAX_LAYOUT_BYTES {
+            return Err(FormatProblem::TooLarge);
         }
-        let format = self.formats.get(topic)?;
-        let mut layout = Layout::default();
-        for field in format.split(';').filter(|f| !f.is_empty()) {
-            let (kind, name) = field.split_once(' ')?;
-            let (kind, count, array) = match kind.split_once('[') {
-                Some((k, n)) => (k, n.trim_end_matches(']').parse::<usize>().ok()?, true),
-                None => (kind, 1, false),
+        for i in 0..count {
+            let name = if array {
+                format!("{name}[{i}]")
+            } else {
+                name.to_string()
             };
-            for i in 0..count {
-                let name = if array {
-                    format!("{name}[{i}]")
-                } else {
-                    name.to_string()
-                };
-                if let Some(p) = Primitive::parse(kind) {
-                    layout.fields.push((name.into(), layout.size, p));
-                    layout.size += p.size();
-                } else {
-                    let nested = self.resolve(kind, depth + 1)?;
+            match &element {
+                Element::Primitive(p) => layout.fields.push((name.into(), layout.size, *p)),
+                Element::Nested(nested) => {
                     for (n, offset, p) in &nested.fields {
                         let full = format!("{name}.{n}");
                         layout.fields.push((full.into(), layout.size + offset, *p));
                     }
-                    layout.size += nested.size;
                 }
             }
+            layout.size += element_size;
         }
-        layout.timestamp = layout
-            .fields
+    }
+    layout.timestamp = layout
+        .fields
+        .iter()
+        .find(|(n, _, p)| &**n == "timestamp" && *p == Primitive::U64)
+        .map(|&(_, offset, _)| offset);
+    let layout = Some(Arc::new(layout));
+    resolved.insert(topic.into(), layout.clone());
+    Ok(layout)
+}
+
+/// One element of a format's field: a primitive, or a nested type's layout.
+enum Element {
+    Primitive(Primitive),
+    Nested(Arc<Layout>),
+}
+
+impl Element {
+    fn size(&self) -> usize {
+        match self {
+            Element::Primitive(p) => p.size(),
+            Element::Nested(l) => l.size,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ULog file: the header, then `(type, payload)` messages.
+    fn ulog(messages: &[(u8, Vec<u8>)]) -> Vec<u8> {
+        let mut out = MAGIC.to_vec();
+        out.push(1);
+        out.extend_from_slice(&0u64.to_le_bytes());
+        for (kind, payload) in messages {
+            out.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+            out.push(*kind);
+            out.extend_from_slice(payload);
+        }
+        out
+    }
+
+    /// Formats, a subscription of `topic` as id 0, and one data message of `data_len` bytes.
+    fn log_of(formats: &[&str], topic: &str, data_len: usize) -> Vec<u8> {
+        let mut messages: Vec<(u8, Vec<u8>)> = formats
             .iter()
-            .find(|(n, _, p)| &**n == "timestamp" && *p == Primitive::U64)
-            .map(|&(_, offset, _)| offset);
-        Some(layout)
+            .map(|f| (b'F', f.as_bytes().to_vec()))
+            .collect();
+        let mut subscribe = vec![0u8, 0, 0];
+        subscribe.extend_from_slice(topic.as_bytes());
+        messages.push((b'A', subscribe));
+        messages.push((b'D', vec![0u8; 2 + data_len]));
+        ulog(&messages)
+    }
+
+    fn first(data: &[u8]) -> Result<Option<usize>, UlogError> {
+        let mut reader = UlogReader::new(data).unwrap();
+        Ok(reader.next_sample()?.map(|s| s.layout.fields.len()))
+    }
+
+    #[test]
+    fn an_array_larger_than_any_message_is_an_error_not_an_allocation() {
+        for count in ["100000000", "18446744073709551615", "65534"] {
+            let format = format!("big:uint64_t timestamp;uint8_t[{count}] x;");
+            let data = log_of(&[&format], "big", 16);
+            assert!(data.len() < 1024);
+            let err = first(&data).unwrap_err();
+            assert!(
+                matches!(&err, UlogError::BadFormat { topic, why: FormatProblem::TooLarge }
+                    if topic == "big"),
+                "{count}: {err}"
+            );
+        }
+        // A count that does not parse is a bad field, not a panic.
+        let data = log_of(&["t:uint8_t[99999999999999999999999] x;"], "t", 4);
+        assert!(matches!(
+            first(&data),
+            Err(UlogError::BadFormat {
+                why: FormatProblem::BadField(_),
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn nested_arrays_that_multiply_past_a_message_are_an_error() {
+        // 255 x 255 x 255 x 8 bytes: 132 MB of fields if flattened.
+        let formats = [
+            "a:uint64_t timestamp;b[255] x;",
+            "b:c[255] y;",
+            "c:uint64_t[255] z;",
+        ];
+        let data = log_of(&formats, "a", 16);
+        assert!(data.len() < 1024);
+        assert!(matches!(
+            first(&data),
+            Err(UlogError::BadFormat {
+                why: FormatProblem::TooLarge,
+                ..
+            })
+        ));
+        // A type that contains itself.
+        let data = log_of(&["loop:loop[1] x;"], "loop", 4);
+        assert!(matches!(
+            first(&data),
+            Err(UlogError::BadFormat {
+                why: FormatProblem::TooDeep,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn nested_types_are_flattened_once_and_read_at_their_offsets() {
+        let formats = [
+            "outer:uint64_t timestamp;inner[3] v;uint8_t flag;",
+            "inner:float x;int16_t[2] y;",
+        ];
+        let mut data = log_of(&formats, "outer", 0);
+        // Replace the empty data message with one that carries values.
+        let cut = data.len() - 5;
+        data.truncate(cut);
+        let mut payload = vec![0u8, 0];
+        payload.extend_from_slice(&7u64.to_le_bytes());
+        for k in 0..3 {
+            payload.extend_from_slice(&(k as f32 + 0.5).to_le_bytes());
+            payload.extend_from_slice(&(-(k as i16)).to_le_bytes());
+            payload.extend_from_slice(&(k as i16 * 10).to_le_bytes());
+        }
+        payload.push(1);
+        data.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+        data.push(b'D');
+        data.extend_from_slice(&payload);
+        let mut reader = UlogReader::new(&data).unwrap();
+        let s = reader.next_sample().unwrap().unwrap();
+        assert_eq!(s.timestamp_us(), Some(7));
+        assert_eq!(s.get("v[2].x"), Some(2.5));
+        assert_eq!(s.get("v[1].y[0]"), Some(-1.0));
+        assert_eq!(s.get("v[2].y[1]"), Some(20.0));
+        assert_eq!(s.get("flag"), Some(1.0));
+        assert_eq!(s.layout.fields.len(), 1 + 3 * 3 + 1);
+        assert_eq!(reader.resolved.len(), 2, "inner resolved once, outer once");
     }
 }

@@ -320,7 +320,6 @@ fn fly_row(
     let (link, mut sitl) = start_autopilot(&runtime, setup, &checked, &start)?;
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
-    let shutdown = Arc::new(AtomicBool::new(false));
     let collided = Flag::default();
     let options = LiveOptions {
         duration: Some(wall_limit),
@@ -328,18 +327,7 @@ fn fly_row(
         collided: Some(collided.clone()),
         ..LiveOptions::default()
     };
-    let live = {
-        let shutdown = shutdown.clone();
-        std::thread::Builder::new()
-            .name("savsim-study-session".into())
-            .spawn(move || {
-                let handle = runtime.handle().clone();
-                let run = run_links(&handle, vec![link], &options, session, None, shutdown);
-                drop(runtime);
-                run
-            })
-            .map_err(|e| RowError::Savsim(e.to_string()))?
-    };
+    let live = SessionThread::spawn(runtime, link, options, session)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let started = Instant::now();
     let stop = || {
@@ -347,6 +335,7 @@ fn fly_row(
             || (checked.stop_on_collision && collided.is_raised())
             || started.elapsed() > wall_limit
     };
+    // Every exit from here on, `?` included, stops and joins the session thread (its drop).
     let flight = connect_pilot(&mut sitl, plane, checked.px4, instance, &setup.stop)?.and_then(
         |mut pilot| {
             let flown = if checked.px4 {
@@ -363,11 +352,7 @@ fn fly_row(
             flown.map(|f| (f, pilot.heard()))
         },
     );
-    shutdown.store(true, Ordering::Relaxed);
-    let run = live
-        .join()
-        .map_err(|_| RowError::Savsim("the session thread failed".into()))?
-        .map_err(|e| RowError::Savsim(e.to_string()))?;
+    let run = live.finish()?;
     let exited = sitl.exited();
     let tail = sitl.log_tail(5);
     drop(sitl);
@@ -385,6 +370,61 @@ fn fly_row(
         checked.legs.len(),
     )?;
     Ok(())
+}
+
+/// A row's session on its own thread (with the row's network runtime), stopped and joined
+/// when dropped: no exit from a row leaves the thread, its runtime or its socket behind.
+struct SessionThread {
+    thread: Option<std::thread::JoinHandle<crate::error::Result<LiveRun>>>,
+    shutdown: Arc<AtomicBool>,
+}
+
+impl SessionThread {
+    fn spawn(
+        runtime: tokio::runtime::Runtime,
+        link: Link,
+        options: LiveOptions,
+        session: Session,
+    ) -> Result<Self, RowError> {
+        let shutdown = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let shutdown = shutdown.clone();
+            std::thread::Builder::new()
+                .name("savsim-study-session".into())
+                .spawn(move || {
+                    let handle = runtime.handle().clone();
+                    let run = run_links(&handle, vec![link], &options, session, None, shutdown);
+                    drop(runtime);
+                    run
+                })
+                .map_err(|e| RowError::Savsim(e.to_string()))?
+        };
+        Ok(Self {
+            thread: Some(thread),
+            shutdown,
+        })
+    }
+
+    /// Stop the session and take its run.
+    fn finish(mut self) -> Result<LiveRun, RowError> {
+        self.shutdown.store(true, Ordering::Relaxed);
+        let failed = || RowError::Savsim("the session thread failed".into());
+        self.thread
+            .take()
+            .ok_or_else(failed)?
+            .join()
+            .map_err(|_| failed())?
+            .map_err(|e| RowError::Savsim(e.to_string()))
+    }
+}
+
+impl Drop for SessionThread {
+    fn drop(&mut self) {
+        self.shutdown.store(true, Ordering::Relaxed);
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
 }
 
 /// Where PX4's startup script does not set SIH's home altitude (`Px4::home_alt_by_param`):
@@ -601,4 +641,67 @@ pub fn folder_name(index: u64, id: &str) -> String {
         })
         .collect();
     format!("{index:06}-{id}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The threads of this process whose name starts with `prefix` (names are cut at 15
+    /// bytes by the kernel).
+    fn threads_named(prefix: &str) -> usize {
+        std::fs::read_dir("/proc/self/task")
+            .map(|tasks| {
+                tasks
+                    .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("comm")).ok())
+                    .filter(|name| name.starts_with(prefix))
+                    .count()
+            })
+            .unwrap_or(0)
+    }
+
+    /// 20 rows whose SITL dies at boot: each ends as an error row, and none leaves its session
+    /// thread (with its runtime and socket) behind until its wall limit.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn rows_whose_sitl_dies_at_boot_leave_no_session_thread() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fake = dir.path().join("arducopter");
+        std::fs::write(&fake, "#!/bin/sh\necho 'PANIC: no eeprom'\nexit 1\n").unwrap();
+        std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let row = StudyRow {
+            plan: Some("takeoff 10".into()),
+            duration_s: Some(600.0),
+            ..StudyRow::default()
+        };
+        let setup = Setup::new(
+            std::slice::from_ref(&row),
+            (
+                Some(ArduCopter {
+                    binary: fake,
+                    defaults: Vec::new(),
+                }),
+                None,
+            ),
+            1.0,
+            dir.path().join("work"),
+            Arc::new(AtomicBool::new(false)),
+        );
+        let before = threads_named("savsim-study");
+        for k in 0..20 {
+            let result = run_row(k, &row, 40 + k as u16, &setup);
+            assert_eq!(result.outcome, Outcome::Error, "{:?}", result.error);
+            assert!(
+                result
+                    .error
+                    .as_deref()
+                    .unwrap_or("")
+                    .contains("ended by itself"),
+                "{:?}",
+                result.error
+            );
+        }
+        assert_eq!(threads_named("savsim-study"), before);
+    }
 }

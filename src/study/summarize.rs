@@ -91,11 +91,7 @@ pub fn summary_json(all: &StudyOutcomes, nominal: &str) -> serde_json::Value {
 
 /// The summary for a person at a terminal.
 pub fn summary_text(all: &StudyOutcomes, nominal: &str) -> String {
-    let e = |x: &Estimate| match (x.value, x.low, x.high) {
-        (Some(v), Some(l), Some(h)) => format!("{v:.3} [{l:.3}, {h:.3}]"),
-        (Some(v), _, _) => format!("{v:.3} [interval undefined]"),
-        _ => "undefined".to_string(),
-    };
+    let e = |x: &Estimate| x.text(3);
     let mut text = format!(
         "{} rows flown, from {} files; 95% intervals: bootstrap over pairs\n",
         all.outcomes.len(),

@@ -87,7 +87,7 @@ fn ulog_samples_are_the_ones_pyulog_reads() {
         let data = std::fs::read(path).expect("log");
         let mut reader = UlogReader::new(&data).expect("ULog");
         let mut seen: BTreeMap<(String, u8), (u64, u64, u64)> = BTreeMap::new();
-        while let Some(s) = reader.next_sample() {
+        while let Some(s) = reader.next_sample().expect("readable formats") {
             let t = s.timestamp_us().expect("timestamp");
             let entry = seen
                 .entry((s.topic.to_string(), s.instance))

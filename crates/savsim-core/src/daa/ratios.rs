@@ -2,7 +2,14 @@
 //! weighted rate of NMAC and of loss of well clear, and for each variant against the nominal
 //! one, `ratio = sum(w * event | variant) / sum(w * event | nominal)` over the encounters
 //! (`pair`s) flown under both. 95% intervals by a percentile bootstrap over pairs (2000
-//! resamples, a fixed seed: the same answer every run).
+//! resamples, a fixed seed: the same answer every run); a resample with no nominal event has
+//! an undefined ratio, which counts as unbounded, so an interval whose bound falls among them
+//! is open on that side (`None`).
+//!
+//! An encounter flown more than once under one variant (a repeated `pair`, as a study's
+//! `repeat` makes) enters a ratio once, as the share of its flights with the event and their
+//! mean weight: repeats estimate that encounter's probability of the event, and are never
+//! dropped. Rates count every flight as an encounter of its own.
 
 use std::collections::BTreeMap;
 
@@ -31,10 +38,31 @@ pub struct Outcome {
 pub struct Estimate {
     /// The value on all the data (`None` when undefined: a zero denominator).
     pub value: Option<f64>,
-    /// 2.5th percentile of the bootstrap.
+    /// 2.5th percentile of the bootstrap (`None`: unbounded, or no data).
     pub low: Option<f64>,
-    /// 97.5th percentile of the bootstrap.
+    /// 97.5th percentile of the bootstrap (`None`: unbounded, or no data).
     pub high: Option<f64>,
+}
+
+impl Estimate {
+    /// The value and its interval as text, `decimals` after the point: `0.25 [0.1, 0.4]`,
+    /// `2.5 [1.2, unbounded)` when the upper bound is unbounded, `undefined` without a value.
+    ///
+    /// ```
+    /// use savsim_core::daa::ratios::Estimate;
+    /// let e = Estimate { value: Some(0.5), low: Some(0.25), high: None };
+    /// assert_eq!(e.text(2), "0.50 [0.25, unbounded)");
+    /// ```
+    pub fn text(&self, decimals: usize) -> String {
+        let Some(v) = self.value else {
+            return "undefined".into();
+        };
+        match (self.low, self.high) {
+            (Some(l), Some(h)) => format!("{v:.decimals$} [{l:.decimals$}, {h:.decimals$}]"),
+            (Some(l), None) => format!("{v:.decimals$} [{l:.decimals$}, unbounded)"),
+            _ => format!("{v:.decimals$} [interval unbounded]"),
+        }
+    }
 }
 
 /// One variant's rates.
@@ -69,28 +97,32 @@ pub struct VariantRatios {
 
 /// Bootstrap resamples.
 pub const RESAMPLES: usize = 2000;
-const SEED: u64 = 0x5a75_1a7e;
+/// The bootstrap's seed (ChaCha8): the same intervals on every run.
+pub const BOOTSTRAP_SEED: u64 = 0x5a75_1a7e;
 
 /// A weighted rate over rows: sum(w * event) / sum(w).
 fn rate(rows: &[Weighted]) -> Option<f64> {
     let total: f64 = rows.iter().map(|r| r.0).sum();
     // + 0.0: an empty sum of floats is -0.0.
-    let hits: f64 = rows.iter().filter(|r| r.1).map(|r| r.0).sum::<f64>() + 0.0;
+    let hits: f64 = rows.iter().map(|r| r.0 * r.1).sum::<f64>() + 0.0;
     (total > 0.0).then(|| hits / total)
 }
 
-/// A weight and whether the event happened.
-type Weighted = (f64, bool);
+/// A weight and whether the event happened (1 or 0), or for an encounter flown several
+/// times under one variant, the share of its flights in which it happened.
+type Weighted = (f64, f64);
 
 /// A ratio over pairs (the variant's, the nominal's): sum(w * event | variant) /
 /// sum(w * event | nominal).
 fn ratio(pairs: &[(Weighted, Weighted)]) -> Option<f64> {
-    let num: f64 = pairs.iter().filter(|p| p.0 .1).map(|p| p.0 .0).sum::<f64>() + 0.0;
-    let den: f64 = pairs.iter().filter(|p| p.1 .1).map(|p| p.1 .0).sum();
+    let num: f64 = pairs.iter().map(|p| p.0 .0 * p.0 .1).sum::<f64>() + 0.0;
+    let den: f64 = pairs.iter().map(|p| p.1 .0 * p.1 .1).sum();
     (den > 0.0).then(|| num / den)
 }
 
-/// The statistic on the data and its percentile-bootstrap interval.
+/// The statistic on the data and its percentile-bootstrap interval. A resample whose
+/// statistic is undefined (a ratio whose resample drew no nominal event) counts as unbounded:
+/// it sorts above every finite value, so a bound that falls on one is `None` (unbounded).
 fn estimate<T: Clone>(items: &[T], stat: impl Fn(&[T]) -> Option<f64>) -> Estimate {
     let value = stat(items);
     if items.is_empty() {
@@ -100,31 +132,27 @@ fn estimate<T: Clone>(items: &[T], stat: impl Fn(&[T]) -> Option<f64>) -> Estima
             high: None,
         };
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(SEED);
+    let mut rng = ChaCha8Rng::seed_from_u64(BOOTSTRAP_SEED);
     let mut sample = Vec::with_capacity(items.len());
     let mut stats: Vec<f64> = Vec::with_capacity(RESAMPLES);
     for _ in 0..RESAMPLES {
         sample.clear();
         sample.extend((0..items.len()).map(|_| items[rng.random_range(0..items.len())].clone()));
-        if let Some(s) = stat(&sample) {
-            stats.push(s);
-        }
-    }
-    // Resamples with an undefined statistic (no nominal event drawn) count as unbounded.
-    if stats.len() * 20 < RESAMPLES * 19 {
-        return Estimate {
-            value,
-            low: None,
-            high: None,
-        };
+        stats.push(stat(&sample).unwrap_or(f64::INFINITY));
     }
     stats.sort_by(f64::total_cmp);
-    let at = |q: f64| stats[((q * (RESAMPLES as f64)) as usize).min(stats.len() - 1)];
-    Estimate {
-        value,
-        low: Some(at(0.025)),
-        high: Some(at(0.975)),
-    }
+    let (low, high) = percentile_bounds(&stats);
+    Estimate { value, low, high }
+}
+
+/// The 2.5th and 97.5th percentiles of sorted resamples (the nearest rank below, as
+/// `floor(q * n)`), `None` where the percentile is unbounded.
+fn percentile_bounds(sorted: &[f64]) -> (Option<f64>, Option<f64>) {
+    let at = |q: f64| {
+        let i = ((q * sorted.len() as f64) as usize).min(sorted.len() - 1);
+        Some(sorted[i]).filter(|v| v.is_finite())
+    };
+    (at(0.025), at(0.975))
 }
 
 /// Every variant's rates, in name order.
@@ -144,9 +172,10 @@ pub fn rates(outcomes: &[Outcome]) -> Vec<VariantRates> {
     }
     by.into_iter()
         .map(|(variant, rows)| {
-            let nmac: Vec<Weighted> = rows.iter().map(|o| (o.weight, o.nmac)).collect();
-            let lowc: Vec<Weighted> = rows.iter().map(|o| (o.weight, o.lowc)).collect();
-            let collision: Vec<Weighted> = rows.iter().map(|o| (o.weight, o.collision)).collect();
+            let of = |f: fn(&Outcome) -> bool| -> Vec<Weighted> {
+                rows.iter().map(|o| (o.weight, share(&[*o], f))).collect()
+            };
+            let (nmac, lowc, collision) = (of(|o| o.nmac), of(|o| o.lowc), of(|o| o.collision));
             VariantRates {
                 variant: variant.into(),
                 encounters: rows.len(),
@@ -176,12 +205,14 @@ pub fn rates(outcomes: &[Outcome]) -> Vec<VariantRates> {
 /// assert_eq!(r[0].lowc_ratio.value, None);
 /// ```
 pub fn ratios(outcomes: &[Outcome], nominal: &str) -> Vec<VariantRatios> {
-    let mut by_pair: BTreeMap<&str, BTreeMap<&str, &Outcome>> = BTreeMap::new();
+    let mut by_pair: BTreeMap<&str, BTreeMap<&str, Vec<&Outcome>>> = BTreeMap::new();
     for o in outcomes {
         by_pair
             .entry(o.pair.as_str())
             .or_default()
-            .insert(o.variant.as_str(), o);
+            .entry(o.variant.as_str())
+            .or_default()
+            .push(o);
     }
     let mut variants: Vec<&str> = outcomes
         .iter()
@@ -193,13 +224,13 @@ pub fn ratios(outcomes: &[Outcome], nominal: &str) -> Vec<VariantRatios> {
     variants
         .into_iter()
         .map(|variant| {
-            let both: Vec<(&Outcome, &Outcome)> = by_pair
+            let both: Vec<(&[&Outcome], &[&Outcome])> = by_pair
                 .values()
-                .filter_map(|m| Some((*m.get(variant)?, *m.get(nominal)?)))
+                .filter_map(|m| Some((m.get(variant)?.as_slice(), m.get(nominal)?.as_slice())))
                 .collect();
             let of = |f: fn(&Outcome) -> bool| -> Vec<(Weighted, Weighted)> {
                 both.iter()
-                    .map(|(v, n)| ((v.weight, f(v)), (n.weight, f(n))))
+                    .map(|(v, n)| ((mean_weight(v), share(v, f)), (mean_weight(n), share(n, f))))
                     .collect()
             };
             VariantRatios {
@@ -211,4 +242,103 @@ pub fn ratios(outcomes: &[Outcome], nominal: &str) -> Vec<VariantRatios> {
             }
         })
         .collect()
+}
+
+/// The share of `flights` (one encounter under one variant, flown once or more) in which the
+/// event happened.
+fn share(flights: &[&Outcome], event: fn(&Outcome) -> bool) -> f64 {
+    let hits = flights.iter().filter(|o| event(o)).count();
+    hits as f64 / flights.len().max(1) as f64
+}
+
+/// The mean weight of an encounter's flights under one variant.
+fn mean_weight(flights: &[&Outcome]) -> f64 {
+    flights.iter().map(|o| o.weight).sum::<f64>() / flights.len().max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(pair: usize, variant: &str, nmac: bool) -> Outcome {
+        Outcome {
+            // Zero-padded: the module orders pairs by name, the reference by number.
+            pair: format!("{pair:03}"),
+            variant: variant.into(),
+            weight: 1.0,
+            nmac,
+            lowc: false,
+            collision: false,
+        }
+    }
+
+    /// 40 pairs, 3 nominal NMACs and 10 mitigated ones: about 4% of resamples draw no nominal
+    /// NMAC, so the upper bound is unbounded. The reference draws the same resamples and
+    /// computes each ratio by counting, with no helper of the module.
+    #[test]
+    fn undefined_resamples_count_as_unbounded_as_a_plain_bootstrap_says() {
+        let n = 40;
+        let mut all = Vec::new();
+        for k in 0..n {
+            all.push(outcome(k, "nominal", k < 3));
+            all.push(outcome(k, "mitigated", k % 4 == 0));
+        }
+        let r = &ratios(&all, "nominal")[0];
+
+        let mut rng = ChaCha8Rng::seed_from_u64(BOOTSTRAP_SEED);
+        let mut reference: Vec<f64> = (0..RESAMPLES)
+            .map(|_| {
+                let (mut num, mut den) = (0u32, 0u32);
+                for _ in 0..n {
+                    let k = rng.random_range(0..n);
+                    num += u32::from(k % 4 == 0);
+                    den += u32::from(k < 3);
+                }
+                if den == 0 {
+                    f64::INFINITY
+                } else {
+                    f64::from(num) / f64::from(den)
+                }
+            })
+            .collect();
+        reference.sort_by(f64::total_cmp);
+        let undefined = reference.iter().filter(|v| v.is_infinite()).count();
+        assert!(
+            (50..=100).contains(&undefined),
+            "{undefined} undefined resamples"
+        );
+        let pick =
+            |q: f64| Some(reference[(q * RESAMPLES as f64) as usize]).filter(|v| v.is_finite());
+        assert_eq!(r.nmac_ratio.value, Some(10.0 / 3.0));
+        assert!(pick(0.025).is_some_and(|low| low > 0.0));
+        assert_eq!(r.nmac_ratio.low, pick(0.025));
+        assert_eq!(
+            r.nmac_ratio.high, None,
+            "the upper bound falls among the undefined"
+        );
+        assert_eq!(pick(0.975), None);
+    }
+
+    #[test]
+    fn a_repeated_pair_enters_a_ratio_as_the_share_of_its_flights() {
+        // Pair 0 flown three times mitigated (one NMAC), once nominal (an NMAC); pair 1 once
+        // each (NMAC nominal, none mitigated).
+        let all = [
+            outcome(0, "nominal", true),
+            outcome(0, "mitigated", true),
+            outcome(0, "mitigated", false),
+            outcome(0, "mitigated", false),
+            outcome(1, "nominal", true),
+            outcome(1, "mitigated", false),
+        ];
+        let r = &ratios(&all, "nominal")[0];
+        assert_eq!(r.pairs, 2);
+        // (1/3 + 0) / (1 + 1): the last flight alone would have said 0.
+        assert_eq!(r.nmac_ratio.value, Some((1.0 / 3.0) / 2.0));
+        // Rates count every flight.
+        let rates = rates(&all);
+        let mitigated = rates.iter().find(|v| v.variant == "mitigated").unwrap();
+        assert_eq!(mitigated.encounters, 4);
+        assert_eq!(mitigated.nmac_rate.value, Some(0.25));
+    }
 }
