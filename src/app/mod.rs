@@ -394,6 +394,13 @@ pub fn print_report(session: &Session) {
             _ => {}
         }
     }
+    if session.notable_not_kept() > 0 {
+        println!(
+            "  ... and {} more collisions, near misses and losses of well clear, not listed \
+             (every one is in --events)",
+            session.notable_not_kept()
+        );
+    }
 }
 
 fn live_options(

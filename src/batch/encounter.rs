@@ -11,7 +11,7 @@ use glam::DVec3;
 use crate::batch::error::TrackError;
 use crate::collision::approach::Approaches;
 use crate::collision::bodies::waypoint_pose;
-use crate::collision::events::Event;
+use crate::collision::digest::EventDigest;
 use crate::collision::pipeline::{DynamicBody, MovingBodies, Pipeline, VehicleKey};
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::IngestStats;
@@ -46,8 +46,8 @@ pub struct Encounter {
 pub struct Flown {
     /// The pipeline after the last sample (its totals).
     pub pipeline: Pipeline,
-    /// Collision and near-miss events (and the others), in order.
-    pub events: Vec<Event>,
+    /// What its events add up to (every event taken, as it happened).
+    pub digest: EventDigest,
     /// Closest approaches, on the encounter's clock (0 at the start).
     pub approaches: Approaches,
     /// What the ticks cost.
@@ -178,6 +178,7 @@ pub fn track_from_tlog(
 pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flown {
     let plane = LocalTangentPlane::new(scene.origin);
     let mut events = Vec::new();
+    let mut digest = EventDigest::default();
     let mut approaches = Approaches::with_volume(encounter.well_clear);
     let mut well_clear_changes = Vec::new();
     let n = (encounter.duration_s * encounter.rate_hz).round().max(0.0) as usize;
@@ -231,12 +232,14 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
             &mut events,
         );
         tick_costs.record(started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64);
+        events.drain(..).for_each(|e| digest.take(&e));
         previous = Some(current);
     }
     pipeline.finish(&mut events);
+    events.drain(..).for_each(|e| digest.take(&e));
     Flown {
         pipeline,
-        events,
+        digest,
         approaches,
         tick_costs,
     }

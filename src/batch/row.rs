@@ -4,7 +4,7 @@ use serde::Serialize;
 
 use crate::batch::manifest::Run;
 use crate::collision::approach::Approaches;
-use crate::collision::events::{Event, EventKind};
+use crate::collision::digest::EventDigest;
 use crate::collision::pipeline::PipelineTotals;
 use crate::ingest::stats::IngestStats;
 
@@ -140,13 +140,12 @@ impl RunRow {
         }
     }
 
-    /// Fill in what a run found: its pipeline's totals, its collision and near-miss events (in
-    /// time order), its closest approaches and its tick costs (nanoseconds); times become
-    /// seconds after `t0_s`.
+    /// Fill in what a run found: its pipeline's totals, what its events add up to, its
+    /// closest approaches and its tick costs (nanoseconds); times become seconds after `t0_s`.
     pub fn record_run(
         &mut self,
         totals: &PipelineTotals,
-        events: &[Event],
+        digest: &EventDigest,
         approaches: &Approaches,
         tick_costs: &crate::costs::TickCosts,
         t0_s: f64,
@@ -154,35 +153,16 @@ impl RunRow {
         self.ticks = totals.ticks;
         self.collisions = totals.collisions;
         self.near_misses = totals.near_misses;
-        self.record_events(events, t0_s);
+        if let Some((t, obstacle)) = digest.first_collision() {
+            self.first_collision_t_s = Some(t - t0_s);
+            self.first_collision_obstacle = Some(obstacle.to_owned());
+        }
+        self.closest_near_miss_m = digest.closest_near_miss_m();
         self.record_approaches(approaches, t0_s);
         self.record_well_clear(approaches, t0_s);
         let (median_us, p99_us) = tick_costs.percentiles_us();
         self.tick_cost_us_median = median_us;
         self.tick_cost_us_p99 = p99_us;
-    }
-
-    /// The first collision and the closest near miss.
-    fn record_events(&mut self, events: &[Event], t0_s: f64) {
-        for e in events {
-            match &e.kind {
-                EventKind::Collision {
-                    obstacle,
-                    time_of_impact,
-                    ..
-                } if self.first_collision_t_s.is_none() => {
-                    self.first_collision_t_s = Some(time_of_impact - t0_s);
-                    self.first_collision_obstacle = Some(obstacle.clone());
-                }
-                EventKind::NearMiss { closest_m, .. } => {
-                    self.closest_near_miss_m = Some(
-                        self.closest_near_miss_m
-                            .map_or(*closest_m, |m| m.min(*closest_m)),
-                    );
-                }
-                _ => {}
-            }
-        }
     }
 
     /// Every approach, the closest of them, and whether any was an NMAC.

@@ -200,7 +200,7 @@ fn fly_encounter(
     let flown = encounter::fly(scene, pipeline, &encounter);
     row.record_run(
         flown.pipeline.totals(),
-        &flown.events,
+        &flown.digest,
         &flown.approaches,
         &flown.tick_costs,
         0.0,
@@ -253,7 +253,7 @@ fn replay_tlog(
     if let Some(p) = session.pipeline() {
         row.record_run(
             p.totals(),
-            session.notable(),
+            session.digest(),
             session.approaches(),
             session.tick_costs(),
             t0_s,

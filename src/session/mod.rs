@@ -13,6 +13,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use crate::collision::approach::{Approaches, WellClearChange};
+use crate::collision::digest::EventDigest;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::pipeline::{BodyPose, CollisionConfig, MovingBodies, Pipeline, VehicleKey};
 use crate::daa::episodes::Change;
@@ -26,7 +27,9 @@ use crate::ingest::Ingestor;
 use crate::scene::Scene;
 use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 
-/// Most collision and near-miss events kept in memory for the run's printed report.
+/// Most collision, near-miss and well-clear events kept in memory for the run's printed
+/// report; the rest are counted (`notable_not_kept`), and every figure drawn from the run
+/// comes from [`EventDigest`], which takes them all.
 const NOTABLE_KEPT: usize = 1000;
 
 /// A run's state.
@@ -41,8 +44,13 @@ pub struct Session {
     pipeline: Option<Pipeline>,
     events_out: Option<(PathBuf, BufWriter<File>)>,
     events: Vec<Event>,
-    /// Collisions and near misses (the first `NOTABLE_KEPT`, 1000), for the printed report.
+    /// Collisions, near misses and losses of well clear (the first `NOTABLE_KEPT`), for the
+    /// printed report.
     notable: Vec<Event>,
+    /// Those past `NOTABLE_KEPT`, counted.
+    notable_not_kept: u64,
+    /// Every event's contribution to the run's figures (closest approaches, first collision).
+    digest: EventDigest,
     /// Per-tick collision cost.
     tick_costs: crate::costs::TickCosts,
     /// Closest approach of each vehicle to each moving body, on the receive clock.
@@ -124,6 +132,8 @@ impl Session {
             events_out,
             events: Vec::new(),
             notable: Vec::new(),
+            notable_not_kept: 0,
+            digest: EventDigest::default(),
             tick_costs: Default::default(),
             approaches: Approaches::default(),
             well_clear_changes: Vec::new(),
@@ -183,9 +193,20 @@ impl Session {
     }
 
     /// Collisions, near misses and losses of well clear (the first 1000), for the printed
-    /// report.
+    /// report; [`Session::notable_not_kept`] counts the rest.
     pub fn notable(&self) -> &[Event] {
         &self.notable
+    }
+
+    /// Collisions, near misses and losses of well clear past the first 1000, not kept.
+    pub fn notable_not_kept(&self) -> u64 {
+        self.notable_not_kept
+    }
+
+    /// What every event of the run adds up to (closest approach per obstacle, first
+    /// collision, counts).
+    pub fn digest(&self) -> &EventDigest {
+        &self.digest
     }
 
     /// Per-tick collision cost.
@@ -523,14 +544,18 @@ impl Session {
 
     fn flush_events(&mut self) -> Result<()> {
         for e in self.events.drain(..) {
+            self.digest.take(&e);
             if matches!(
                 e.kind,
                 EventKind::Collision { .. }
                     | EventKind::NearMiss { .. }
                     | EventKind::WellClearLost { .. }
-            ) && self.notable.len() < NOTABLE_KEPT
-            {
-                self.notable.push(e.clone());
+            ) {
+                if self.notable.len() < NOTABLE_KEPT {
+                    self.notable.push(e.clone());
+                } else {
+                    self.notable_not_kept += 1;
+                }
             }
             if let Some((path, out)) = &mut self.events_out {
                 serde_json::to_writer(&mut *out, &e)
@@ -595,6 +620,7 @@ impl Session {
                 "state_resets": totals.state_resets,
                 "near_misses": totals.near_misses,
                 "telemetry_gaps": totals.telemetry_gaps,
+                "notable_not_listed": self.notable_not_kept,
                 "terrain_clearance_min_m": totals.terrain_clearance_min_m,
                 "implausible_samples": totals.implausible_samples,
                 "reference_capped": totals.reference_capped,

@@ -272,7 +272,7 @@ fn arm(
         if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
             let texts: Vec<String> = pilot
                 .heard()
-                .texts
+                .recent_texts
                 .iter()
                 .rev()
                 .take(5)

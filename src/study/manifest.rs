@@ -76,9 +76,8 @@ impl StudyRow {
 /// directory; rows with `repeat` are expanded (`ID#k`).
 pub fn load(path: &Path) -> Result<Vec<StudyRow>> {
     let (rows, base): (Vec<StudyRow>, PathBuf) = crate::batch::manifest::read_rows(path)?;
-    Ok(expand(
-        rows.into_iter().map(|r| r.anchored(&base)).collect(),
-    ))
+    expand(rows.into_iter().map(|r| r.anchored(&base)).collect())
+        .map_err(|e| crate::error::Error::Usage(format!("{}: {e}", path.display())))
 }
 
 /// Rows from CSV with a header row; an empty cell is an absent value (not expanded).
@@ -90,23 +89,64 @@ pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<StudyRow>, csv::Error>
         .collect()
 }
 
-/// Each row `repeat` times (at most 10,000), as `ID#0`, `ID#1`, ...; a row without `repeat`
-/// (or with 1) once, as it is; a row with `repeat = 0` not at all.
+/// Most times a row may be flown (`repeat`).
+pub const MAX_REPEAT: u32 = 10_000;
+/// Most rows a manifest may expand to.
+pub const MAX_EXPANDED_ROWS: usize = 1_000_000;
+
+/// Why a manifest's rows cannot be expanded.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ExpandError {
+    /// A `repeat` over [`MAX_REPEAT`].
+    #[error("row {row} ({id}): repeat {repeat}: give at most {MAX_REPEAT}")]
+    Repeat {
+        /// The row, from 1.
+        row: usize,
+        /// Its id.
+        id: String,
+        /// Its repeat.
+        repeat: u32,
+    },
+    /// More rows than [`MAX_EXPANDED_ROWS`] in all.
+    #[error("the manifest expands to more than {MAX_EXPANDED_ROWS} rows")]
+    TooMany,
+}
+
+/// Each row `repeat` times, as `ID#0`, `ID#1`, ...; a row without `repeat` (or with 1) once,
+/// as it is; a row with `repeat = 0` not at all. A repeat over [`MAX_REPEAT`], or more than
+/// [`MAX_EXPANDED_ROWS`] rows in all, is an error (nothing is flown).
 ///
 /// ```
 /// use savsim::study::manifest::{expand, StudyRow};
 /// let row = StudyRow { id: Some("a".into()), repeat: Some(2), ..StudyRow::default() };
-/// let ids: Vec<_> = expand(vec![row]).into_iter().map(|r| r.id.unwrap()).collect();
+/// let ids: Vec<_> = expand(vec![row]).unwrap().into_iter().map(|r| r.id.unwrap()).collect();
 /// assert_eq!(ids, ["a#0", "a#1"]);
+/// let many = StudyRow { repeat: Some(10_001), ..StudyRow::default() };
+/// assert!(expand(vec![many]).is_err());
 /// ```
-pub fn expand(rows: Vec<StudyRow>) -> Vec<StudyRow> {
-    let mut out = Vec::with_capacity(rows.len());
+pub fn expand(rows: Vec<StudyRow>) -> std::result::Result<Vec<StudyRow>, ExpandError> {
+    let mut total = 0usize;
+    for (index, row) in rows.iter().enumerate() {
+        let repeat = row.repeat.unwrap_or(1);
+        if repeat > MAX_REPEAT {
+            return Err(ExpandError::Repeat {
+                row: index + 1,
+                id: row.id_or(index),
+                repeat,
+            });
+        }
+        total += repeat as usize;
+        if total > MAX_EXPANDED_ROWS {
+            return Err(ExpandError::TooMany);
+        }
+    }
+    let mut out = Vec::with_capacity(total);
     for (index, row) in rows.into_iter().enumerate() {
         match row.repeat {
             None | Some(1) => out.push(row),
             Some(n) => {
                 let id = row.id_or(index);
-                for k in 0..n.min(10_000) {
+                for k in 0..n {
                     out.push(StudyRow {
                         id: Some(format!("{id}#{k}")),
                         pair: row.pair.as_ref().map(|p| format!("{p}#{k}")),
@@ -116,7 +156,7 @@ pub fn expand(rows: Vec<StudyRow>) -> Vec<StudyRow> {
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// Write rows as CSV (what `study gen` writes).

@@ -107,16 +107,40 @@ pub struct Heard {
     pub mode: Option<u32>,
     /// Every mode it entered, in order, with its clock then (ms; of the last position).
     pub modes: Vec<(u32, u32)>,
-    /// COLLISION messages it sent: its clock (ms), threat id, action, threat level.
-    pub collisions: Vec<(u32, u32, u8, u8)>,
-    /// STATUSTEXT: its clock (ms), severity, text.
-    pub texts: Vec<(u32, u8, String)>,
+    /// COLLISION messages it sent.
+    pub collision_messages: u64,
+    /// Its clock (ms) at the first COLLISION message.
+    pub first_collision_ms: Option<u32>,
+    /// The last [`RECENT_TEXTS`] STATUSTEXTs: its clock (ms), severity, text (what an error
+    /// message quotes).
+    pub recent_texts: std::collections::VecDeque<(u32, u8, String)>,
+    /// Its STATUSTEXTs about avoidance (avoid, ADS-B, proximity, obstacle, fence), in order,
+    /// repeats of the one before left out: the first [`AVOIDANCE_TEXTS_KEPT`].
+    pub avoidance_texts: Vec<String>,
+    /// Avoidance STATUSTEXTs past those, counted.
+    pub avoidance_texts_not_kept: u64,
+    /// The last avoidance STATUSTEXT heard, kept or not (a repeat of it is left out).
+    last_avoidance_text: String,
     /// AUTOPILOT_VERSION: `major.minor.patch (git hash)`.
     pub version: Option<String>,
     /// Its clock at the last position, ms.
     pub time_boot_ms: u32,
-    /// PARAM_VALUE: the last value and type heard of each parameter, by name.
-    pub params: Vec<(String, f32, u8)>,
+    /// PARAM_VALUE: the last value and type heard of each parameter, by name (one entry a
+    /// name: as many as the autopilot has parameters).
+    pub params: std::collections::HashMap<String, (f32, u8)>,
+}
+
+/// How many of the last STATUSTEXTs [`Heard`] keeps.
+pub const RECENT_TEXTS: usize = 20;
+/// How many avoidance STATUSTEXTs [`Heard`] keeps (the rest are counted).
+pub const AVOIDANCE_TEXTS_KEPT: usize = 100;
+
+/// Whether a STATUSTEXT is about avoidance: avoid, ADS-B, proximity, obstacle or fence.
+fn about_avoidance(text: &str) -> bool {
+    let t = text.to_ascii_lowercase();
+    ["avoid", "adsb", "proximity", "obstacle", "fence"]
+        .iter()
+        .any(|w| t.contains(w))
 }
 
 /// What the reader thread passes on.
@@ -456,11 +480,7 @@ impl Pilot {
     /// the float) and MAV_PARAM_TYPE.
     fn param_heard(&self, name: &str) -> Option<(f32, u8)> {
         let heard = self.heard.lock().ok()?;
-        heard
-            .params
-            .iter()
-            .find(|p| p.0 == name)
-            .map(|p| (p.1, p.2))
+        heard.params.get(name).copied()
     }
 
     /// Forget what was heard of parameter `name`, then send `set` (PARAM_SET: its value on the
@@ -472,7 +492,7 @@ impl Pilot {
         set: Option<(f32, MavParamType)>,
     ) -> Result<(), PilotError> {
         if let Ok(mut heard) = self.heard.lock() {
-            heard.params.retain(|p| p.0 != name);
+            heard.params.remove(name);
         }
         let (target_system, target_component) = (self.target.system_id, self.target.component_id);
         self.send(&match set {
@@ -779,10 +799,9 @@ fn hear(heard: &mut Heard, from_autopilot: bool, message: MavMessage) {
                 heard.modes.push((now, hb.custom_mode));
             }
         }
-        MavMessage::COLLISION(c) => {
-            heard
-                .collisions
-                .push((now, c.id, c.action as u8, c.threat_level as u8));
+        MavMessage::COLLISION(_) => {
+            heard.collision_messages += 1;
+            heard.first_collision_ms.get_or_insert(now);
         }
         MavMessage::STATUSTEXT(t) => {
             let text = t
@@ -791,19 +810,24 @@ fn hear(heard: &mut Heard, from_autopilot: bool, message: MavMessage) {
                 .unwrap_or("?")
                 .trim_end_matches('\0')
                 .to_owned();
-            if heard.texts.len() < 1000 {
-                heard.texts.push((now, t.severity as u8, text));
+            if about_avoidance(&text) && heard.last_avoidance_text != text {
+                if heard.avoidance_texts.len() < AVOIDANCE_TEXTS_KEPT {
+                    heard.avoidance_texts.push(text.clone());
+                } else {
+                    heard.avoidance_texts_not_kept += 1;
+                }
+                heard.last_avoidance_text.clone_from(&text);
             }
+            if heard.recent_texts.len() == RECENT_TEXTS {
+                heard.recent_texts.pop_front();
+            }
+            heard.recent_texts.push_back((now, t.severity as u8, text));
         }
         MavMessage::PARAM_VALUE(v) => {
             let name = v.param_id.to_str().unwrap_or("").trim_end_matches('\0');
-            let entry = (name.to_owned(), v.param_value, v.param_type as u8);
-            let full = heard.params.len() >= 1000;
-            match heard.params.iter_mut().find(|p| p.0 == entry.0) {
-                Some(p) => *p = entry,
-                None if !full => heard.params.push(entry),
-                None => {}
-            }
+            heard
+                .params
+                .insert(name.to_owned(), (v.param_value, v.param_type as u8));
         }
         MavMessage::AUTOPILOT_VERSION(v) => {
             let s = v.flight_sw_version;
@@ -821,5 +845,44 @@ fn hear(heard: &mut Heard, from_autopilot: bool, message: MavMessage) {
             ));
         }
         _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::dialects::ardupilotmega::{MavSeverity, STATUSTEXT_DATA};
+
+    fn text(t: &str) -> MavMessage {
+        let mut data = STATUSTEXT_DATA {
+            severity: MavSeverity::MAV_SEVERITY_INFO,
+            ..STATUSTEXT_DATA::default()
+        };
+        data.text = t.into();
+        MavMessage::STATUSTEXT(data)
+    }
+
+    /// What the pilot keeps of an autopilot that talks without end: the last texts for error
+    /// messages, the first avoidance texts and a count of the rest; nothing grows with time.
+    #[test]
+    fn texts_heard_for_ever_are_kept_bounded_and_the_rest_counted() {
+        let mut heard = Heard::default();
+        for k in 0..5000 {
+            heard.time_boot_ms = k;
+            hear(&mut heard, true, text(&format!("ADSB: avoiding {k}")));
+            hear(&mut heard, true, text("ADSB: avoiding the same"));
+            hear(&mut heard, true, text("ADSB: avoiding the same"));
+            hear(&mut heard, true, text(&format!("battery {k}")));
+        }
+        assert_eq!(heard.avoidance_texts.len(), AVOIDANCE_TEXTS_KEPT);
+        assert_eq!(heard.avoidance_texts[0], "ADSB: avoiding 0");
+        assert_eq!(heard.avoidance_texts[1], "ADSB: avoiding the same");
+        // Each round adds two avoidance texts (the repeat of the same one is left out).
+        assert_eq!(
+            heard.avoidance_texts_not_kept,
+            2 * 5000 - AVOIDANCE_TEXTS_KEPT as u64
+        );
+        assert_eq!(heard.recent_texts.len(), RECENT_TEXTS);
+        assert_eq!(heard.recent_texts.back().unwrap().2, "battery 4999");
     }
 }

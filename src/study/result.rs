@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use crate::batch::manifest::Run;
 use crate::batch::row::RunRow;
-use crate::collision::events::{Event, EventKind};
+use crate::collision::digest::EventDigest;
 use crate::study::manifest::StudyRow;
 
 /// Closest approach to an obstacle below this without a collision is a soft fail, metres (the
@@ -57,8 +57,11 @@ pub struct AutopilotDid {
     pub modes: Vec<String>,
     /// COLLISION messages it sent.
     pub collision_messages: u64,
-    /// Its STATUSTEXT about avoidance (avoid, ADS-B, proximity, obstacle, fence), in order.
+    /// Its STATUSTEXT about avoidance (avoid, ADS-B, proximity, obstacle, fence), in order,
+    /// repeats of the one before left out: the first 100.
     pub avoidance_texts: Vec<String>,
+    /// Avoidance STATUSTEXTs past those 100, counted.
+    pub avoidance_texts_not_kept: u64,
     /// When it first acted, seconds of its clock (from its boot): AVOID_ADSB
     /// entered, a COLLISION sent, or (proximity avoidance, which says nothing) its speed along
     /// the commanded velocity fell under half of it after reaching 80% of it.
@@ -144,30 +147,17 @@ impl StudyResult {
         }
     }
 
-    /// The closest approach to each obstacle, from the run's collisions (0 m) and near misses.
-    pub fn record_obstacles(&mut self, events: &[Event]) {
-        let mut closest: Vec<ObstacleApproach> = Vec::new();
-        for e in events {
-            let (obstacle, m) = match &e.kind {
-                EventKind::Collision { obstacle, .. } => (obstacle, 0.0),
-                EventKind::NearMiss {
-                    obstacle,
-                    closest_m,
-                    ..
-                } => (obstacle, *closest_m),
-                _ => continue,
-            };
-            match closest.iter_mut().find(|c| &c.obstacle == obstacle) {
-                Some(c) => c.closest_m = c.closest_m.min(m),
-                None => closest.push(ObstacleApproach {
-                    obstacle: obstacle.clone(),
-                    closest_m: m,
-                }),
-            }
-        }
-        closest.sort_by(|a, b| a.obstacle.cmp(&b.obstacle));
-        self.closest_obstacle_m = closest.iter().map(|c| c.closest_m).reduce(f64::min);
-        self.obstacles = closest;
+    /// The closest approach to each obstacle, from every collision (0 m) and near miss of
+    /// the run.
+    pub fn record_obstacles(&mut self, digest: &EventDigest) {
+        self.obstacles = digest
+            .closest_by_obstacle()
+            .map(|(obstacle, closest_m)| ObstacleApproach {
+                obstacle: obstacle.to_owned(),
+                closest_m,
+            })
+            .collect();
+        self.closest_obstacle_m = self.obstacles.iter().map(|c| c.closest_m).reduce(f64::min);
     }
 
     /// The outcome of a row that flew: collision, else NMAC, else soft fail, else pass.

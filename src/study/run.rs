@@ -565,13 +565,13 @@ fn record(
         let t0_s = -session.elapsed_s(0.0).unwrap_or(0.0);
         result.measured.record_run(
             pipeline.totals(),
-            session.notable(),
+            session.digest(),
             session.approaches(),
             session.tick_costs(),
             t0_s,
         );
     }
-    result.record_obstacles(session.notable());
+    result.record_obstacles(session.digest());
     result.feed_frames = session
         .feed()
         .map_or(0, |f| f.counts().map(|(_, c)| c.frames).sum());
@@ -591,17 +591,11 @@ fn did(heard: &Heard, flown: &Flown, px4: bool) -> AutopilotDid {
         .iter()
         .find(|(_, m)| *m == mode::AVOID_ADSB)
         .map(|(t, _)| since(*t));
-    let collision = heard.collisions.first().map(|c| since(c.0));
+    let collision = heard.first_collision_ms.map(since);
     let first_acted_t_s = [avoid_mode, collision, flown.slowed_t_s]
         .into_iter()
         .flatten()
         .reduce(f64::min);
-    let about_avoidance = |t: &str| {
-        let t = t.to_ascii_lowercase();
-        ["avoid", "adsb", "proximity", "obstacle", "fence"]
-            .iter()
-            .any(|w| t.contains(w))
-    };
     AutopilotDid {
         modes: heard
             .modes
@@ -614,13 +608,9 @@ fn did(heard: &Heard, flown: &Flown, px4: bool) -> AutopilotDid {
                 }
             })
             .collect(),
-        collision_messages: heard.collisions.len() as u64,
-        avoidance_texts: heard
-            .texts
-            .iter()
-            .filter(|t| about_avoidance(&t.2))
-            .map(|t| t.2.clone())
-            .collect(),
+        collision_messages: heard.collision_messages,
+        avoidance_texts: heard.avoidance_texts.clone(),
+        avoidance_texts_not_kept: heard.avoidance_texts_not_kept,
         first_acted_t_s,
         version: heard.version.clone(),
     }

@@ -139,6 +139,10 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             strings(rows, |r| Some(r.autopilot_did.avoidance_texts.join(" | "))),
         ),
         (
+            "avoidance_texts_not_kept",
+            counts(rows, |r| Some(r.autopilot_did.avoidance_texts_not_kept)),
+        ),
+        (
             "first_acted_t_s",
             floats(rows, |r| r.autopilot_did.first_acted_t_s),
         ),

@@ -28,6 +28,7 @@
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
 //! - `cities`: CityJSON city models.
 //! - `cli`: the commands README.md gives.
+//! - `results`: figures drawn from every event of a run, never from the capped report list.
 //! - `issue_11_layers`: identities across ticks, the vehicle's clock, `--near-miss-m 0`,
 //!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
 //!   the reference.
@@ -75,6 +76,7 @@ mod live;
 mod osm;
 mod pairing;
 mod properties;
+mod results;
 mod scenes;
 mod shared_fixtures;
 mod signing;

@@ -39,6 +39,7 @@ pub mod broad_phase;
 pub mod config;
 pub mod contact;
 pub mod contacts;
+pub mod digest;
 pub mod distance;
 pub mod episodes;
 pub mod events;
