@@ -18,6 +18,10 @@ pub use crate::world::report::SenderId;
 /// session cheap to make (the fuzz targets and `savsim batch` make one per input).
 const COUNTED_IDS: usize = 512;
 
+/// A receive/tlog time more than this far ahead of the last one (seconds) waits for the next
+/// time to confirm it before the clock follows ([`IngestStats::observe_time`]).
+pub const HOLD_AHEAD_S: f64 = 2.0;
+
 /// Counters for one input (a tlog, a connection).
 #[derive(Debug, Clone)]
 pub struct IngestStats {
@@ -52,8 +56,8 @@ pub struct IngestStats {
     pub truncated_at: Option<(u64, u64)>,
     /// Times the receive or tlog clock stepped backwards.
     pub clock_backwards: u64,
-    /// Times the clock jumped more than an hour ahead for one record alone (a timestamp
-    /// outside the CRC gone bad): held at the time before it, not followed.
+    /// Times the clock stepped more than 2 s ahead for one record alone (a timestamp outside
+    /// the CRC gone bad): held at the time before it, not followed.
     pub clock_outliers: u64,
     /// Times the clock jumped more than an hour ahead and stayed there (two recordings
     /// joined): followed.
@@ -157,19 +161,25 @@ impl IngestStats {
     }
 
     /// Note a receive/tlog time; returns the time to use, never earlier than the last one.
-    /// Each step back of the raw clock counts once in `clock_backwards`. A time more than an
-    /// hour ahead is held until the next one confirms it (within an hour after it): alone, it
-    /// is an outlier (`clock_outliers`) and never moves the clock; confirmed, a jump
-    /// (`clock_jumps`).
+    /// Each step back of the raw clock counts once in `clock_backwards`. A step more than
+    /// [`HOLD_AHEAD_S`] ahead is held (the time before it is used) until the next time
+    /// confirms it (at most [`HOLD_AHEAD_S`] before it, at most an hour after): alone, it is an
+    /// outlier (`clock_outliers`) and never moves the clock, however far ahead it was;
+    /// confirmed, the clock follows, and a step of more than an hour is counted as a jump
+    /// (`clock_jumps`: two recordings joined).
     ///
     /// ```
     /// let mut stats = savsim::ingest::stats::IngestStats::default();
     /// assert_eq!(stats.observe_time(100.0), 100.0);
     /// assert_eq!(stats.observe_time(9e9), 100.0); // one bad timestamp...
     /// assert_eq!(stats.observe_time(100.1), 100.1); // ...is not followed
-    /// assert_eq!(stats.observe_time(200_000.0), 100.1);
+    /// assert_eq!(stats.observe_time(1900.0), 100.1); // nor one half an hour ahead
+    /// assert_eq!(stats.observe_time(100.2), 100.2);
+    /// assert_eq!(stats.observe_time(110.0), 100.2); // a pause in the recording...
+    /// assert_eq!(stats.observe_time(110.1), 110.1); // ...confirmed by the next time
+    /// assert_eq!(stats.observe_time(200_000.0), 110.1);
     /// assert_eq!(stats.observe_time(200_000.1), 200_000.1); // two recordings joined
-    /// assert_eq!((stats.clock_outliers, stats.clock_jumps), (1, 1));
+    /// assert_eq!((stats.clock_outliers, stats.clock_jumps), (2, 1));
     /// ```
     pub fn observe_time(&mut self, t_s: f64) -> f64 {
         const JUMP_S: f64 = 3600.0;
@@ -178,8 +188,11 @@ impl IngestStats {
         }
         self.last_raw_t_s = t_s;
         let confirmed = match self.pending_jump_s.take() {
-            Some(pending) if (pending..=pending + JUMP_S).contains(&t_s) => {
-                self.clock_jumps += 1;
+            Some(pending) if (pending - HOLD_AHEAD_S..=pending + JUMP_S).contains(&t_s) => {
+                let last = self.time_span_s.map_or(pending, |(_, last)| last);
+                if pending > last + JUMP_S {
+                    self.clock_jumps += 1;
+                }
                 true
             }
             Some(_) => {
@@ -189,7 +202,7 @@ impl IngestStats {
             None => false,
         };
         if let Some((_, last)) = self.time_span_s {
-            if t_s > last + JUMP_S && !confirmed {
+            if t_s > last + HOLD_AHEAD_S && !confirmed {
                 self.pending_jump_s = Some(t_s);
                 return last;
             }

@@ -28,6 +28,8 @@
 //! - `properties`: property tests of rays, octree and sweeps against brute force.
 //! - `cities`: CityJSON city models.
 //! - `cli`: the commands README.md gives.
+//! - `solids`: closed meshes (OSM and CityJSON buildings) as solids in every mode; open meshes
+//!   as surfaces.
 //! - `results`: figures drawn from every event of a run, never from the capped report list.
 //! - `issue_11_layers`: identities across ticks, the vehicle's clock, `--near-miss-m 0`,
 //!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
@@ -85,6 +87,7 @@ mod sitl_feed;
 mod sitl_forward;
 mod sitl_px4;
 mod sitl_px4_feed;
+mod solids;
 mod study;
 mod supervisor;
 mod terrain;

@@ -132,8 +132,9 @@ fn a_building_with_a_hole_is_hollow_and_heights_follow_the_tags() {
     // The courtyard is empty: a point at its centre, 5 m up, is inside no solid; 30 m east of
     // the centre it is inside the block. Parity of a ray's crossings of the block's triangles
     // (Moller-Trumbore, written here), the ray along +north slightly skewed off the edges.
-    let savsim::scene::geometry::GeometrySource::Mesh { vertices, indices } =
-        &block.geometry.source
+    let savsim::scene::geometry::GeometrySource::Mesh {
+        vertices, indices, ..
+    } = &block.geometry.source
     else {
         panic!("a mesh")
     };
@@ -226,4 +227,58 @@ fn real_osm_files_cut_and_corrupted_anywhere_read_or_fail_cleanly() {
             }
         }
     }
+}
+
+/// A 40 m building 40 m square whose `building:part` (10 m tall) covers its north-east
+/// quarter: the rest of the outline keeps its volume. A batch row flown at 10 m up through the
+/// south-west quarter collides with the outline's piece; one flown at 30 m over the part's
+/// quarter (above the 10 m part, inside the 40 m outline's box) does not.
+#[test]
+fn the_volume_an_outlines_parts_leave_uncovered_collides() {
+    let dir = tempfile::tempdir().unwrap();
+    // 20 m in degrees at the equator (spherical, near enough: the test needs the quarters).
+    let d = 20.0 / 111_320.0;
+    let osm = format!(
+        r#"<osm version="0.6">
+  <node id="1" lat="{m}" lon="{m}"/><node id="2" lat="{m}" lon="{d}"/>
+  <node id="3" lat="{d}" lon="{d}"/><node id="4" lat="{d}" lon="{m}"/>
+  <node id="5" lat="0" lon="0"/><node id="6" lat="0" lon="{d}"/><node id="7" lat="{d}" lon="0"/>
+  <way id="10"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/><tag k="building" v="yes"/><tag k="height" v="40"/></way>
+  <way id="11"><nd ref="5"/><nd ref="6"/><nd ref="3"/><nd ref="7"/><nd ref="5"/><tag k="building:part" v="yes"/><tag k="height" v="10"/></way>
+</osm>"#,
+        m = -d
+    );
+    let file = dir.path().join("quarter.osm");
+    std::fs::write(&file, osm).unwrap();
+    let scene_path = scene_over(dir.path(), &file, 0.0, 0.0, "");
+    let scene = savsim::scene::load(Path::new(&scene_path)).unwrap();
+    assert_eq!(
+        (scene.osm[0].buildings, scene.osm[0].outlines_trimmed),
+        (2, 1)
+    );
+    let row = |own: &str| savsim::batch::manifest::Run {
+        scene: Some(scene_path.clone()),
+        own: Some(own.into()),
+        intruder: Some("0 500 500 100; 100 500 500 100".into()),
+        duration_s: Some(60.0),
+        ..savsim::batch::manifest::Run::default()
+    };
+    let runs = [
+        row("0 -40 -10 10; 60 20 -10 10"),
+        row("0 10 40 30; 60 10 5 30"),
+    ];
+    let scenes = savsim::batch::run::Scenes::for_runs(&runs);
+    let through_sw = savsim::batch::run::run_one(0, &runs[0], &scenes);
+    assert_eq!(through_sw.error, None);
+    assert_eq!(through_sw.collisions, 1, "{through_sw:?}");
+    assert_eq!(
+        through_sw.first_collision_obstacle.as_deref(),
+        Some("osm/way/10")
+    );
+    // Nose first into the west wall at E = -20 m, 1 m/s from E = -40 m.
+    let t = through_sw.first_collision_t_s.unwrap();
+    assert!((18.0..20.0).contains(&t), "{t}");
+    let over_the_part = savsim::batch::run::run_one(1, &runs[1], &scenes);
+    assert_eq!(over_the_part.error, None);
+    assert_eq!(over_the_part.collisions, 0, "{over_the_part:?}");
 }

@@ -7,7 +7,7 @@
 use glam::{DQuat, DVec3, Vec3};
 use parry3d::bounding_volume::BoundingVolume;
 use parry3d::math::Pose;
-use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastOptions};
+use parry3d::query::{self, NonlinearRigidMotion, PointQuery, Ray, ShapeCastOptions};
 use parry3d::shape::Shape;
 
 use crate::collision::distance::{shape_distance, shapes_intersect, Dispatcher};
@@ -345,7 +345,8 @@ pub(crate) fn bisect_first<T: num_traits::Float>(
 }
 
 /// Distance along a ray from `origin_enu_m` in direction `dir_enu` (normalised here; a zero or
-/// non-finite direction hits nothing) to the placed shape, up to `max_m`.
+/// non-finite direction hits nothing) to the placed shape, up to `max_m`. From inside a solid
+/// (a box, a compound, a closed mesh) the distance is 0.
 pub fn ray_distance_m(
     origin_enu_m: DVec3,
     dir_enu: DVec3,
@@ -363,6 +364,16 @@ pub fn ray_distance_m(
         return crate::collision::ray_height_field::cast(field, origin, to_shape * dir_enu, max_m);
     }
     let anchor = origin_enu_m;
+    if let Some(mesh) = b
+        .shape
+        .as_trimesh()
+        .filter(|m| m.pseudo_normals_if_oriented().is_some())
+    {
+        let local = (b.enu_from_shape.inverse() * (origin_enu_m - b.position_enu_m)).as_vec3();
+        if mesh.local_aabb().contains_local_point(local) && mesh.contains_local_point(local) {
+            return Some(0.0);
+        }
+    }
     let ray = Ray::new(Vec3::ZERO, dir_enu.as_vec3());
     b.shape
         .cast_ray(&b.pose_about(anchor), &ray, max_m as f32, true)

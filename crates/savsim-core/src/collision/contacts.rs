@@ -274,16 +274,17 @@ fn discrete_touch(
     })
 }
 
-/// One solid holds the other though no surfaces touch: the vehicle inside a surface-meshed
-/// obstacle's solid (terrain: under it), or a surface-meshed obstacle inside the vehicle's
-/// solid. Exact shapes of boxes and blocks are solids already; only triangle meshes need this.
+/// One solid holds the other though no surfaces touch: the vehicle under terrain, or a
+/// surface-meshed obstacle inside the vehicle's solid. Exact shapes of boxes and blocks are
+/// solids already, and so are closed meshes (the query dispatcher, `collision::distance`, finds
+/// a body inside one); open meshes and terrain need this.
 pub(crate) fn solid_overlap(
     motion: &Motion,
     body: &Body,
     v: &ObstacleView<'_>,
     vehicle_geometry: &Geometry,
 ) -> Option<DVec3> {
-    if !body.is_surface() {
+    if !body.is_surface() || v.geometry.is_closed_mesh() {
         return None;
     }
     let position = motion.now.position_enu_m;

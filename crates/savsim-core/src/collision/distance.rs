@@ -2,7 +2,10 @@
 //! repaired (see `cuboid_distance`; compounds of blocks reach it for every pair of parts), and
 //! terrain's `HeightField` answers the queries parry 0.31 leaves unsupported for it
 //! (intersection, distance, nonlinear shape cast) triangle by triangle over the cells the other
-//! shape can reach. Every exact query of the contact layer goes through here.
+//! shape can reach. A closed triangle mesh (built `ORIENTED`: `Geometry::build_trimesh`) is a
+//! solid here: a shape inside it intersects it and is at distance 0 from it, so sweeps,
+//! distances and contacts treat it as they treat a box. Every exact query of the contact layer
+//! goes through here.
 
 use parry3d::bounding_volume::{Aabb, BoundingVolume};
 use parry3d::math::{Pose, Real, Vector};
@@ -10,6 +13,7 @@ use parry3d::query::details::{
     distance_composite_shape_shape, distance_shape_composite_shape,
     distance_support_map_support_map,
 };
+use parry3d::query::PointQuery;
 use parry3d::query::{
     self, ClosestPoints, Contact, DefaultQueryDispatcher, NonlinearRigidMotion, QueryDispatcher,
     ShapeCastHit, ShapeCastOptions, ShapeDistance, ShapeIntersection, Unsupported,
@@ -61,6 +65,27 @@ fn cuboid_distance(pos12: &Pose, c1: &Cuboid, c2: &Cuboid) -> f32 {
     }
 }
 
+/// True when `outer` is a closed triangle mesh (with pseudo-normals) and `inner`, at `pos12`
+/// in `outer`'s frame, has a point inside it: a point of `inner`'s surface (the projection of
+/// its bounds' centre), so that a shape wholly inside is found; one partly inside crosses the
+/// surface, which the surface queries find.
+fn held(pos12: &Pose, outer: &dyn Shape, inner: &dyn Shape) -> bool {
+    let Some(mesh) = outer
+        .as_trimesh()
+        .filter(|m| m.pseudo_normals_if_oriented().is_some())
+    else {
+        return false;
+    };
+    let centre = inner.compute_local_aabb().center();
+    let probe = pos12.transform_point(inner.project_local_point(centre, false).point);
+    mesh.local_aabb().contains_local_point(probe) && mesh.contains_local_point(probe)
+}
+
+/// Either shape holds the other inside a closed mesh.
+fn either_held(pos12: &Pose, g1: &dyn Shape, g2: &dyn Shape) -> bool {
+    held(pos12, g1, g2) || held(&pos12.inverse(), g2, g1)
+}
+
 impl QueryDispatcher for Dispatcher {
     fn intersection_test(
         &self,
@@ -68,6 +93,9 @@ impl QueryDispatcher for Dispatcher {
         g1: &dyn Shape,
         g2: &dyn Shape,
     ) -> Result<ShapeIntersection, Unsupported> {
+        if either_held(pos12, g1, g2) {
+            return Ok(true.into());
+        }
         let field_test = |pos12: &Pose, field: &HeightField, other: &dyn Shape| {
             let mut hit = false;
             field_triangles(field, &other.compute_aabb(pos12), |t| {
@@ -95,6 +123,9 @@ impl QueryDispatcher for Dispatcher {
     ) -> Result<ShapeDistance, Unsupported> {
         if let (Some(c1), Some(c2)) = (g1.as_cuboid(), g2.as_cuboid()) {
             return Ok(cuboid_distance(pos12, c1, c2).into());
+        }
+        if either_held(pos12, g1, g2) {
+            return Ok(0.0.into());
         }
         let field_distance = |pos12: &Pose, field: &HeightField, other: &dyn Shape| {
             let mut best = FIELD_DISTANCE_CAP_M;

@@ -20,10 +20,12 @@ pub const TOUCH_M: f64 = 1e-4;
 pub(super) enum Parts {
     /// Boxes (centre in the body frame, half extents): solid.
     Solids(Vec<(DVec3, DVec3)>),
-    /// Triangles (a loaded mesh); terrain also keeps its grid: under it is inside.
+    /// Triangles (a loaded mesh); terrain also keeps its grid: under it is inside; a closed
+    /// mesh (the scene says so) bounds a solid: inside it is inside ([`inside_closed`]).
     Surface {
         mesh: Box<TriMesh>,
         ground: Option<Ground>,
+        closed: bool,
     },
     /// Nothing with volume or area.
     Empty,
@@ -38,10 +40,11 @@ impl Parts {
                 ((max - min) * 0.5).max(DVec3::splat(1e-4)),
             )
         };
-        let surface = |(vertices, indices): (Vec<Vec3>, Vec<[u32; 3]>), ground| {
+        let surface = |(vertices, indices): (Vec<Vec3>, Vec<[u32; 3]>), ground, closed| {
             TriMesh::new(vertices, indices).map_or(Parts::Empty, |mesh| Parts::Surface {
                 mesh: Box::new(mesh),
                 ground,
+                closed,
             })
         };
         match &geometry.source {
@@ -49,12 +52,14 @@ impl Parts {
             GeometrySource::Blocks { blocks, .. } => {
                 Parts::Solids(blocks.iter().map(|(a, b)| solid(*a, *b)).collect())
             }
-            GeometrySource::Mesh { vertices, indices } => {
-                surface((vertices.to_vec(), indices.to_vec()), None)
-            }
+            GeometrySource::Mesh {
+                vertices,
+                indices,
+                closed,
+            } => surface((vertices.to_vec(), indices.to_vec()), None, *closed),
             GeometrySource::Terrain(patch) => {
                 let ground = Ground::of(patch);
-                surface(ground.triangles(), Some(ground))
+                surface(ground.triangles(), Some(ground), false)
             }
         }
     }
@@ -102,8 +107,52 @@ impl At {
     }
 }
 
-/// True when any part of `a` at `pa` overlaps or touches any part of `b` at `pb`.
+/// True when any part of `a` at `pa` overlaps or touches any part of `b` at `pb`, or one
+/// holds the other inside a closed surface.
 pub(super) fn overlap(a: &Parts, pa: At, b: &Parts, pb: At) -> bool {
+    held(a, pa, b, pb) || held(b, pb, a, pa) || touch(a, pa, b, pb)
+}
+
+/// True when `inner` at `pi` has a point inside `outer` at `po`, a closed surface (a point of
+/// a shape wholly inside it: any other inside point touches its surface too).
+fn held(outer: &Parts, po: At, inner: &Parts, pi: At) -> bool {
+    let Parts::Surface {
+        mesh, closed: true, ..
+    } = outer
+    else {
+        return false;
+    };
+    let point = match inner {
+        Parts::Solids(boxes) => boxes.first().map(|(c, _)| *c),
+        Parts::Surface { mesh, .. } => mesh.vertices().first().map(|v| v.as_dvec3()),
+        Parts::Empty => None,
+    };
+    point.is_some_and(|p| {
+        let enu = pi.position_enu_m + pi.rotation * p;
+        let local = po.rotation.inverse() * (enu - po.position_enu_m);
+        inside_closed(mesh, local)
+    })
+}
+
+/// Whether `p` (the mesh's frame) is inside a closed mesh: its generalised winding number
+/// (the solid angle its triangles subtend at `p`, over 4 pi, by Van Oosterom and Strackee's
+/// formula) is about one. O(triangles), in f64.
+fn inside_closed(mesh: &TriMesh, p: DVec3) -> bool {
+    let solid_angle: f64 = mesh
+        .triangles()
+        .map(|t| {
+            let [a, b, c] = [t.a, t.b, t.c].map(|v| v.as_dvec3() - p);
+            let (la, lb, lc) = (a.length(), b.length(), c.length());
+            let numerator = a.dot(b.cross(c));
+            let denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+            2.0 * numerator.atan2(denominator)
+        })
+        .sum();
+    solid_angle / (4.0 * std::f64::consts::PI) > 0.5
+}
+
+/// True when any part of `a` at `pa` overlaps or touches any part of `b` at `pb`.
+fn touch(a: &Parts, pa: At, b: &Parts, pb: At) -> bool {
     match (a, b) {
         (Parts::Empty, _) | (_, Parts::Empty) => false,
         (Parts::Solids(sa), Parts::Solids(sb)) => sa.iter().any(|(ca, ha)| {

@@ -68,12 +68,17 @@ pub enum GeometrySource {
         /// modelled building's facade is; 0 keeps two triangles per face.
         tessellate_m: f32,
     },
-    /// Triangles loaded from a model file (already scaled and axis-converted).
+    /// Triangles loaded from a model file (already scaled and axis-converted), or extruded
+    /// from a footprint.
     Mesh {
         /// Vertices, metres.
         vertices: Arc<Vec<Vec3>>,
         /// Triangles as vertex indices.
         indices: Arc<Vec<[u32; 3]>>,
+        /// The triangles bound a solid ([`closed_outward`]): vertices welded, every edge
+        /// shared by two triangles, faces outward. A closed mesh is a solid (inside is a
+        /// contact, a ray from inside reads 0); an open one is a surface only.
+        closed: bool,
     },
     /// Part of a terrain grid.
     Terrain(TerrainPatch),
@@ -165,7 +170,26 @@ impl Geometry {
     }
 
     /// Loaded triangles. Degenerate (zero-area) and out-of-range triangles are errors only when
-    /// nothing usable is left: zero-area ones are dropped.
+    /// nothing usable is left: zero-area ones are dropped. Triangles that bound a solid
+    /// ([`closed_outward`]) are kept welded and facing outward, and the mesh is `closed`.
+    ///
+    /// ```
+    /// use savsim_core::scene::geometry::{Geometry, GeometrySource};
+    /// use glam::Vec3;
+    /// // A tetrahedron with its faces inward, each face with vertices of its own.
+    /// let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+    /// let faces = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+    /// let vertices: Vec<Vec3> = faces.iter().flat_map(|f| f.map(|i| p[i])).collect();
+    /// let indices: Vec<[u32; 3]> = (0..4).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    /// let solid = Geometry::mesh(vertices, indices.clone()).unwrap();
+    /// assert!(matches!(solid.source, GeometrySource::Mesh { closed: true, .. }));
+    /// assert!(solid.contains_local_point(Vec3::splat(0.2)));
+    /// assert!(!solid.contains_local_point(Vec3::splat(0.5)));
+    /// // Three faces of it: a surface, which holds nothing.
+    /// let open = Geometry::mesh(p.to_vec(), vec![[0, 1, 2], [0, 3, 1], [0, 2, 3]]).unwrap();
+    /// assert!(matches!(open.source, GeometrySource::Mesh { closed: false, .. }));
+    /// assert!(!open.contains_local_point(Vec3::splat(0.2)));
+    /// ```
     pub fn mesh(vertices: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Result<Self, GeometryError> {
         check_finite(&vertices)?;
         let n = vertices.len();
@@ -198,10 +222,15 @@ impl Geometry {
                 aabb.take_point(vertices[v as usize]);
             }
         }
+        let (vertices, indices, closed) = match closed_outward(&vertices, &indices) {
+            Some((v, i)) => (v, i, true),
+            None => (vertices, indices, false),
+        };
         Ok(Self {
             source: GeometrySource::Mesh {
                 vertices: Arc::new(vertices),
                 indices: Arc::new(indices),
+                closed,
             },
             local_aabb: aabb,
         })
@@ -253,11 +282,22 @@ impl Geometry {
     }
 
     /// Build the triangle-mesh collider (the expensive step; the caller caches the result).
+    /// A closed mesh is built `ORIENTED` (with pseudo-normals): parry then answers whether a
+    /// point is inside it.
     pub fn build_trimesh(&self) -> TriMesh {
         let (vertices, indices) = self.triangles();
+        let flags = if self.is_closed_mesh() {
+            TriMeshFlags::ORIENTED
+        } else {
+            TriMeshFlags::empty()
+        };
         // Vertices and indices were validated at construction; a failure here is a bug.
-        TriMesh::with_flags(vertices, indices, TriMeshFlags::empty())
-            .expect("geometry validated at construction")
+        TriMesh::with_flags(vertices, indices, flags).expect("geometry validated at construction")
+    }
+
+    /// True for a closed triangle mesh (a solid's boundary).
+    pub fn is_closed_mesh(&self) -> bool {
+        matches!(self.source, GeometrySource::Mesh { closed: true, .. })
     }
 
     /// The triangles of the geometry.
@@ -279,6 +319,7 @@ impl Geometry {
             GeometrySource::Mesh {
                 vertices: v,
                 indices: i,
+                ..
             } => {
                 vertices.extend_from_slice(v);
                 indices.extend_from_slice(i);
@@ -314,7 +355,9 @@ impl Geometry {
         match &self.source {
             GeometrySource::Cuboid { min, .. } => Some(*min),
             GeometrySource::Blocks { blocks, .. } => blocks.first().map(|b| b.0),
-            GeometrySource::Mesh { vertices, indices } => indices
+            GeometrySource::Mesh {
+                vertices, indices, ..
+            } => indices
                 .first()
                 .and_then(|t| vertices.get(t[0] as usize))
                 .copied(),
@@ -322,9 +365,10 @@ impl Geometry {
         }
     }
 
-    /// True when `p` (obstacle frame) is inside the solid: inside the box, inside a block, or
-    /// under a terrain patch. Loaded meshes are surfaces only and contain nothing (a vehicle
-    /// inside one is found when it crosses the surface).
+    /// True when `p` (obstacle frame) is inside the solid: inside the box, inside a block,
+    /// inside a closed mesh (the parity of a ray's crossings, O(triangles): a built collider
+    /// answers faster), or under a terrain patch. An open mesh is a surface and contains
+    /// nothing (a vehicle inside one is found when it crosses the surface).
     ///
     /// ```
     /// use savsim_core::scene::geometry::Geometry;
@@ -338,7 +382,15 @@ impl Geometry {
         match &self.source {
             GeometrySource::Cuboid { min, max } => inside(*min, *max),
             GeometrySource::Blocks { blocks, .. } => blocks.iter().any(|(a, b)| inside(*a, *b)),
-            GeometrySource::Mesh { .. } => false,
+            GeometrySource::Mesh {
+                vertices,
+                indices,
+                closed: true,
+            } => {
+                let (min, max) = (self.local_aabb.mins, self.local_aabb.maxs);
+                min.cmple(p).all() && p.cmple(max).all() && crossings_odd(vertices, indices, p)
+            }
+            GeometrySource::Mesh { closed: false, .. } => false,
             GeometrySource::Terrain(_) => self.terrain_height_at(p.x, p.y).is_some_and(|h| p.z < h),
         }
     }
@@ -347,6 +399,84 @@ impl Geometry {
     pub fn is_terrain(&self) -> bool {
         matches!(self.source, GeometrySource::Terrain(_))
     }
+}
+
+/// Triangles that bound a solid, welded and facing outward; `None` when they do not. After
+/// welding vertices at equal positions, every directed edge must be used by exactly one
+/// triangle and its reverse by exactly one other (a closed, consistently oriented surface);
+/// faces then turn outward where the signed volume says they turn in.
+pub fn closed_outward(
+    vertices: &[Vec3],
+    indices: &[[u32; 3]],
+) -> Option<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    use std::collections::HashMap;
+    let mut welded: Vec<Vec3> = Vec::new();
+    let mut at: HashMap<[u32; 3], u32> = HashMap::new();
+    let remap: Vec<u32> = vertices
+        .iter()
+        .map(|v| {
+            // -0.0 and 0.0 are one position.
+            let key = (*v + Vec3::ZERO).to_array().map(f32::to_bits);
+            *at.entry(key).or_insert_with(|| {
+                welded.push(*v);
+                (welded.len() - 1) as u32
+            })
+        })
+        .collect();
+    let mut triangles: Vec<[u32; 3]> = indices
+        .iter()
+        .map(|t| t.map(|i| remap[i as usize]))
+        .collect();
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * triangles.len());
+    for t in &triangles {
+        for k in 0..3 {
+            let edge = (t[k], t[(k + 1) % 3]);
+            if edge.0 == edge.1 {
+                return None;
+            }
+            *edges.entry(edge).or_insert(0) += 1;
+        }
+    }
+    let paired = edges
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1));
+    if !paired {
+        return None;
+    }
+    let volume: f64 = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| welded[i as usize].as_dvec3());
+            a.dot(b.cross(c))
+        })
+        .sum();
+    if volume < 0.0 {
+        triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    }
+    Some((welded, triangles))
+}
+
+/// Whether a ray from `p` crosses the triangles an odd number of times (Moller-Trumbore in
+/// f64, along a direction skewed off the axes so that it misses edges and vertices of
+/// axis-aligned models).
+fn crossings_odd(vertices: &[Vec3], indices: &[[u32; 3]], p: Vec3) -> bool {
+    let o = p.as_dvec3();
+    let d = glam::DVec3::new(0.5773, 0.5774, 0.5775).normalize_or_zero();
+    let crosses = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| vertices[i as usize].as_dvec3());
+        let (e1, e2) = (b - a, c - a);
+        let q = d.cross(e2);
+        let det = e1.dot(q);
+        if det.abs() < 1e-15 {
+            return false;
+        }
+        let s = o - a;
+        let u = s.dot(q) / det;
+        let r = s.cross(e1);
+        let v = d.dot(r) / det;
+        u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(r) / det > 0.0
+    };
+    indices.iter().filter(|t| crosses(t)).count() % 2 == 1
 }
 
 fn check_finite(points: &[Vec3]) -> Result<(), GeometryError> {

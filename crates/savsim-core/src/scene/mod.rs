@@ -415,8 +415,12 @@ pub struct OsmStats {
     pub height_from_levels: usize,
     /// Heights defaulted.
     pub height_defaulted: usize,
-    /// Outlines replaced by their parts.
+    /// Outlines their parts cover entirely: replaced by them.
     pub outlines_replaced: usize,
+    /// Outlines their parts cover in part: kept as the pieces the parts leave.
+    pub outlines_trimmed: usize,
+    /// Pieces of trimmed outlines too thin or small to keep (`scene::osm::SLIVER_WIDTH_M`).
+    pub slivers_dropped: usize,
     /// Building ways not closed, relations whose rings do not close, footprints with no area
     /// or with a base not below the top: not obstacles.
     pub skipped: usize,

@@ -93,9 +93,7 @@ pub fn parse_xml(text: &str) -> Result<OsmData, OsmError> {
                         .filter(|v| v.is_finite())
                 };
                 if let (Some(lat), Some(lon)) = (coordinate("lat"), coordinate("lon")) {
-                    if lat.abs() <= 90.0 && lon.abs() <= 180.0 {
-                        data.nodes.insert(element_id, [lon, lat]);
-                    }
+                    insert_node(&mut data, element_id, lon, lat);
                 }
             }
             "way" => {
@@ -132,7 +130,15 @@ pub fn parse_xml(text: &str) -> Result<OsmData, OsmError> {
     Ok(data)
 }
 
-/// Read OSM PBF (`.osm.pbf`). A file the `osmpbf` crate cannot read (or panics on: it does on
+/// Keep a node whose position is a place (finite, latitude within 90 degrees, longitude within
+/// 180); a way through one left out is not closed and is skipped.
+fn insert_node(data: &mut OsmData, id: i64, lon_deg: f64, lat_deg: f64) {
+    if lat_deg.abs() <= 90.0 && lon_deg.abs() <= 180.0 {
+        data.nodes.insert(id, [lon_deg, lat_deg]);
+    }
+}
+
+/// Read OSM PBF (`.osm.pbf`). Nodes outside the globe are left out, as in XML. A file the `osmpbf` crate cannot read (or panics on: it does on
 /// some corrupt enum values) is an error.
 pub fn parse_pbf(bytes: &[u8]) -> Result<OsmData, OsmError> {
     let read = std::panic::catch_unwind(|| {
@@ -143,11 +149,9 @@ pub fn parse_pbf(bytes: &[u8]) -> Result<OsmData, OsmError> {
         };
         reader
             .for_each(|element| match element {
-                osmpbf::Element::Node(n) => {
-                    data.nodes.insert(n.id(), [n.lon(), n.lat()]);
-                }
+                osmpbf::Element::Node(n) => insert_node(&mut data, n.id(), n.lon(), n.lat()),
                 osmpbf::Element::DenseNode(n) => {
-                    data.nodes.insert(n.id(), [n.lon(), n.lat()]);
+                    insert_node(&mut data, n.id(), n.lon(), n.lat());
                 }
                 osmpbf::Element::Way(w) => {
                     let way = Way {
@@ -201,8 +205,12 @@ pub struct Assembly {
     pub open_ways: usize,
     /// Building relations whose rings do not close: not buildings.
     pub broken_relations: usize,
-    /// Outlines replaced by the `building:part`s inside them.
+    /// Outlines their `building:part`s cover entirely: replaced by them.
     pub outlines_replaced: usize,
+    /// Outlines their parts cover in part: kept as the pieces the parts leave.
+    pub outlines_trimmed: usize,
+    /// Pieces of trimmed outlines too thin or small to keep (see [`SLIVER_WIDTH_M`]).
+    pub slivers_dropped: usize,
 }
 
 fn tag<'a>(tags: &'a Tags, key: &str) -> Option<&'a str> {
@@ -256,8 +264,9 @@ fn join_rings(mut ways: Vec<Vec<i64>>) -> Option<Vec<Vec<i64>>> {
 
 /// Every building footprint: closed ways tagged `building` or `building:part`, and
 /// `type=multipolygon` relations so tagged (outer and inner rings joined from their member
-/// ways; an empty role is outer). Outlines with a `building:part` inside are replaced by
-/// their parts. In id order (ways, then relations).
+/// ways; an empty role is outer). An outline keeps what its `building:part`s leave of it
+/// ([`prefer_parts`]). Outlines (and their pieces) in id order (ways, then relations), then the
+/// parts in that order.
 pub fn footprints(data: &OsmData) -> (Vec<Footprint>, Assembly) {
     let mut out = Vec::new();
     let mut found = Assembly::default();
@@ -316,7 +325,7 @@ pub fn footprints(data: &OsmData) -> (Vec<Footprint>, Assembly) {
             _ => found.broken_relations += 1,
         }
     }
-    found.outlines_replaced = prefer_parts(&mut out);
+    let out = prefer_parts(out, &mut found);
     (out, found)
 }
 
@@ -358,25 +367,138 @@ fn contains(ring: &[[f64; 2]], p: [f64; 2]) -> bool {
     inside
 }
 
-/// Drop every outline that has a `building:part` inside it (the part's first vertex, or its
-/// centre, within the outline's outer ring); how many were dropped.
-fn prefer_parts(footprints: &mut Vec<Footprint>) -> usize {
-    let parts: Vec<[f64; 2]> = footprints
-        .iter()
-        .filter(|f| f.part)
-        .map(|f| centre(&f.outer))
-        .collect();
-    let before = footprints.len();
-    footprints.retain(|f| f.part || !parts.iter().any(|p| contains(&f.outer, *p)));
-    before - footprints.len()
+/// Replace each outline by what its `building:part`s leave of it: the outline's area minus the
+/// union of every part whose box meets its box (`geo`'s boolean operations, in the plane of
+/// lon and lat, exact where rings share nodes). An outline the parts cover entirely is dropped
+/// (its volume is the parts'), one they do not touch is kept as it is, and one they cover in
+/// part is kept as the pieces they leave, each with the outline's tags (`ID/k` after the
+/// first). Pieces thinner than [`SLIVER_WIDTH_M`] on average (twice the area over the
+/// perimeter) or smaller than [`SLIVER_AREA_M2`], the seams of parts drawn a hair inside
+/// their outline, are left out and counted.
+fn prefer_parts(footprints: Vec<Footprint>, found: &mut Assembly) -> Vec<Footprint> {
+    use geo::{BooleanOps, BoundingRect};
+    let (parts, outlines): (Vec<Footprint>, Vec<Footprint>) =
+        footprints.into_iter().partition(|f| f.part);
+    let part_shapes: Vec<geo::Polygon> = parts.iter().map(polygon).collect();
+    let tree = rstar::RTree::bulk_load(
+        part_shapes
+            .iter()
+            .enumerate()
+            .filter_map(|(k, p)| Some(PartBox::new(k, p.bounding_rect()?)))
+            .collect(),
+    );
+    let mut out = Vec::with_capacity(outlines.len() + parts.len());
+    for outline in outlines {
+        let shape = polygon(&outline);
+        let Some(rect) = shape.bounding_rect() else {
+            continue;
+        };
+        let near: Vec<geo::Polygon> = tree
+            .locate_in_envelope_intersecting(&envelope(rect))
+            .map(|b| part_shapes[b.index].clone())
+            .collect();
+        if near.is_empty() {
+            out.push(outline);
+            continue;
+        }
+        let left = shape.difference(&geo::MultiPolygon::new(near));
+        let scale = metres_per_degree(&outline.outer);
+        let (kept, slivers): (Vec<geo::Polygon>, Vec<geo::Polygon>) =
+            left.into_iter().partition(|piece| !is_sliver(piece, scale));
+        found.slivers_dropped += slivers.len();
+        if kept.is_empty() {
+            found.outlines_replaced += 1;
+        } else if kept.len() == 1 && slivers.is_empty() && same_area(&kept[0], &shape) {
+            out.push(outline);
+        } else {
+            found.outlines_trimmed += 1;
+            out.extend(kept.iter().enumerate().map(|(k, piece)| Footprint {
+                id: if k == 0 {
+                    outline.id.clone()
+                } else {
+                    format!("{}/{k}", outline.id)
+                },
+                outer: ring_points(piece.exterior()),
+                holes: piece.interiors().iter().map(ring_points).collect(),
+                tags: outline.tags.clone(),
+                part: false,
+            }));
+        }
+    }
+    out.extend(parts);
+    out
 }
 
-fn centre(ring: &[[f64; 2]]) -> [f64; 2] {
-    let n = ring.len().max(1) as f64;
-    let (x, y) = ring
-        .iter()
-        .fold((0.0, 0.0), |(x, y), p| (x + p[0], y + p[1]));
-    [x / n, y / n]
+/// An outline's piece is a sliver below this mean width (2 x area / perimeter), metres.
+pub const SLIVER_WIDTH_M: f64 = 0.2;
+/// ... or below this area, square metres.
+pub const SLIVER_AREA_M2: f64 = 0.5;
+
+/// A part's box in the R-tree, by its index among the parts.
+struct PartBox {
+    index: usize,
+    envelope: rstar::AABB<[f64; 2]>,
+}
+
+impl PartBox {
+    fn new(index: usize, rect: geo::Rect) -> Self {
+        Self {
+            index,
+            envelope: envelope(rect),
+        }
+    }
+}
+
+impl rstar::RTreeObject for PartBox {
+    type Envelope = rstar::AABB<[f64; 2]>;
+    fn envelope(&self) -> Self::Envelope {
+        self.envelope
+    }
+}
+
+fn envelope(rect: geo::Rect) -> rstar::AABB<[f64; 2]> {
+    rstar::AABB::from_corners([rect.min().x, rect.min().y], [rect.max().x, rect.max().y])
+}
+
+/// A footprint as a `geo` polygon (lon, lat).
+fn polygon(f: &Footprint) -> geo::Polygon {
+    let ring = |points: &[[f64; 2]]| {
+        geo::LineString::from(points.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>())
+    };
+    geo::Polygon::new(ring(&f.outer), f.holes.iter().map(|h| ring(h)).collect())
+}
+
+/// A `geo` ring as footprint points: closed, the first point not repeated.
+fn ring_points(ring: &geo::LineString) -> Vec<[f64; 2]> {
+    let mut points: Vec<[f64; 2]> = ring.coords().map(|c| [c.x, c.y]).collect();
+    if points.len() > 1 && points.first() == points.last() {
+        points.pop();
+    }
+    points
+}
+
+/// Metres per degree of longitude and of latitude at a ring (its first point), spherical.
+fn metres_per_degree(ring: &[[f64; 2]]) -> (f64, f64) {
+    let lat = ring.first().map_or(0.0, |p| p[1]);
+    let m = 6_371_008.8_f64.to_radians();
+    (m * lat.to_radians().cos(), m)
+}
+
+fn is_sliver(piece: &geo::Polygon, (kx, ky): (f64, f64)) -> bool {
+    use geo::Area;
+    let area_m2 = piece.unsigned_area() * kx * ky;
+    let perimeter_m: f64 = std::iter::once(piece.exterior())
+        .chain(piece.interiors())
+        .flat_map(|r| r.lines())
+        .map(|l| ((l.dx() * kx).powi(2) + (l.dy() * ky).powi(2)).sqrt())
+        .sum();
+    area_m2 < SLIVER_AREA_M2 || 2.0 * area_m2 < SLIVER_WIDTH_M * perimeter_m
+}
+
+fn same_area(a: &geo::Polygon, b: &geo::Polygon) -> bool {
+    use geo::Area;
+    let (x, y) = (a.unsigned_area(), b.unsigned_area());
+    (x - y).abs() <= 1e-9 * y.max(f64::MIN_POSITIVE)
 }
 
 /// Where a building's height came from.
@@ -433,10 +555,17 @@ pub fn length_m(text: &str) -> Option<f64> {
     Some(metres)
 }
 
+/// The tallest height or base tag taken, metres (the tallest building is 828 m): a larger
+/// value is not a height, as a tag that does not parse.
+pub const MAX_HEIGHT_M: f64 = 2000.0;
+/// The most levels taken.
+pub const MAX_LEVELS: f64 = 500.0;
+
 /// A building's base and top above the ground, metres, and where its height came from:
 /// top = `height`, else `building:levels` x `level_m` + the roof (`roof:height`, else
 /// `roof:levels` x `level_m`), else the default; base = `min_height`, else
-/// `building:min_level` x `level_m`, else 0. `None` when the base is not below the top.
+/// `building:min_level` x `level_m`, else 0. A value beyond [`MAX_HEIGHT_M`] or
+/// [`MAX_LEVELS`] counts as absent. `None` when the base is not below the top.
 ///
 /// ```
 /// use savsim_core::scene::osm::{heights, HeightPolicy, HeightSource};
@@ -448,11 +577,15 @@ pub fn length_m(text: &str) -> Option<f64> {
 /// assert_eq!(heights(&tags(&[]), p), Some((0.0, 10.0, HeightSource::Default)));
 /// ```
 pub fn heights(tags: &Tags, policy: HeightPolicy) -> Option<(f64, f64, HeightSource)> {
-    let number = |k: &str| tag(tags, k).and_then(length_m).filter(|v| *v >= 0.0);
+    let number = |k: &str| {
+        tag(tags, k)
+            .and_then(length_m)
+            .filter(|v| (0.0..=MAX_HEIGHT_M).contains(v))
+    };
     let count = |k: &str| {
         tag(tags, k)
             .and_then(|v| v.trim().parse::<f64>().ok())
-            .filter(|v| v.is_finite() && *v >= 0.0)
+            .filter(|v| (0.0..=MAX_LEVELS).contains(v))
     };
     let (top, source) = if let Some(h) = number("height") {
         (h, HeightSource::Height)
@@ -501,19 +634,104 @@ mod tests {
         assert_eq!(f[0].holes[0].len(), 4);
     }
 
+    /// A 0.001-degree square outline (way 30) and `part` (a closed way of nodes 1-8 and 40-44).
+    fn outline_with(part: &str) -> String {
+        format!(
+            r#"<osm version="0.6">
+      <node id="1" lat="0" lon="0"/><node id="2" lat="0" lon="0.001"/>
+      <node id="3" lat="0.001" lon="0.001"/><node id="4" lat="0.001" lon="0"/>
+      <node id="40" lat="0.0005" lon="0.0005"/><node id="41" lat="0.0005" lon="0.001"/>
+      <node id="43" lat="0.001" lon="0.0005"/>
+      <way id="30"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/><tag k="building" v="yes"/><tag k="height" v="40"/></way>
+      {part}
+      <way id="14"><nd ref="1"/><nd ref="2"/><tag k="building" v="yes"/></way>
+    </osm>"#
+        )
+    }
+
+    fn area(ring: &[[f64; 2]]) -> f64 {
+        let n = ring.len();
+        (0..n)
+            .map(|i| {
+                let (a, b) = (ring[i], ring[(i + 1) % n]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum::<f64>()
+            .abs()
+            / 2.0
+    }
+
     #[test]
-    fn a_part_inside_an_outline_replaces_it_and_an_open_way_is_counted() {
-        let xml = SQUARE.replace(
-            "<relation",
-            r#"<way id="13"><nd ref="5"/><nd ref="6"/><nd ref="7"/><nd ref="8"/><nd ref="5"/><tag k="building:part" v="yes"/></way>
-               <way id="14"><nd ref="1"/><nd ref="2"/><tag k="building" v="yes"/></way><relation"#,
-        );
-        let (f, found) = footprints(&data(&xml));
+    fn a_part_covering_its_outline_replaces_it_and_an_open_way_is_counted() {
+        let part = r#"<way id="31"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/><tag k="building:part" v="yes"/></way>"#;
+        let (f, found) = footprints(&data(&outline_with(part)));
         assert_eq!(
             f.iter().map(|f| f.id.as_str()).collect::<Vec<_>>(),
-            ["way/13"]
+            ["way/31"]
         );
         assert_eq!((found.outlines_replaced, found.open_ways), (1, 1));
+    }
+
+    /// The outline's volume the part does not cover stays a building: a part over the NE
+    /// quarter leaves an L of three quarters with the outline's tags.
+    #[test]
+    fn a_part_covering_a_quarter_leaves_the_other_three_quarters_of_its_outline() {
+        let part = r#"<way id="31"><nd ref="40"/><nd ref="41"/><nd ref="3"/><nd ref="43"/><nd ref="40"/><tag k="building:part" v="yes"/><tag k="height" v="10"/></way>"#;
+        let (f, found) = footprints(&data(&outline_with(part)));
+        assert_eq!(
+            f.iter().map(|f| f.id.as_str()).collect::<Vec<_>>(),
+            ["way/30", "way/31"]
+        );
+        assert_eq!((found.outlines_replaced, found.outlines_trimmed), (0, 1));
+        let left = &f[0];
+        assert!(!left.part && left.holes.is_empty());
+        assert!(
+            (area(&left.outer) - 0.75e-6).abs() < 1e-15,
+            "{:?}",
+            left.outer
+        );
+        assert_eq!(tag(&left.tags, "height"), Some("40"));
+        // The L does not reach into the quarter (its centre is outside it).
+        assert!(!contains(&left.outer, [0.00075, 0.00075]));
+        assert!(contains(&left.outer, [0.00025, 0.00025]));
+    }
+
+    #[test]
+    fn a_part_in_an_outlines_courtyard_leaves_the_outline_whole() {
+        let (f, found) = footprints(&data(&SQUARE.replace(
+            "<relation",
+            r#"<way id="13"><nd ref="5"/><nd ref="6"/><nd ref="7"/><nd ref="8"/><nd ref="5"/><tag k="building:part" v="yes"/></way><relation"#,
+        )));
+        assert_eq!(
+            f.iter().map(|f| f.id.as_str()).collect::<Vec<_>>(),
+            ["relation/20", "way/13"]
+        );
+        assert_eq!(f[0].holes.len(), 1);
+        assert_eq!((found.outlines_replaced, found.outlines_trimmed), (0, 0));
+    }
+
+    #[test]
+    fn heights_and_positions_beyond_any_building_or_place_are_not_taken() {
+        let tags = |t: &[(&str, &str)]| -> Tags {
+            t.iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect()
+        };
+        let p = HeightPolicy::default();
+        assert_eq!(
+            heights(&tags(&[("height", "1e300")]), p),
+            Some((0.0, 10.0, HeightSource::Default))
+        );
+        assert_eq!(
+            heights(&tags(&[("height", "1e300"), ("building:levels", "1e9")]), p),
+            Some((0.0, 10.0, HeightSource::Default))
+        );
+        let mut d = OsmData::default();
+        insert_node(&mut d, 1, 200.0, 0.0);
+        insert_node(&mut d, 2, 0.0, -91.0);
+        insert_node(&mut d, 3, f64::NAN, 0.0);
+        insert_node(&mut d, 4, 179.0, 89.0);
+        assert_eq!(d.nodes.len(), 1);
     }
 
     #[test]

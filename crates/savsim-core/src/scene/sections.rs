@@ -370,6 +370,8 @@ pub(crate) fn osm(
         let mut stats = OsmStats {
             id: spec.id.clone(),
             outlines_replaced: found.outlines_replaced,
+            outlines_trimmed: found.outlines_trimmed,
+            slivers_dropped: found.slivers_dropped,
             skipped: found.open_ways + found.broken_relations,
             ..OsmStats::default()
         };
