@@ -35,18 +35,10 @@ pub fn command(args: &DaaArgs) -> Result<()> {
     }
 }
 
-/// A DAIDALUS file or an encounter model, whole: at most [`MAX_INPUT_BYTES`], as text.
+/// A DAIDALUS file or an encounter model, whole: at most [`MAX_INPUT_BYTES`], as text
+/// (`crate::files::read_text`: a device or a FIFO that keeps writing is an error too).
 pub fn read(path: &Path) -> Result<String> {
-    let size = std::fs::metadata(path)
-        .map_err(|e| Error::file(path, e))?
-        .len();
-    if size > MAX_INPUT_BYTES {
-        return Err(Error::Daa {
-            path: path.into(),
-            message: format!("{size} bytes: at most {MAX_INPUT_BYTES}"),
-        });
-    }
-    std::fs::read_to_string(path).map_err(|e| Error::file(path, e))
+    crate::files::read_text(path, MAX_INPUT_BYTES).map_err(|e| Error::file(path, e))
 }
 
 /// The whole CSV: header, units line, one line per row.

@@ -16,6 +16,7 @@ pub mod costs;
 pub mod daa_csv;
 pub mod error;
 pub mod feed;
+pub mod files;
 pub mod ingest;
 pub mod replay;
 pub mod scene;

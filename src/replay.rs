@@ -116,7 +116,7 @@ pub fn replay(
     shutdown: &AtomicBool,
 ) -> Result<()> {
     let stop = Stop { until_s, shutdown };
-    let mut file = File::open(path).map_err(|e| Error::file(path, e))?;
+    let mut file = crate::files::open_stream(path).map_err(|e| Error::file(path, e))?;
     let mut head = Vec::with_capacity(16);
     let kind = file
         .by_ref()
@@ -128,9 +128,9 @@ pub fn replay(
     if kind == LogKind::Tlog {
         return replay_tlog(path, file, speed, progress, session, &stop);
     }
-    let mut data = Vec::new();
-    file.read_to_end(&mut data)
-        .map_err(|e| Error::file(path, e))?;
+    drop(file);
+    let data =
+        crate::files::read(path, crate::files::MAX_LOG_BYTES).map_err(|e| Error::file(path, e))?;
     let log = match kind {
         LogKind::Ulog => read_ulog(&data).map_err(|e| Error::Log {
             path: path.to_path_buf(),

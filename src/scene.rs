@@ -11,7 +11,7 @@ pub struct Disk;
 
 impl Files for Disk {
     fn read(&self, path: &Path) -> std::io::Result<Vec<u8>> {
-        std::fs::read(path)
+        crate::files::read(path, crate::files::MAX_SCENE_FILE_BYTES)
     }
 }
 

@@ -218,7 +218,8 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
     };
     let report = match &args.from_json {
         Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+            let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
+                .map_err(|e| Error::file(path, e))?;
             serde_json::from_str(&text)
                 .map_err(|e| Error::Usage(format!("{}: not a bench report: {e}", path.display())))?
         }

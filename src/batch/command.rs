@@ -13,7 +13,8 @@ use crate::error::{Error, Result};
 
 /// An MIT LL encounter model file.
 fn read_model(path: &Path) -> Result<crate::daa::encounter_model::Model> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
+        .map_err(|e| Error::file(path, e))?;
     crate::daa::encounter_model::Model::parse(&text).map_err(|e| Error::Daa {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -22,7 +23,8 @@ fn read_model(path: &Path) -> Result<crate::daa::encounter_model::Model> {
 
 /// An em-pairing-uncor-importancesampling `.ini` file's pairing settings.
 fn read_pairing(path: &Path) -> Result<crate::daa::pairing_ini::PairingSettings> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
+        .map_err(|e| Error::file(path, e))?;
     crate::daa::pairing_ini::PairingSettings::parse(&text).map_err(|e| Error::Daa {
         path: path.to_path_buf(),
         message: e.to_string(),

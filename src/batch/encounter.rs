@@ -135,7 +135,7 @@ pub fn track_from_tlog(
         path: path.to_owned(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(failed)?;
+    let file = crate::files::open_stream(path).map_err(failed)?;
     let mut reader = TlogReader::new(std::io::BufReader::new(file));
     let mut ingestor = Ingestor::default();
     let mut world = WorldStore::new(scene.origin, WorldConfig::default());

@@ -132,7 +132,8 @@ pub fn load(path: &Path) -> Result<Vec<Run>> {
 /// header row, TOML `[[run]]` tables or a JSON array, by the file's extension; and the
 /// directory its relative paths are relative to.
 pub fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<(Vec<T>, PathBuf)> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
+        .map_err(|e| Error::file(path, e))?;
     let bad = |why: String| Error::Usage(format!("manifest {}: {why}", path.display()));
     let rows = match path.extension().and_then(|e| e.to_str()) {
         Some("csv") => csv_rows(text.as_bytes()).map_err(|e| bad(e.to_string()))?,

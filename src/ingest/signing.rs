@@ -26,9 +26,12 @@ pub enum KeyFileError {
     /// Nothing in it (but a newline).
     #[error("empty: give a 32-byte key or a passphrase")]
     Empty,
-    /// Longer than any key or passphrase (`/dev/zero`, a log given by mistake).
+    /// Longer than any key or passphrase (a log given by mistake).
     #[error("over {MAX_KEY_FILE} bytes: not a key or a passphrase")]
     TooLarge,
+    /// A device (`/dev/zero`), not a file.
+    #[error("a device, not a file: not a key or a passphrase")]
+    Device,
 }
 
 /// The longest key file read, bytes; a longer one is refused, never read to its end.
@@ -74,15 +77,11 @@ impl SigningKey {
 
     /// Read a key file ([`SigningKey::from_file_bytes`]), at most [`MAX_KEY_FILE`] bytes of it.
     pub fn read(path: &Path) -> Result<Self> {
-        use std::io::Read;
-        let mut bytes = Vec::new();
-        std::fs::File::open(path)
-            .and_then(|f| f.take(MAX_KEY_FILE as u64 + 1).read_to_end(&mut bytes))
-            .map_err(|e| Error::file(path, e))?;
-        let key = if bytes.len() > MAX_KEY_FILE {
-            Err(KeyFileError::TooLarge)
-        } else {
-            Self::from_file_bytes(&bytes)
+        let key = match crate::files::read(path, MAX_KEY_FILE as u64) {
+            Ok(bytes) => Self::from_file_bytes(&bytes),
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Err(KeyFileError::TooLarge),
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Err(KeyFileError::Device),
+            Err(e) => return Err(Error::file(path, e)),
         };
         key.map_err(|why| Error::Usage(format!("--signing-key {}: {why}", path.display())))
     }

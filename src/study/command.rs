@@ -316,7 +316,8 @@ fn gen(
         StudyGenKind::Encounters => match model {
             None => crate::study::gen::encounters(n, seed),
             Some(path) => {
-                let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+                let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
+                    .map_err(|e| Error::file(path, e))?;
                 let model = crate::daa::encounter_model::Model::parse(&text)
                     .map_err(|e| Error::Usage(format!("--model {}: {e}", path.display())))?;
                 crate::study::gen::model_encounters(n, seed, &model)?

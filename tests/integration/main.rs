@@ -49,6 +49,8 @@
 //! - `osm`: OpenStreetMap buildings in scenes against pyosmium's counts of every realdata OSM
 //!   file; holes, heights, bad files.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.
+//! - `bounded_reads`: `/dev/zero`, endless FIFOs and oversized files refused wherever a file is
+//!   read whole.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
 //! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); the
@@ -60,6 +62,7 @@
 
 mod batch;
 mod bench;
+mod bounded_reads;
 mod cities;
 mod cli;
 mod collision;
