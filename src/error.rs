@@ -55,6 +55,10 @@ pub enum Error {
     /// A command-line value that parses but makes no sense.
     #[error("{0}")]
     Usage(String),
+    /// A run that could not go on or finish (stopped by a signal, threads that could not
+    /// start, a child run that failed): exit code 1, never the usage code.
+    #[error("{0}")]
+    Runtime(String),
     /// The feed was asked for vehicles that share one endpoint (behind one router address):
     /// its messages carry no target, so each would read the other's sectors.
     #[error(

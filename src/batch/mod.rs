@@ -48,7 +48,7 @@ pub fn run_rows(
         .num_threads(jobs.unwrap_or(0))
         .thread_name(|i| format!("savsim-batch-{i}"))
         .build()
-        .map_err(|e| Error::Usage(format!("--jobs: cannot start the threads: {e}")))?;
+        .map_err(|e| Error::Runtime(format!("batch: cannot start the threads: {e}")))?;
     Ok(pool.install(|| {
         runs.par_iter()
             .enumerate()

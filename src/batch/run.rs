@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::panic::AssertUnwindSafe;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 
 use crate::batch::encounter::{self, Encounter};
@@ -32,7 +32,9 @@ pub const DEFAULT_RATE_HZ: f64 = 10.0;
 pub struct Scenes {
     open_air: Arc<Scene>,
     by_path: HashMap<String, Result<Arc<Scene>, Arc<SceneError>>>,
-    pipelines: Mutex<HashMap<(String, Mode), Arc<Pipeline>>>,
+    /// One pipeline per scene and mode, built once by the first row that needs it (the map's
+    /// lock is held only to find the cell; rows of other scenes build theirs meanwhile).
+    pipelines: Mutex<HashMap<(String, Mode), Arc<OnceLock<Pipeline>>>>,
 }
 
 impl Scenes {
@@ -56,14 +58,11 @@ impl Scenes {
     /// for that scene and mode.
     fn pipeline(&self, path: Option<&str>, scene: &Scene, config: CollisionConfig) -> Pipeline {
         let key = (path.unwrap_or_default().to_owned(), config.mode);
-        let built = {
+        let cell = {
             let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-            pipelines
-                .entry(key)
-                .or_insert_with(|| Arc::new(Pipeline::new(scene, config)))
-                .clone()
+            pipelines.entry(key).or_default().clone()
         };
-        (*built).clone()
+        cell.get_or_init(|| Pipeline::new(scene, config)).clone()
     }
 
     fn get(&self, path: Option<&str>) -> Result<Arc<Scene>, RowError> {

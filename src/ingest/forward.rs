@@ -12,8 +12,13 @@
 //!   autopilot was last heard. An untargeted frame (a station's heartbeat) or a broadcast
 //!   (target 0) goes to every vehicle endpoint and to the other stations. A target no vehicle
 //!   was heard as is dropped and counted (`unroutable`).
-//! - Frames whose checksum failed are not forwarded; frames of messages the dialect does not
-//!   know are (their checksum cannot be checked: another dialect's), to the stations only.
+//! - Frames whose checksum failed are not forwarded. Frames of messages the dialect does not
+//!   know are forwarded as untargeted ones (their checksum cannot be checked: another
+//!   dialect's; their target cannot be read), as mavlink-router does: from a vehicle to every
+//!   station, from a station to every vehicle endpoint and the other stations.
+//! - At most [`MAX_HEARD_STATIONS`] udpin station addresses are remembered; addresses not
+//!   heard for [`HEARD_FOR_S`] are forgotten as new ones arrive, and a new address past the
+//!   bound gets nothing until one is forgotten (counted, `stations_refused`).
 
 use std::collections::BTreeMap;
 
@@ -27,6 +32,8 @@ use crate::ingest::supervisor::{Endpoint, LinkId};
 
 /// A udpin station address heard within this long gets the vehicles' traffic, s.
 pub const HEARD_FOR_S: f64 = 10.0;
+/// The most udpin station addresses remembered at once.
+pub const MAX_HEARD_STATIONS: usize = 1024;
 
 /// What the forwarder did, for the summary's `link.forward`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -41,6 +48,9 @@ pub struct ForwardCounts {
     pub corrupt: u64,
     /// savsim's own frames shown to the stations (`--forward-own`).
     pub own: u64,
+    /// Frames from a new udpin station address while [`MAX_HEARD_STATIONS`] were remembered:
+    /// routed, but the address gets no traffic.
+    pub stations_refused: u64,
 }
 
 /// Routes frames between vehicle and station links.
@@ -140,7 +150,7 @@ impl Forwarder {
         mut send: impl FnMut(Endpoint),
     ) {
         if from.peer.is_some() {
-            self.heard.insert(from, t_s);
+            self.hear(from, t_s);
         }
         if frame.status == FrameStatus::BadCrc || frame.status == FrameStatus::BadIncompatFlags {
             self.counts.corrupt += 1;
@@ -184,6 +194,27 @@ impl Forwarder {
         }
         self.counts.from_stations += to.len() as u64;
         to.into_iter().for_each(&mut send);
+    }
+
+    /// Remember station address `from` as heard at `t_s`: addresses not heard for
+    /// [`HEARD_FOR_S`] are forgotten first when it is new; past [`MAX_HEARD_STATIONS`] it is
+    /// refused.
+    fn hear(&mut self, from: Endpoint, t_s: f64) {
+        if let Some(last) = self.heard.get_mut(&from) {
+            *last = t_s;
+            return;
+        }
+        self.heard.retain(|_, last| t_s - *last <= HEARD_FOR_S);
+        if self.heard.len() < MAX_HEARD_STATIONS {
+            self.heard.insert(from, t_s);
+        } else {
+            self.counts.stations_refused += 1;
+        }
+    }
+
+    /// Station addresses remembered now.
+    pub fn heard_stations(&self) -> usize {
+        self.heard.len()
     }
 
     /// Where savsim's own frame goes when the stations are to see it (`--forward-own`).
@@ -339,5 +370,48 @@ mod tests {
         assert!(to.is_empty());
         assert_eq!(r.counts.corrupt, 1);
         assert_eq!(r.counts.to_stations, 3);
+    }
+
+    /// A v2 frame of message id 60000, which the dialect does not define.
+    fn unknown_message(from: (u8, u8)) -> Vec<u8> {
+        let mut b = vec![0xFD, 4, 0, 0, 0, from.0, from.1, 0x60, 0xEA, 0x00];
+        b.extend_from_slice(&[1, 2, 3, 4, 0x12, 0x34]);
+        b
+    }
+
+    #[test]
+    fn a_message_the_dialect_does_not_know_is_forwarded_as_untargeted() {
+        let mut r = router();
+        let station = at(3, Some(6000));
+        let mut to = Vec::new();
+        with_frame(&unknown_message((255, 190)), |f| {
+            assert_eq!(f.status, FrameStatus::UnknownMessage);
+            r.from_station(station, 0.0, f, routes().into_iter(), &[at(1, None)], |e| {
+                to.push(e)
+            })
+        });
+        assert_eq!(to, [at(0, Some(5000)), at(1, None), at(2, Some(14550))]);
+        to.clear();
+        with_frame(&unknown_message((1, 1)), |f| {
+            r.from_vehicle(1.0, f, |e| to.push(e))
+        });
+        assert_eq!(to, [at(2, Some(14550)), station]);
+    }
+
+    #[test]
+    fn station_addresses_are_forgotten_when_silent_and_bounded_in_number() {
+        let mut r = router();
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+        for port in 0..MAX_HEARD_STATIONS as u16 {
+            from_station(&mut r, at(3, Some(10_000 + port)), 0.0, &hb);
+        }
+        assert_eq!(r.heard_stations(), MAX_HEARD_STATIONS);
+        // One more while all are fresh: refused (and routed, but never sent to).
+        from_station(&mut r, at(3, Some(9000)), 1.0, &hb);
+        assert_eq!(r.heard_stations(), MAX_HEARD_STATIONS);
+        assert_eq!(r.counts.stations_refused, 1);
+        // After they fall silent, a new one makes the old ones forgotten.
+        from_station(&mut r, at(3, Some(9000)), 11.0, &hb);
+        assert_eq!(r.heard_stations(), 1);
     }
 }

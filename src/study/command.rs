@@ -103,7 +103,7 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     );
     let results = fly_shard(&rows[range.clone()], range.start, args, &setup);
     if shutdown.load(Ordering::Relaxed) {
-        return Err(Error::Usage(
+        return Err(Error::Runtime(
             "study: stopped by a signal; the shard was not written (run it again)".into(),
         ));
     }
@@ -218,12 +218,12 @@ fn in_own_namespace(shutdown: &AtomicBool) -> Result<Option<Result<()>>> {
             .spawn()
             .map_err(|e| Error::file("unshare", e))?;
         let status = wait_forwarding(&mut child, shutdown)?;
-        return Ok(Some(if status.success() {
-            Ok(())
-        } else {
-            Err(Error::Usage(format!(
-                "study: the run in its network namespace ended with {status}"
-            )))
+        let failed = format!("study: the run in its network namespace ended with {status}");
+        return Ok(Some(match status.code() {
+            Some(0) => Ok(()),
+            // Its own usage error, already printed: the same exit code.
+            Some(2) => Err(Error::Usage(failed)),
+            _ => Err(Error::Runtime(failed)),
         }));
     }
     eprintln!(

@@ -55,9 +55,10 @@ pub struct MeshCache {
     requested: Vec<(usize, Arc<Slot>, usize)>,
     /// Bytes reserved for the requested meshes.
     reserved_bytes: usize,
-    /// The worker thread, started on the first request (`None` before, or if it could not
-    /// start: then prefetches build here).
-    worker: Option<MeshWorker>,
+    /// The worker thread, started on the first request of this cache or of any clone of it
+    /// (clones share it: a batch's rows run on clones of one pipeline), `None` inside if it
+    /// could not start (then prefetches build here).
+    worker: Arc<std::sync::OnceLock<Option<MeshWorker>>>,
     /// Build prefetched meshes on the worker (default) or on the caller's thread.
     use_worker: bool,
 }
@@ -188,15 +189,11 @@ impl MeshCache {
             self.counts.prefetch_refused += 1;
             return false;
         }
-        if self.use_worker && self.worker.is_none() {
-            self.worker = MeshWorker::start();
-        }
-        match self
-            .worker
-            .as_ref()
-            .filter(|_| self.use_worker)
-            .and_then(|w| w.request(geometry))
-        {
+        let worker = self
+            .use_worker
+            .then(|| self.worker.get_or_init(MeshWorker::start).as_ref())
+            .flatten();
+        match worker.and_then(|w| w.request(geometry)) {
             Some(slot) => {
                 self.requested.push((index, slot, need));
                 self.reserved_bytes += need;
@@ -276,5 +273,33 @@ impl MeshCache {
             }
         }
         gone
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A batch's rows fly clones of one pipeline: the first prefetch of any clone starts the
+    /// one worker they all use.
+    #[test]
+    fn clones_of_a_cache_share_one_worker_started_once() {
+        let tower = Geometry::blocks(
+            vec![(glam::Vec3::ZERO, glam::Vec3::new(10.0, 10.0, 50.0))],
+            1.0,
+        )
+        .unwrap();
+        let original = MeshCache::new(2);
+        let mut a = original.clone();
+        let mut b = original.clone();
+        assert!(original.worker.get().is_none());
+        assert!(a.prefetch(0, &tower));
+        assert!(b.prefetch(1, &tower));
+        let started = original.worker.get().and_then(Option::as_ref);
+        assert!(started.is_some(), "started through a clone, seen by all");
+        assert!(Arc::ptr_eq(&a.worker, &b.worker));
+        a.install_requested();
+        b.install_requested();
+        assert!(a.built(0).is_some() && b.built(1).is_some());
     }
 }
