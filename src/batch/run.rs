@@ -34,8 +34,11 @@ pub struct Scenes {
     by_path: HashMap<String, Result<Arc<Scene>, Arc<SceneError>>>,
     /// One pipeline per scene and mode, built once by the first row that needs it (the map's
     /// lock is held only to find the cell; rows of other scenes build theirs meanwhile).
-    pipelines: Mutex<HashMap<(String, Mode), Arc<OnceLock<Pipeline>>>>,
+    pipelines: Mutex<HashMap<(String, Mode), PipelineCell>>,
 }
+
+/// A pipeline built once, on first use.
+type PipelineCell = Arc<OnceLock<Pipeline>>;
 
 impl Scenes {
     /// Load the scenes of `runs`.
