@@ -19,6 +19,7 @@ pub mod feed;
 pub mod files;
 pub mod ingest;
 pub mod replay;
+pub mod runs;
 pub mod scene;
 pub mod session;
 pub mod signals;

@@ -41,7 +41,13 @@ fn run_manifest_json(
             let rows = savsim::batch::run_rows(&runs, first_index, jobs, |_| {})
                 .map_err(|e| e.to_string())?;
             let mut out = Vec::new();
-            table::to_parquet(&rows, &mut out).map_err(|e| e.to_string())?;
+            let settings = savsim::runs::table::Settings {
+                command: "batch",
+                manifest: String::new(),
+                shard: savsim::runs::shard::Shard::WHOLE,
+                more: vec![("via", "python".into())],
+            };
+            table::to_parquet(&rows, &settings, &mut out).map_err(|e| e.to_string())?;
             Ok(out)
         })
         .map_err(error)?;

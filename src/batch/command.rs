@@ -6,10 +6,11 @@ use std::path::Path;
 use crate::batch::gen::{self, GenOptions};
 use crate::batch::manifest;
 use crate::batch::row::RunRow;
-use crate::batch::shard::Shard;
 use crate::cli::{BatchArgs, BatchCommand};
 use crate::collision::pipeline::Mode;
 use crate::error::{Error, Result};
+use crate::runs::shard::Shard;
+use crate::runs::table::Settings;
 
 /// An MIT LL encounter model file.
 fn read_model(path: &Path) -> Result<crate::daa::encounter_model::Model> {
@@ -90,16 +91,7 @@ pub fn run(args: &BatchArgs) -> Result<()> {
         };
     }
     if let Some(BatchCommand::Summarize { dir, nominal, json }) = &args.command {
-        let all = crate::batch::summarize::read_dir(dir)?;
-        if *json {
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&crate::batch::summarize::summary_json(&all, nominal))
-                    .unwrap_or_default()
-            );
-        } else {
-            print!("{}", crate::batch::summarize::summary_text(&all, nominal));
-        }
+        crate::batch::summarize::read_dir(dir)?.print(nominal, *json);
         return Ok(());
     }
     let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
@@ -132,7 +124,17 @@ pub fn run(args: &BatchArgs) -> Result<()> {
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    crate::batch::table::write_atomic(&rows, &path)?;
+    let settings = Settings {
+        command: "batch",
+        manifest: manifest_path.display().to_string(),
+        shard,
+        more: vec![(
+            "jobs",
+            args.jobs
+                .map_or_else(|| "all cores".into(), |j| j.to_string()),
+        )],
+    };
+    crate::batch::table::write_atomic(&rows, &settings, &path)?;
     print!("{}", report(&rows, &path));
     Ok(())
 }

@@ -2,12 +2,11 @@
 //! be read.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use crate::batch::encounter::{DaaTracksError, WaypointError};
 use crate::batch::trajectory::TrajectoryError;
 use crate::daa::well_clear::SETTING_HELP;
-use crate::scene::SceneError;
+use crate::runs::scenes::SceneLookup;
 use savsim_core::bounds::{OutOfRange, MAX_SAMPLES};
 
 /// Why a row could not run. Its text is the row's `error` cell.
@@ -18,10 +17,7 @@ pub enum RowError {
     OutOfRange(#[from] OutOfRange),
     /// The row's scene did not load (the error is shared by every row naming it).
     #[error(transparent)]
-    Scene(Arc<SceneError>),
-    /// A scene that was not loaded with the manifest (a bug of the caller).
-    #[error("{0}: scene not loaded")]
-    SceneNotLoaded(String),
+    Scene(SceneLookup),
     /// A `mode` savsim does not have.
     #[error("mode {0:?}: give one of none, box, mesh, paper, exact, reference")]
     Mode(String),

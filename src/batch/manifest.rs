@@ -11,11 +11,11 @@
 //! assert_eq!(runs[0].mode.as_deref(), Some("exact"));
 //! ```
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// One run, as the manifest wrote it.
 ///
@@ -113,56 +113,16 @@ pub fn is_tlog_path(track: &str) -> bool {
     track.trim_end().to_ascii_lowercase().ends_with(".tlog")
 }
 
-/// The TOML form: `[[run]]` tables.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TomlManifest<T> {
-    #[serde(default = "Vec::new")]
-    run: Vec<T>,
-}
-
 /// Read a manifest file (`.csv`, `.toml` or `.json` by its extension); paths in it become
 /// relative to its directory.
 pub fn load(path: &Path) -> Result<Vec<Run>> {
-    let (runs, base) = read_rows::<Run>(path)?;
+    let (runs, base) = crate::runs::manifest::read_rows::<Run>(path)?;
     Ok(runs.into_iter().map(|r| r.anchored(&base)).collect())
-}
-
-/// The rows of a manifest file of any row type (`batch`'s runs, `study`'s rows): CSV with a
-/// header row, TOML `[[run]]` tables or a JSON array, by the file's extension; and the
-/// directory its relative paths are relative to.
-pub fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<(Vec<T>, PathBuf)> {
-    let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
-        .map_err(|e| Error::file(path, e))?;
-    let bad = |why: String| Error::Usage(format!("manifest {}: {why}", path.display()));
-    let rows = match path.extension().and_then(|e| e.to_str()) {
-        Some("csv") => csv_rows(text.as_bytes()).map_err(|e| bad(e.to_string()))?,
-        Some("toml") => {
-            toml::from_str::<TomlManifest<T>>(&text)
-                .map_err(|e| bad(e.to_string()))?
-                .run
-        }
-        Some("json") => serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?,
-        _ => return Err(bad("give a .csv, .toml or .json file".into())),
-    };
-    let base: PathBuf = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    Ok((rows, base))
-}
-
-/// Rows from CSV with a header row; an empty cell is an absent value.
-fn csv_rows<T: serde::de::DeserializeOwned>(
-    bytes: &[u8],
-) -> std::result::Result<Vec<T>, csv::Error> {
-    csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_reader(bytes)
-        .deserialize()
-        .collect()
 }
 
 /// Runs from CSV with a header row; an empty cell is an absent value.
 pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<Run>, csv::Error> {
-    csv_rows(bytes)
+    crate::runs::manifest::csv_rows(bytes)
 }
 
 /// Runs from a JSON array of objects (what the Python package sends).
@@ -172,10 +132,5 @@ pub fn parse_json(text: &str) -> std::result::Result<Vec<Run>, serde_json::Error
 
 /// Write runs as CSV (what `gen-encounters` writes).
 pub fn write_csv(runs: &[Run], out: impl std::io::Write) -> std::result::Result<(), csv::Error> {
-    let mut w = csv::Writer::from_writer(out);
-    for r in runs {
-        w.serialize(r)?;
-    }
-    w.flush()?;
-    Ok(())
+    crate::runs::manifest::write_csv(runs, out)
 }

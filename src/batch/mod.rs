@@ -7,7 +7,7 @@
 //! - [`error`]: why a row, or one of its tracks, could not run.
 //! - [`row`]: what a run's row holds.
 //! - [`table`]: rows as Arrow and Parquet.
-//! - [`shard`]: which rows a process runs, and its file.
+
 //! - [`gen`]: generated encounters, their truth known by construction.
 //! - [`command`]: `savsim batch` on the command line.
 //!
@@ -24,7 +24,6 @@ pub mod gen_pairing;
 pub mod manifest;
 pub mod row;
 pub mod run;
-pub mod shard;
 pub mod summarize;
 pub mod table;
 pub mod trajectory;

@@ -18,7 +18,8 @@ use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::daa::well_clear::Volume;
 use crate::ingest::stats::IngestStats;
 use crate::replay::{replay, Speed};
-use crate::scene::{self, Kind, Scene, SceneError, Waypoint};
+use crate::runs::scenes::SceneCache;
+use crate::scene::{Kind, Scene, Waypoint};
 use crate::session::Session;
 use savsim_core::bounds::{positive, MAX_DURATION_S, MAX_RATE_HZ, MAX_SAMPLES};
 
@@ -30,8 +31,7 @@ pub const DEFAULT_RATE_HZ: f64 = 10.0;
 /// the first run that needs it: every run flies a clone, sharing its octree's build, exact
 /// shapes and meshes.
 pub struct Scenes {
-    open_air: Arc<Scene>,
-    by_path: HashMap<String, Result<Arc<Scene>, Arc<SceneError>>>,
+    scenes: SceneCache,
     /// One pipeline per scene and mode, built once by the first row that needs it (the map's
     /// lock is held only to find the cell; rows of other scenes build theirs meanwhile).
     pipelines: Mutex<HashMap<(String, Mode), PipelineCell>>,
@@ -43,16 +43,8 @@ type PipelineCell = Arc<OnceLock<Pipeline>>;
 impl Scenes {
     /// Load the scenes of `runs`.
     pub fn for_runs(runs: &[Run]) -> Self {
-        let mut by_path = HashMap::new();
-        for path in runs.iter().filter_map(|r| r.scene.as_deref()) {
-            if !path.is_empty() && !by_path.contains_key(path) {
-                let loaded = scene::load(Path::new(path)).map(Arc::new).map_err(Arc::new);
-                by_path.insert(path.to_owned(), loaded);
-            }
-        }
         Self {
-            open_air: Arc::new(open_air()),
-            by_path,
+            scenes: SceneCache::load(runs.iter().filter_map(|r| r.scene.as_deref())),
             pipelines: Mutex::new(HashMap::new()),
         }
     }
@@ -69,27 +61,8 @@ impl Scenes {
     }
 
     fn get(&self, path: Option<&str>) -> Result<Arc<Scene>, RowError> {
-        match path.filter(|p| !p.is_empty()) {
-            None => Ok(self.open_air.clone()),
-            Some(p) => match self.by_path.get(p) {
-                Some(Ok(scene)) => Ok(scene.clone()),
-                Some(Err(e)) => Err(RowError::Scene(e.clone())),
-                None => Err(RowError::SceneNotLoaded(p.to_owned())),
-            },
-        }
+        self.scenes.get(path).map_err(RowError::Scene)
     }
-}
-
-/// A scene with nothing in it, around ArduPilot SITL's default home (CMAC, Canberra), whose
-/// ENU frame encounters are written in.
-pub fn open_air() -> Scene {
-    let o = crate::scene::gen::DEFAULT_ORIGIN;
-    let text = format!(
-        "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n",
-        o.lat_deg, o.lon_deg, o.alt_m
-    );
-    scene::parse(&text, Path::new("open-air.toml"), "open-air")
-        .expect("the open-air scene is valid")
 }
 
 /// The mode a row asks for (`exact` when it says nothing).

@@ -6,30 +6,12 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow_array::{
-    ArrayRef, BooleanArray, Float64Array, ListArray, RecordBatch, StringArray, StructArray,
-    UInt64Array, UInt8Array,
-};
-use arrow_buffer::OffsetBuffer;
-use arrow_schema::{DataType, Field, Fields, Schema};
-use parquet::arrow::ArrowWriter;
-use parquet::basic::Compression;
-use parquet::file::properties::WriterProperties;
+use arrow_array::{ArrayRef, BooleanArray, Float64Array, RecordBatch, StringArray, UInt8Array};
+use arrow_schema::{DataType, Field, Fields};
 
 use crate::batch::row::{ApproachRow, RunRow};
-use crate::error::{Error, Result};
-
-fn strings<'a>(rows: &'a [RunRow], f: impl Fn(&'a RunRow) -> Option<&'a str>) -> ArrayRef {
-    Arc::new(rows.iter().map(f).collect::<StringArray>())
-}
-
-fn floats(rows: &[RunRow], f: impl Fn(&RunRow) -> Option<f64>) -> ArrayRef {
-    Arc::new(rows.iter().map(f).collect::<Float64Array>())
-}
-
-fn counts(rows: &[RunRow], f: impl Fn(&RunRow) -> u64) -> ArrayRef {
-    Arc::new(rows.iter().map(f).collect::<UInt64Array>())
-}
+use crate::error::Result;
+use crate::runs::table::{bools, counts, floats, strings, struct_lists, Settings};
 
 fn approach_fields() -> Fields {
     Fields::from(vec![
@@ -61,21 +43,18 @@ fn approaches(rows: &[RunRow]) -> ArrayRef {
         float(|a| a.t_s),
         Arc::new(all.iter().map(|a| Some(a.nmac)).collect::<BooleanArray>()),
     ];
-    let values = StructArray::new(approach_fields(), children, None);
-    let item = Arc::new(Field::new(
-        "item",
-        DataType::Struct(approach_fields()),
-        false,
-    ));
-    let offsets = OffsetBuffer::from_lengths(rows.iter().map(|r| r.approaches.len()));
-    Arc::new(ListArray::new(item, offsets, Arc::new(values), None))
+    struct_lists(
+        approach_fields(),
+        children,
+        rows.iter().map(|r| r.approaches.len()),
+    )
 }
 
 /// The results as one Arrow record batch (an empty batch with the full schema when there are
 /// no rows). Every batch has the same schema, whatever its rows hold.
 pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
     let columns: Vec<(&str, ArrayRef)> = vec![
-        ("index", counts(rows, |r| r.index)),
+        ("index", counts(rows, |r| Some(r.index))),
         ("run_id", strings(rows, |r| Some(r.run_id.as_str()))),
         ("kind", strings(rows, |r| Some(r.kind.as_str()))),
         ("tlog", strings(rows, |r| r.inputs.tlog.as_deref())),
@@ -107,17 +86,10 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
         ("variant", strings(rows, |r| r.inputs.variant.as_deref())),
         ("pair", strings(rows, |r| r.inputs.pair.as_deref())),
         ("w", floats(rows, |r| r.inputs.w)),
-        (
-            "expect_nmac",
-            Arc::new(
-                rows.iter()
-                    .map(|r| r.inputs.expect_nmac)
-                    .collect::<BooleanArray>(),
-            ),
-        ),
+        ("expect_nmac", bools(rows, |r| r.inputs.expect_nmac)),
         ("error", strings(rows, |r| r.error.as_deref())),
-        ("ticks", counts(rows, |r| r.ticks)),
-        ("collisions", counts(rows, |r| r.collisions)),
+        ("ticks", counts(rows, |r| Some(r.ticks))),
+        ("collisions", counts(rows, |r| Some(r.collisions))),
         (
             "first_collision_t_s",
             floats(rows, |r| r.first_collision_t_s),
@@ -126,25 +98,19 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
             "first_collision_obstacle",
             strings(rows, |r| r.first_collision_obstacle.as_deref()),
         ),
-        ("near_misses", counts(rows, |r| r.near_misses)),
+        ("near_misses", counts(rows, |r| Some(r.near_misses))),
         (
             "closest_near_miss_m",
             floats(rows, |r| r.closest_near_miss_m),
         ),
-        (
-            "nmac",
-            Arc::new(rows.iter().map(|r| Some(r.nmac)).collect::<BooleanArray>()),
-        ),
+        ("nmac", bools(rows, |r| Some(r.nmac))),
         ("cpa_m", floats(rows, |r| r.cpa_m)),
         ("cpa_horizontal_m", floats(rows, |r| r.cpa_horizontal_m)),
         ("cpa_vertical_m", floats(rows, |r| r.cpa_vertical_m)),
         ("cpa_t_s", floats(rows, |r| r.cpa_t_s)),
         ("cpa_track", strings(rows, |r| r.cpa_track.as_deref())),
         ("approaches", approaches(rows)),
-        (
-            "lowc",
-            Arc::new(rows.iter().map(|r| Some(r.lowc)).collect::<BooleanArray>()),
-        ),
+        ("lowc", bools(rows, |r| Some(r.lowc))),
         ("lowc_first_t_s", floats(rows, |r| r.lowc_first_t_s)),
         ("lowc_duration_s", floats(rows, |r| Some(r.lowc_duration_s))),
         ("min_taumod_s", floats(rows, |r| r.min_taumod_s)),
@@ -156,9 +122,9 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
             "lowc_min_vertical_m",
             floats(rows, |r| r.lowc_min_vertical_m),
         ),
-        ("messages", counts(rows, |r| r.messages)),
-        ("bad_frames", counts(rows, |r| r.bad_frames)),
-        ("rejected", counts(rows, |r| r.rejected)),
+        ("messages", counts(rows, |r| Some(r.messages))),
+        ("bad_frames", counts(rows, |r| Some(r.bad_frames))),
+        ("rejected", counts(rows, |r| Some(r.rejected))),
         (
             "tick_cost_us_median",
             floats(rows, |r| Some(r.tick_cost_us_median)),
@@ -169,15 +135,7 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
         ),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),
     ];
-    let fields: Vec<Field> = columns
-        .iter()
-        .map(|(name, array)| Field::new(*name, array.data_type().clone(), nullable(name)))
-        .collect();
-    RecordBatch::try_new(
-        Arc::new(Schema::new(fields)),
-        columns.into_iter().map(|(_, a)| a).collect(),
-    )
-    .expect("the columns match the schema")
+    crate::runs::table::record_batch(columns, nullable)
 }
 
 /// Whether a column may hold nulls.
@@ -204,28 +162,17 @@ fn nullable(name: &str) -> bool {
     )
 }
 
-/// The results as Parquet bytes.
-pub fn to_parquet(rows: &[RunRow], out: impl std::io::Write + Send) -> parquet::errors::Result<()> {
-    let batch = record_batch(rows);
-    let properties = WriterProperties::builder()
-        .set_compression(Compression::SNAPPY)
-        .build();
-    let mut writer = ArrowWriter::try_new(out, batch.schema(), Some(properties))?;
-    writer.write(&batch)?;
-    writer.close()?;
-    Ok(())
+/// The results as Parquet bytes, `settings` in the file's metadata.
+pub fn to_parquet(
+    rows: &[RunRow],
+    settings: &Settings,
+    out: impl std::io::Write + Send,
+) -> parquet::errors::Result<()> {
+    crate::runs::table::write(&record_batch(rows), settings, out)
 }
 
-/// Write the results to `path` atomically: a reader (or a re-run looking for finished shards)
-/// sees the whole file or none.
-pub fn write_atomic(rows: &[RunRow], path: &Path) -> Result<()> {
-    let tmp = path.with_extension("parquet.tmp");
-    let file = std::fs::File::create(&tmp).map_err(|e| Error::file(&tmp, e))?;
-    let mut out = std::io::BufWriter::new(file);
-    to_parquet(rows, &mut out).map_err(|e| Error::file(&tmp, std::io::Error::other(e)))?;
-    let file = out
-        .into_inner()
-        .map_err(|e| Error::file(&tmp, e.into_error()))?;
-    file.sync_all().map_err(|e| Error::file(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
+/// Write the results to `path` atomically, `settings` in the file's metadata: a reader (or a
+/// re-run looking for finished shards) sees the whole file or none.
+pub fn write_atomic(rows: &[RunRow], settings: &Settings, path: &Path) -> Result<()> {
+    crate::runs::table::write_atomic(&record_batch(rows), settings, path)
 }

@@ -6,9 +6,10 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use crate::batch::shard::Shard;
 use crate::cli::{StudyArgs, StudyCommand, StudyGenKind};
 use crate::error::{Error, Result};
+use crate::runs::shard::Shard;
+use crate::runs::table::Settings;
 use crate::study::manifest;
 use crate::study::result::{Outcome, StudyResult};
 use crate::study::run::{Setup, SPEEDUP_RANGE};
@@ -37,16 +38,7 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
 
 /// `study summarize`.
 fn summarize(dir: &Path, nominal: &str, json: bool) -> Result<()> {
-    let all = crate::study::summarize::read_dir(dir)?;
-    if json {
-        let value = crate::study::summarize::summary_json(&all, nominal);
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&value).unwrap_or_default()
-        );
-    } else {
-        print!("{}", crate::study::summarize::summary_text(&all, nominal));
-    }
+    crate::study::summarize::read_dir(dir)?.print(nominal, json);
     Ok(())
 }
 
@@ -107,30 +99,32 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
             "study: stopped by a signal; the shard was not written (run it again)".into(),
         ));
     }
-    let metadata = [
-        ("savsim_version", env!("CARGO_PKG_VERSION").to_string()),
-        ("study_manifest", manifest_path.display().to_string()),
-        ("study_shard", format!("{}/{}", shard.index, shard.count)),
-        ("study_speedup", args.speedup.to_string()),
-        ("study_jobs", args.jobs.to_string()),
-        (
-            "study_arducopter",
-            setup
-                .arducopter
-                .as_ref()
-                .map(|a| a.binary.display().to_string())
-                .unwrap_or_default(),
-        ),
-        (
-            "study_px4",
-            setup
-                .px4
-                .as_ref()
-                .map(|p| p.binary.display().to_string())
-                .unwrap_or_default(),
-        ),
-    ];
-    crate::study::table::write_atomic(&results, &metadata, &path)?;
+    let settings = Settings {
+        command: "study",
+        manifest: manifest_path.display().to_string(),
+        shard,
+        more: vec![
+            ("speedup", args.speedup.to_string()),
+            ("jobs", args.jobs.to_string()),
+            (
+                "arducopter",
+                setup
+                    .arducopter
+                    .as_ref()
+                    .map(|a| a.binary.display().to_string())
+                    .unwrap_or_default(),
+            ),
+            (
+                "px4",
+                setup
+                    .px4
+                    .as_ref()
+                    .map(|p| p.binary.display().to_string())
+                    .unwrap_or_default(),
+            ),
+        ],
+    };
+    crate::study::table::write_atomic(&results, &settings, &path)?;
     print!("{}", report(&results, &path));
     Ok(())
 }

@@ -75,18 +75,14 @@ impl StudyRow {
 /// Read a study manifest (`.csv`, `.toml` or `.json`); scene paths become relative to its
 /// directory; rows with `repeat` are expanded (`ID#k`).
 pub fn load(path: &Path) -> Result<Vec<StudyRow>> {
-    let (rows, base): (Vec<StudyRow>, PathBuf) = crate::batch::manifest::read_rows(path)?;
+    let (rows, base): (Vec<StudyRow>, PathBuf) = crate::runs::manifest::read_rows(path)?;
     expand(rows.into_iter().map(|r| r.anchored(&base)).collect())
         .map_err(|e| crate::error::Error::Usage(format!("{}: {e}", path.display())))
 }
 
 /// Rows from CSV with a header row; an empty cell is an absent value (not expanded).
 pub fn parse_csv(bytes: &[u8]) -> std::result::Result<Vec<StudyRow>, csv::Error> {
-    csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_reader(bytes)
-        .deserialize()
-        .collect()
+    crate::runs::manifest::csv_rows(bytes)
 }
 
 /// Most times a row may be flown (`repeat`).
@@ -164,10 +160,5 @@ pub fn write_csv(
     rows: &[StudyRow],
     out: impl std::io::Write,
 ) -> std::result::Result<(), csv::Error> {
-    let mut w = csv::Writer::from_writer(out);
-    for r in rows {
-        w.serialize(r)?;
-    }
-    w.flush()?;
-    Ok(())
+    crate::runs::manifest::write_csv(rows, out)
 }

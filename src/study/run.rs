@@ -4,7 +4,6 @@
 //! failure (a bad column, a SITL that does not boot, hangs or dies, even a bug) becomes the
 //! row's `error`; the study goes on.
 
-use std::collections::HashMap;
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,7 +19,8 @@ use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::live::Link;
 use crate::ingest::stats::SenderId;
-use crate::scene::{self, Kind, Scene, SceneError, Waypoint};
+use crate::runs::scenes::{SceneCache, SceneLookup};
+use crate::scene::{Kind, Scene, Waypoint};
 use crate::session::Session;
 use crate::study::fly::{fly, fly_px4, Flown};
 use crate::study::manifest::StudyRow;
@@ -68,7 +68,7 @@ pub enum RowError {
     Plan(#[from] PlanError),
     /// The row's scene did not load.
     #[error("scene: {0}")]
-    Scene(Arc<SceneError>),
+    Scene(SceneLookup),
     /// The autopilot's binary is not there.
     #[error("{0}")]
     NoAutopilot(String),
@@ -102,8 +102,7 @@ pub struct Setup {
     pub work: PathBuf,
     /// Raised by a signal: every row stops and its SITL with it.
     pub stop: Arc<AtomicBool>,
-    scenes: HashMap<String, Result<Arc<Scene>, Arc<SceneError>>>,
-    open_air: Arc<Scene>,
+    scenes: SceneCache,
 }
 
 impl Setup {
@@ -115,33 +114,18 @@ impl Setup {
         work: PathBuf,
         stop: Arc<AtomicBool>,
     ) -> Self {
-        let mut scenes = HashMap::new();
-        for path in rows.iter().filter_map(|r| r.scene.as_deref()) {
-            if !path.is_empty() && !scenes.contains_key(path) {
-                let loaded = scene::load(Path::new(path)).map(Arc::new).map_err(Arc::new);
-                scenes.insert(path.to_owned(), loaded);
-            }
-        }
         Setup {
             arducopter: autopilots.0,
             px4: autopilots.1,
             speedup,
             work,
             stop,
-            scenes,
-            open_air: Arc::new(crate::batch::run::open_air()),
+            scenes: SceneCache::load(rows.iter().filter_map(|r| r.scene.as_deref())),
         }
     }
 
     fn scene(&self, path: Option<&str>) -> Result<Arc<Scene>, RowError> {
-        match path.filter(|p| !p.is_empty()) {
-            None => Ok(self.open_air.clone()),
-            Some(p) => match self.scenes.get(p) {
-                Some(Ok(scene)) => Ok(scene.clone()),
-                Some(Err(e)) => Err(RowError::Scene(e.clone())),
-                None => Err(input("scene", format!("{p}: not loaded"))),
-            },
-        }
+        self.scenes.get(path).map_err(RowError::Scene)
     }
 }
 

@@ -5,36 +5,17 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow_array::{
-    ArrayRef, BooleanArray, Float64Array, ListArray, RecordBatch, StringArray, StructArray,
-    UInt64Array,
-};
-use arrow_buffer::OffsetBuffer;
-use arrow_schema::{DataType, Field, Fields, Schema};
-use parquet::arrow::ArrowWriter;
-use parquet::basic::Compression;
-use parquet::file::metadata::KeyValue;
-use parquet::file::properties::WriterProperties;
+use arrow_array::{ArrayRef, Float64Array, RecordBatch, StringArray};
+use arrow_schema::{DataType, Field, Fields};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::runs::table::{counts, floats, strings, struct_lists, Settings};
 use crate::study::result::StudyResult;
 
 type Rows<'a> = &'a [StudyResult];
 
-fn strings<'a>(rows: Rows<'a>, f: impl Fn(&'a StudyResult) -> Option<String>) -> ArrayRef {
-    Arc::new(rows.iter().map(f).collect::<StringArray>())
-}
-
-fn floats(rows: Rows<'_>, f: impl Fn(&StudyResult) -> Option<f64>) -> ArrayRef {
-    Arc::new(rows.iter().map(f).collect::<Float64Array>())
-}
-
-fn counts(rows: Rows<'_>, f: impl Fn(&StudyResult) -> Option<u64>) -> ArrayRef {
-    Arc::new(rows.iter().map(f).collect::<UInt64Array>())
-}
-
 fn bools(rows: Rows<'_>, f: impl Fn(&StudyResult) -> bool) -> ArrayRef {
-    Arc::new(rows.iter().map(|r| Some(f(r))).collect::<BooleanArray>())
+    crate::runs::table::bools(rows, |r| Some(f(r)))
 }
 
 fn obstacle_fields() -> Fields {
@@ -58,14 +39,11 @@ fn obstacles(rows: Rows<'_>) -> ArrayRef {
                 .collect::<Float64Array>(),
         ),
     ];
-    let values = StructArray::new(obstacle_fields(), children, None);
-    let item = Arc::new(Field::new(
-        "item",
-        DataType::Struct(obstacle_fields()),
-        false,
-    ));
-    let offsets = OffsetBuffer::from_lengths(rows.iter().map(|r| r.obstacles.len()));
-    Arc::new(ListArray::new(item, offsets, Arc::new(values), None))
+    struct_lists(
+        obstacle_fields(),
+        children,
+        rows.iter().map(|r| r.obstacles.len()),
+    )
 }
 
 /// The inputs' columns.
@@ -96,7 +74,7 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         &r.measured
     }
     vec![
-        ("outcome", strings(rows, |r| Some(r.outcome.name().into()))),
+        ("outcome", strings(rows, |r| Some(r.outcome.name()))),
         ("error", strings(rows, |r| r.error.clone())),
         ("collisions", counts(rows, |r| Some(m(r).collisions))),
         (
@@ -174,35 +152,10 @@ pub fn record_batch(rows: &[StudyResult]) -> RecordBatch {
         .into_iter()
         .chain(result_columns(rows))
         .collect();
-    let fields: Vec<Field> = columns
-        .iter()
-        .map(|(name, a)| Field::new(*name, a.data_type().clone(), true))
-        .collect();
-    RecordBatch::try_new(
-        Arc::new(Schema::new(fields)),
-        columns.into_iter().map(|(_, a)| a).collect(),
-    )
-    .expect("the columns match the schema")
+    crate::runs::table::record_batch(columns, |_| true)
 }
 
-/// Write the results to `path` atomically, with `metadata` (key, value) in the file.
-pub fn write_atomic(rows: &[StudyResult], metadata: &[(&str, String)], path: &Path) -> Result<()> {
-    let tmp = path.with_extension("parquet.tmp");
-    let batch = record_batch(rows);
-    let properties = WriterProperties::builder()
-        .set_compression(Compression::SNAPPY)
-        .set_key_value_metadata(Some(
-            metadata
-                .iter()
-                .map(|(k, v)| KeyValue::new((*k).to_string(), v.clone()))
-                .collect(),
-        ))
-        .build();
-    let io = |e: parquet::errors::ParquetError| Error::file(&tmp, std::io::Error::other(e));
-    let file = std::fs::File::create(&tmp).map_err(|e| Error::file(&tmp, e))?;
-    let mut writer = ArrowWriter::try_new(file, batch.schema(), Some(properties)).map_err(io)?;
-    writer.write(&batch).map_err(io)?;
-    let file = writer.into_inner().map_err(io)?;
-    file.sync_all().map_err(|e| Error::file(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
+/// Write the results to `path` atomically, `settings` in the file's metadata.
+pub fn write_atomic(rows: &[StudyResult], settings: &Settings, path: &Path) -> Result<()> {
+    crate::runs::table::write_atomic(&record_batch(rows), settings, path)
 }

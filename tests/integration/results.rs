@@ -90,3 +90,37 @@ fn the_closest_near_miss_past_the_first_thousand_events_is_reported() {
     result.record_obstacles(digest);
     assert_eq!(result.closest_obstacle_m, Some(closest));
 }
+
+/// A batch shard's file says how it was made: savsim's version, the command, the manifest, the
+/// shard and the jobs, as a study's does.
+#[test]
+fn a_batch_shard_carries_savsims_version_and_its_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        "id,own,intruder\na,0 0 0 50; 60 600 0 50,0 600 0 50; 60 0 0 50\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let ran = crate::cli::savsim()
+        .args(["batch", "--jobs", "1", "--shard", "0/1", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    crate::common::assert_ran(&ran);
+    let settings =
+        savsim::runs::table::read_settings(&out.join("part-00000-of-00001.parquet")).unwrap();
+    let get = |k: &str| {
+        settings
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.as_str())
+    };
+    assert_eq!(get("savsim_version"), Some(env!("CARGO_PKG_VERSION")));
+    assert_eq!(get("command"), Some("batch"));
+    assert_eq!(get("manifest"), manifest.to_str());
+    assert_eq!(get("shard"), Some("0/1"));
+    assert_eq!(get("jobs"), Some("1"));
+}

@@ -252,14 +252,15 @@ fn summarize_reads_the_written_results_into_the_collision_risk_ratio() {
     }
     assert_eq!(rows[0].outcome, Outcome::Collision);
     assert_eq!(rows[19].outcome, Outcome::Pass);
-    savsim::study::table::write_atomic(
-        &rows,
-        &[("k", "v".into())],
-        &dir.path().join("part.parquet"),
-    )
-    .unwrap();
+    let settings = savsim::runs::table::Settings {
+        command: "study",
+        manifest: "m.csv".into(),
+        shard: savsim::runs::shard::Shard::WHOLE,
+        more: vec![("k", "v".into())],
+    };
+    savsim::study::table::write_atomic(&rows, &settings, &dir.path().join("part.parquet")).unwrap();
     let all = savsim::study::summarize::read_dir(dir.path()).unwrap();
-    let json = savsim::study::summarize::summary_json(&all, "nominal");
+    let json = all.json("nominal");
     let ratio = &json["ratios"][0];
     assert_eq!(ratio["variant"], "mitigated");
     assert_eq!(ratio["pairs"], 10);

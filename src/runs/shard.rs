@@ -27,7 +27,7 @@ impl Shard {
     /// from Slurm; anything else runs the whole manifest. `env` reads a variable.
     ///
     /// ```
-    /// use savsim::batch::shard::Shard;
+    /// use savsim::runs::shard::Shard;
     /// let none = |_: &str| None;
     /// assert_eq!(Shard::from_args(Some("2/8"), none).unwrap(), Shard { index: 2, count: 8 });
     /// let k8s = |v: &str| (v == "JOB_COMPLETION_INDEX").then(|| "3".to_string());
@@ -103,7 +103,7 @@ impl Shard {
     /// The rows of a manifest of `len` runs in this shard.
     ///
     /// ```
-    /// use savsim::batch::shard::Shard;
+    /// use savsim::runs::shard::Shard;
     /// let parts: Vec<_> = (0..3).map(|k| Shard { index: k, count: 3 }.rows(10)).collect();
     /// assert_eq!(parts, [0..3, 3..6, 6..10]);
     /// ```
