@@ -21,7 +21,7 @@ use savsim::bench::flights::flight_set;
 use savsim::bench::run_samples;
 use savsim::collision::broad_phase::StaticBroadPhase;
 use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
-use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline, SensorFan};
+use savsim::pipeline::{CollisionConfig, Mode, Pipeline, SensorFan};
 use savsim::scene::{Aabb64, Kind, Scene};
 
 fn city() -> Scene {

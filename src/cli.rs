@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::collision::pipeline::Mode;
+use crate::pipeline::Mode;
 
 /// savsim: sense-and-avoid simulation for UAVs over MAVLink.
 #[derive(Debug, Parser)]

@@ -50,7 +50,7 @@ pub enum Error {
         /// The file.
         path: PathBuf,
         /// Why.
-        source: crate::ingest::ulog::UlogError,
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
     /// A command-line value that parses but makes no sense.
     #[error("{0}")]

@@ -5,7 +5,7 @@
 //! did hit, choosing per obstacle between a cheap box and an exact mesh collider (Li et al.
 //! 2019, see docs/ARCHITECTURE.md).
 
-pub use savsim_core::{collision, daa, geo, world};
+pub use savsim_core::{collision, daa, geo, pipeline, world};
 
 pub mod app;
 pub mod batch;
@@ -18,6 +18,7 @@ pub mod error;
 pub mod feed;
 pub mod files;
 pub mod ingest;
+pub mod live;
 pub mod replay;
 pub mod runs;
 pub mod scene;

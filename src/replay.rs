@@ -134,7 +134,7 @@ pub fn replay(
     let log = match kind {
         LogKind::Ulog => read_ulog(&data).map_err(|e| Error::Log {
             path: path.to_path_buf(),
-            source: e,
+            source: Box::new(e),
         })?,
         _ => read_dataflash(&data),
     };

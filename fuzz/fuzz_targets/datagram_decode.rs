@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use savsim::collision::pipeline::CollisionConfig;
+use savsim::pipeline::CollisionConfig;
 use savsim::ingest::stream::{frames_in_datagram, StreamFramer};
 use savsim::session::Session;
 

@@ -7,7 +7,7 @@
 use std::sync::{Arc, OnceLock};
 
 use libfuzzer_sys::fuzz_target;
-use savsim::collision::pipeline::{CollisionConfig, Pipeline};
+use savsim::pipeline::{CollisionConfig, Pipeline};
 use savsim::feed::{FeedConfig, FeedKinds};
 use savsim::ingest::tlog::TlogReader;
 use savsim::scene::Scene;

@@ -1,5 +1,5 @@
 //! Datagrams and TCP pieces from several senders on two links, through the live session
-//! thread exactly as `savsim live` runs it (`app::live::LiveSession`): routing and stream
+//! thread exactly as `savsim live` runs it (`live::LiveSession`): routing and stream
 //! supervision, sequence bookkeeping across reboots and silences, decode and world store;
 //! `--forward` with a station on a third link, and signing (accepting or requiring) when the
 //! input's first byte says so. The input chooses, per chunk, its link and sender address, the
@@ -13,8 +13,8 @@ use std::sync::Arc;
 
 use libfuzzer_sys::fuzz_target;
 use mavlink::dialects::ardupilotmega::MavMessage;
-use savsim::app::live::LiveSession;
-use savsim::collision::pipeline::CollisionConfig;
+use savsim::live::LiveSession;
+use savsim::pipeline::CollisionConfig;
 use savsim::ingest::forward::Forwarder;
 use savsim::ingest::live::{Chunk, ChunkKind};
 use savsim::ingest::signing::{Signing, SigningKey};

@@ -17,7 +17,7 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(scene) = savsim::scene::format::parse(text, "fuzz.toml".as_ref(), "fuzz", &files) {
         // What a run does first with a scene: bounds, octree, one mesh per geometry.
         let _ = scene.bounds_enu_m();
-        let pipeline = savsim::collision::pipeline::Pipeline::new(&scene, Default::default());
+        let pipeline = savsim::pipeline::Pipeline::new(&scene, Default::default());
         let _ = pipeline.octree().node_count();
         for g in scene.geometries.iter().take(4) {
             let _ = g.triangle_count();

@@ -1,7 +1,5 @@
 //! The one place that wires things together: commands, threads, channels, signals, files.
 
-pub mod live;
-
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -13,16 +11,16 @@ use crate::cli::{
     NetworkArgs, RecordArgs, ReplayArgs, SceneCommand, SceneKind, SigningMode,
 };
 use crate::collision::events::EventKind;
-use crate::collision::pipeline::{CollisionConfig, SensorFan};
 use crate::collision::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::signing::SigningKey;
 use crate::ingest::stats::SenderId;
+use crate::live::{self, LiveOptions, LiveRun};
+use crate::pipeline::{CollisionConfig, SensorFan};
 use crate::replay::{replay, Speed};
 use crate::scene::{self, gen, Scene};
 use crate::session::{write_json_atomic, Session};
-use live::{LiveOptions, LiveRun};
 use savsim_core::bounds::{positive, MAX_DURATION_S};
 
 fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
@@ -308,7 +306,7 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
             .scene
             .as_ref()
             .map_or(String::new(), |p| p.display().to_string()),
-        crate::collision::pipeline::Mode::from(args.collision.mode).name()
+        crate::pipeline::Mode::from(args.collision.mode).name()
     );
     replay_command(
         &ReplayArgs {

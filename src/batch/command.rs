@@ -7,8 +7,8 @@ use crate::batch::gen::{self, GenOptions};
 use crate::batch::manifest;
 use crate::batch::row::RunRow;
 use crate::cli::{BatchArgs, BatchCommand};
-use crate::collision::pipeline::Mode;
 use crate::error::{Error, Result};
+use crate::pipeline::Mode;
 use crate::runs::shard::Shard;
 use crate::runs::table::Settings;
 

@@ -26,8 +26,8 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::batch::manifest::Run;
 use crate::collision::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
-use crate::collision::pipeline::Mode;
 use crate::error::{Error, Result};
+use crate::pipeline::Mode;
 use crate::scene::Kind;
 
 /// What to generate.

@@ -5,8 +5,8 @@ use serde::Serialize;
 use crate::batch::manifest::Run;
 use crate::collision::approach::Approaches;
 use crate::collision::digest::EventDigest;
-use crate::collision::pipeline::PipelineTotals;
 use crate::ingest::stats::IngestStats;
+use crate::pipeline::PipelineTotals;
 
 /// The closest approach of one vehicle to one moving body.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -10,8 +10,8 @@ use std::f64::consts::PI;
 
 use glam::{DQuat, DVec3};
 
-use crate::collision::pipeline::{BodyKey, BodyPose, BodySource, DynamicBody};
 use crate::geo::LocalTangentPlane;
+use crate::pipeline::{BodyKey, BodyPose, BodySource, DynamicBody};
 use crate::scene::geometry::GeometrySource;
 use crate::scene::{Aabb64, Kind, Scene};
 use crate::world::{Attitude, TrackSample};

@@ -7,8 +7,8 @@ use crate::bench::flights::{Flight, Traffic};
 use crate::bench::report::{FlightResult, FlightRow, ModeRow, SceneReport};
 use crate::bench::BenchOptions;
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{CollisionConfig, Mode, MovingBodies, Pipeline, VehicleKey};
 use crate::costs::percentiles_us;
+use crate::pipeline::{CollisionConfig, Mode, MovingBodies, Pipeline, VehicleKey};
 use crate::scene::Scene;
 use crate::world::TrackSample;
 

@@ -3,9 +3,9 @@
 //!
 //! For each scene, every flight of [`flights::flight_set`] is flown once per mode, the modes
 //! interleaved flight by flight so that a noisy machine slows them alike. Each mode has its own
-//! [`Pipeline`](crate::collision::pipeline::Pipeline); each flight its own vehicle number in
+//! [`Pipeline`](crate::pipeline::Pipeline); each flight its own vehicle number in
 //! it. Per-tick cost is the wall time of
-//! [`Pipeline::step`](crate::collision::pipeline::Pipeline::step) alone (building the moving
+//! [`Pipeline::step`](crate::pipeline::Pipeline::step) alone (building the moving
 //! obstacles of a tick is outside it).
 //!
 //! Accuracy: a flight's collisions (obstacle, time of impact) are matched to the reference's by
@@ -35,8 +35,8 @@ pub use report::{markdown, BenchReport, FlightResult, FlightRow, Goal, ModeRow, 
 use std::path::PathBuf;
 use std::time::Instant;
 
-use crate::collision::pipeline::{CollisionConfig, Mode};
 use crate::error::Result;
+use crate::pipeline::{CollisionConfig, Mode};
 use crate::scene::Scene;
 
 use flights::Flight;

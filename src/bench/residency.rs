@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 use crate::bench::compare::{collisions, compare};
 use crate::bench::flights::Flight;
 use crate::bench::fly::run_samples;
-use crate::collision::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::costs::percentiles_us;
+use crate::pipeline::{CollisionConfig, Mode, Pipeline};
 use crate::scene::geometry::{Geometry, GeometrySource};
 use crate::scene::Scene;
 
@@ -97,7 +97,7 @@ pub fn run(
                 GeometrySource::Mesh { vertices, .. } => vertices.len(),
                 _ => 0,
             };
-            crate::collision::meshes::trimesh_bytes(v, g.triangle_count())
+            crate::scene::geometry::trimesh_bytes(v, g.triangle_count())
         })
         .sum();
     let mut exact = Pipeline::new(

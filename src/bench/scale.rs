@@ -9,11 +9,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::collision::pipeline::{
-    BodyPose, CollisionConfig, DynamicBody, Mode, MovingBodies, Pipeline, VehicleKey,
-};
 use crate::costs::percentiles_us;
 use crate::geo::LocalTangentPlane;
+use crate::pipeline::{
+    BodyPose, CollisionConfig, DynamicBody, Mode, MovingBodies, Pipeline, VehicleKey,
+};
 use crate::scene::geometry::Geometry;
 use crate::scene::{Kind, Placement, Scene, StaticObstacle};
 use crate::world::TrackSample;

@@ -23,11 +23,9 @@ use glam::DVec3;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use serde::Serialize;
 
-use crate::collision::pipeline::{
-    BodySource, DynamicBody, MovingBodies, Pipeline, Rays, VehicleKey,
-};
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::SenderId;
+use crate::pipeline::{BodySource, DynamicBody, MovingBodies, Pipeline, Rays, VehicleKey};
 use crate::scene::{DynamicSource, Scene};
 use crate::world::clock::{self, ClockStep};
 use crate::world::report::Report;

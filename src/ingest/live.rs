@@ -1,6 +1,6 @@
 //! Live links: sockets in, timestamped chunks out; addressed bytes in, datagrams and TCP
 //! writes out. Nothing here frames, decodes or decides what to send: that is the session
-//! thread's (`app::live`) with [`crate::ingest::supervisor`].
+//! thread's (`live`) with [`crate::ingest::supervisor`].
 //!
 //! Each link is one tokio task on the network runtime's worker. A datagram (or a TCP read)
 //! goes, stamped with its receive time, over a bounded channel to the session thread; a full

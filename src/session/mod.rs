@@ -15,7 +15,6 @@ use serde_json::json;
 use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::digest::EventDigest;
 use crate::collision::events::{Event, EventKind};
-use crate::collision::pipeline::{BodyPose, CollisionConfig, MovingBodies, Pipeline, VehicleKey};
 use crate::daa::episodes::Change;
 use crate::error::{Error, Result};
 use crate::feed::{Feed, FeedConfig, FeedMessage, FrameInput};
@@ -24,6 +23,7 @@ use crate::ingest::outbox::Outbox;
 use crate::ingest::stats::SenderId;
 use crate::ingest::tlog::TlogWriter;
 use crate::ingest::Ingestor;
+use crate::pipeline::{BodyPose, CollisionConfig, MovingBodies, Pipeline, VehicleKey};
 use crate::scene::Scene;
 use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 

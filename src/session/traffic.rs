@@ -12,12 +12,10 @@
 use std::sync::Arc;
 
 use crate::collision::bodies::radius_m;
-use crate::collision::pipeline::{
-    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies,
-};
 use crate::daa::well_clear::{Volume, FT_M};
 use crate::feed::FeedConfig;
 use crate::ingest::stats::SenderId;
+use crate::pipeline::{BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies};
 use crate::scene::{Aabb64, DynamicSource, Kind, Scene};
 use crate::world::{Track, TrackSample, WorldStore, PREDICT_MAX_S};
 

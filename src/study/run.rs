@@ -10,15 +10,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::app::live::{run_links, Flag, LiveOptions, LiveRun};
 use crate::collision::approach::Approaches;
-use crate::collision::pipeline::CollisionConfig;
 use crate::daa::well_clear::Volume;
 use crate::feed::{FeedConfig, FeedKinds};
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::live::Link;
 use crate::ingest::stats::SenderId;
+use crate::live::{run_links, Flag, LiveOptions, LiveRun};
+use crate::pipeline::CollisionConfig;
 use crate::runs::scenes::{SceneCache, SceneLookup};
 use crate::scene::{Kind, Scene, Waypoint};
 use crate::session::Session;

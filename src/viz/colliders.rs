@@ -18,8 +18,8 @@ use rerun::{Clear, Color, Mesh3D, RecordingStream, RecordingStreamResult};
 
 use super::draw::{beta_color, box_of_geometry, boxes_of, local, pose_of_static, see_through};
 use super::{paths, TickFrame};
-use crate::collision::pipeline::{BodyPose, ObstacleRef};
 use crate::collision::ColliderKind;
+use crate::pipeline::{BodyPose, ObstacleRef};
 use crate::scene::geometry::Geometry;
 use crate::scene::Scene;
 

@@ -5,7 +5,7 @@ use glam::{DQuat, DVec3, Vec3};
 use rerun::components::FillMode;
 use rerun::{Boxes3D, Color};
 
-use crate::collision::pipeline::BodyPose;
+use crate::pipeline::BodyPose;
 use crate::scene::geometry::Geometry;
 use crate::scene::{Aabb64, Kind, Scene};
 

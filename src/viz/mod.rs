@@ -29,9 +29,9 @@ use glam::DVec3;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use crate::collision::events::Event;
-use crate::collision::pipeline::{BodyKey, BodyPose, ObstacleRef, TickReport};
 use crate::collision::ColliderKind;
 use crate::error::{Error, Result};
+use crate::pipeline::{BodyKey, BodyPose, ObstacleRef, TickReport};
 use crate::scene::{Aabb64, Kind, Scene};
 
 /// Where the recording goes (`--rerun`).

@@ -6,7 +6,7 @@ use std::process::Command;
 use savsim::bench::flights::flight_set;
 use savsim::bench::{collisions, run_samples};
 use savsim::collision::events::EventKind;
-use savsim::collision::pipeline::{CollisionConfig, Mode, Pipeline};
+use savsim::pipeline::{CollisionConfig, Mode, Pipeline};
 
 use crate::common::root;
 

@@ -4,12 +4,12 @@
 use glam::DVec3;
 use savsim::bench::collisions;
 use savsim::collision::events::{Event, EventKind};
-use savsim::collision::pipeline::{
-    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
-};
 use savsim::collision::threat::{AhpWeights, PAPER_MATRIX};
 use savsim::collision::ColliderKind;
 use savsim::geo::Geodetic;
+use savsim::pipeline::{
+    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
+};
 use savsim::scene::Scene;
 use savsim::world::TrackSample;
 

@@ -159,7 +159,7 @@ pub fn replay_into_session(
 ) -> savsim::session::Session {
     let mut session = savsim::session::Session::new(
         scene.map(std::sync::Arc::new),
-        savsim::collision::pipeline::CollisionConfig::default(),
+        savsim::pipeline::CollisionConfig::default(),
         None,
     )
     .unwrap();
@@ -283,15 +283,14 @@ pub fn run_live(
     duration: std::time::Duration,
     session: Session,
     record: Option<&Path>,
-) -> savsim::app::live::LiveRun {
-    let options = savsim::app::live::LiveOptions {
+) -> savsim::live::LiveRun {
+    let options = savsim::live::LiveOptions {
         duration: Some(duration),
         ..Default::default()
     };
     let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let run =
-        savsim::app::live::run_links(runtime.handle(), links, &options, session, record, shutdown)
-            .unwrap();
+    let run = savsim::live::run_links(runtime.handle(), links, &options, session, record, shutdown)
+        .unwrap();
     if let Err(e) = &run.ended {
         panic!("the live run ended with {e}");
     }

@@ -7,8 +7,8 @@ use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, GLOBAL_POSITION_INT_DATA};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::stats::SenderId;
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 /// One GLOBAL_POSITION_INT frame (v2) from `system_id` with sequence `seq`.

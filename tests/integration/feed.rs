@@ -10,11 +10,11 @@ use std::time::Duration;
 
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::feed::{FeedConfig, FeedKinds, FeedMessage};
 use savsim::geo::{Geodetic, LocalTangentPlane};
 use savsim::ingest::stats::SenderId;
 use savsim::ingest::tlog::TlogWriter;
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 use tokio::net::UdpSocket;
 
@@ -568,15 +568,14 @@ fn live_feed_out_records_exactly_what_the_vehicle_received() {
     session.start_feed(config("proximity")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let feed_out = dir.path().join("feed.tlog");
-    let options = savsim::app::live::LiveOptions {
+    let options = savsim::live::LiveOptions {
         duration: Some(run_for + Duration::from_millis(300)),
         feed_out: Some(feed_out.clone()),
         ..Default::default()
     };
     let shutdown = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let run =
-        savsim::app::live::run_links(rt.handle(), vec![link], &options, session, None, shutdown)
-            .unwrap();
+    let run = savsim::live::run_links(rt.handle(), vec![link], &options, session, None, shutdown)
+        .unwrap();
     run.ended.unwrap();
     // The tlog: 8-byte big-endian UNIX microseconds, then a MAVLink 2 frame (the feed's).
     let bytes = std::fs::read(&feed_out).unwrap();
@@ -717,13 +716,12 @@ fn the_feed_is_refused_for_vehicles_behind_one_router_address() {
         if feeding {
             session.start_feed(config("proximity")).unwrap();
         }
-        let options = savsim::app::live::LiveOptions {
+        let options = savsim::live::LiveOptions {
             duration: Some(run_for),
             ..Default::default()
         };
         let shutdown = Arc::new(std::sync::atomic::AtomicBool::new(false));
-        savsim::app::live::run_links(rt.handle(), vec![link], &options, session, None, shutdown)
-            .unwrap()
+        savsim::live::run_links(rt.handle(), vec![link], &options, session, None, shutdown).unwrap()
     };
     let refused = run(true);
     let err = refused.ended.expect_err("the feed is refused").to_string();

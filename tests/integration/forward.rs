@@ -16,9 +16,9 @@ use mavlink::dialects::ardupilotmega::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, PARAM_VALUE_DATA, SYS_STATUS_DATA,
 };
 use mavlink::Message;
-use savsim::app::live::{run_links, LiveOptions, LiveRun};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::address::ConnectAddress;
+use savsim::live::{run_links, LiveOptions, LiveRun};
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 use tokio::net::UdpSocket;
 

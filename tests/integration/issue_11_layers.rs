@@ -8,12 +8,12 @@ use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use savsim::bench::{collisions, run_samples};
 use savsim::collision::events::{Event, EventKind};
-use savsim::collision::pipeline::{
-    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
-};
 use savsim::geo::{Geodetic, LocalTangentPlane};
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
+use savsim::pipeline::{
+    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, Mode, Pipeline, VehicleKey,
+};
 use savsim::scene::{Kind, Scene};
 use savsim::session::Session;
 use savsim::world::TrackSample;
@@ -812,7 +812,7 @@ fn the_mesh_worker_changes_where_meshes_are_built_and_nothing_else() {
 /// axes; a levelled ring does not see the ground when the vehicle pitches down.
 #[test]
 fn the_sensing_fan_is_configurable() {
-    use savsim::collision::pipeline::{MovingBodies, SensorFan};
+    use savsim::pipeline::{MovingBodies, SensorFan};
     let s = scene(
         "[[obstacle]]\nid = \"tower\"\nkind = \"building\"\nshape = { box = [4.0, 4.0, 60.0] }\nposition_enu_m = [37.36, -37.36, 0.0]\n",
     );

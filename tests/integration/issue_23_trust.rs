@@ -5,12 +5,10 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
-use savsim::collision::pipeline::{
-    BodySource, CollisionConfig, Mode, MovingBodies, Pipeline, Rays,
-};
 use savsim::collision::ColliderKind;
 use savsim::feed::{FeedConfig, FeedKinds};
 use savsim::geo::{Geodetic, LocalTangentPlane};
+use savsim::pipeline::{BodySource, CollisionConfig, Mode, MovingBodies, Pipeline, Rays};
 use savsim::session::Session;
 
 use crate::common::{feed, frame_v2, heartbeat, pose_messages, scene_at};

@@ -15,12 +15,12 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavMessage, MavResult, MavType, ATTITUDE_DATA, COMMAND_ACK_DATA,
     GLOBAL_POSITION_INT_DATA,
 };
-use savsim::app::live::LiveRun;
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::geo::Geodetic;
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
 use savsim::ingest::stats::SenderId;
+use savsim::live::LiveRun;
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 use tokio::net::UdpSocket;
 
@@ -542,12 +542,12 @@ fn tcpin_interrupted_while_waiting_ends_cleanly() {
         flag.store(true, Ordering::Relaxed);
     });
     let started = std::time::Instant::now();
-    let options = savsim::app::live::LiveOptions {
+    let options = savsim::live::LiveOptions {
         duration: Some(Duration::from_secs(30)),
         ..Default::default()
     };
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let run = savsim::app::live::run_links(
+    let run = savsim::live::run_links(
         runtime.handle(),
         vec![link],
         &options,

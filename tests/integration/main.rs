@@ -1,5 +1,7 @@
 //! savsim's integration tests: one binary, one module per area.
 //!
+//! - `architecture`: ARCHITECTURE.md's import rules, checked on the `crate::` paths of the
+//!   source.
 //! - `common`: helpers (paths, pymavlink availability, synthetic flights).
 //! - `geo`: geodesy against PROJ's values (tests/fixtures/geo_reference.json).
 //! - `ingest`: framing, decoding, bad input, and tlogs written by pymavlink.
@@ -60,6 +62,7 @@
 
 #![allow(clippy::disallowed_methods)]
 
+mod architecture;
 mod batch;
 mod bench;
 mod bounded_reads;

@@ -8,9 +8,9 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use savsim::app::live::{run_links, LiveOptions, LiveRun};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::signing::SigningKey;
+use savsim::live::{run_links, LiveOptions, LiveRun};
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 use crate::common::{have_pymavlink, root, runtime, udp_link};

@@ -17,9 +17,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
-use savsim::app::live::LiveRun;
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::stats::SenderId;
+use savsim::live::LiveRun;
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 const INSIDE: &str = "SAVSIM_SITL_INSIDE_NETNS";

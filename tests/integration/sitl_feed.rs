@@ -22,10 +22,10 @@ use mavlink::dialects::ardupilotmega::{
     MavCmd, MavFrame, MavMessage, MavModeFlag, MavSysStatusSensor, PositionTargetTypemask,
     SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
-use savsim::app::live::{run_links, LiveOptions, LiveRun};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::feed::{FeedConfig, FeedKinds};
 use savsim::ingest::live::Link;
+use savsim::live::{run_links, LiveOptions, LiveRun};
+use savsim::pipeline::CollisionConfig;
 use savsim::scene::Scene;
 use savsim::session::Session;
 

@@ -18,12 +18,12 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use savsim::app::live::{run_links, LiveOptions, LiveRun};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
 use savsim::ingest::signing::SigningKey;
 use savsim::ingest::supervisor::RequestState;
+use savsim::live::{run_links, LiveOptions, LiveRun};
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 use crate::common::{python, python_code, root, runtime};

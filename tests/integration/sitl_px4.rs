@@ -16,11 +16,11 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
 use savsim::ingest::stats::SenderId;
 use savsim::ingest::supervisor::RequestState;
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 use crate::common::{frame_v2, heartbeat};

@@ -28,9 +28,9 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavType,
     COMMAND_INT_DATA, MANUAL_CONTROL_DATA, PARAM_SET_DATA,
 };
-use savsim::app::live::LiveRun;
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
+use savsim::live::LiveRun;
 use savsim::scene::Scene;
 
 use crate::common::{frame_v2, heartbeat, root, runtime};

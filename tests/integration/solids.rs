@@ -9,9 +9,9 @@ use std::sync::Arc;
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
 use savsim::collision::config::Mode;
-use savsim::collision::pipeline::CollisionConfig;
 use savsim::feed::{FeedConfig, FeedKinds};
 use savsim::geo::{Geodetic, LocalTangentPlane};
+use savsim::pipeline::CollisionConfig;
 use savsim::scene::geometry::GeometrySource;
 use savsim::session::Session;
 

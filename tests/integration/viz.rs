@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use savsim::collision::pipeline::CollisionConfig;
+use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 use crate::common::{root, signal_and_wait};

@@ -11,6 +11,9 @@
 //! - [`world`]: vehicles and traffic keyed by identity, on their own clocks.
 //! - [`collision`]: the contact layer (the truth), the sensing layer (Li et al. 2019), the
 //!   exact ray fans a range sensor measures.
+//! - [`pipeline`]: the per-tick orchestrator: the collision layers in every mode but
+//!   `reference`, which it hands to [`reference`](mod@reference) (so neither imports the other
+//!   beyond the data types the reference reads).
 //!
 //! The crate depends on geometry and parsing crates only (parry3d, glam, serde, the file
 //! format readers); the build keeps tokio, mavlink, clap, arrow, parquet, plotters and rerun
@@ -20,6 +23,7 @@ pub mod bounds;
 pub mod collision;
 pub mod daa;
 pub mod geo;
+pub mod pipeline;
 pub mod reference;
 pub mod scene;
 pub mod world;

@@ -42,7 +42,7 @@ impl Mode {
     /// The mode of a name as [`Mode::name`] gives it (`adaptive` is an alias of `exact`).
     ///
     /// ```
-    /// use savsim_core::collision::pipeline::Mode;
+    /// use savsim_core::pipeline::Mode;
     /// assert_eq!(Mode::from_name("adaptive"), Some(Mode::Exact));
     /// assert_eq!(Mode::from_name("fast"), None);
     /// ```

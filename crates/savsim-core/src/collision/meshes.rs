@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use parry3d::shape::TriMesh;
 
 use crate::collision::mesh_worker::{MeshWorker, Slot};
-use crate::scene::geometry::Geometry;
+use crate::scene::geometry::{trimesh_bytes, Geometry};
 
 /// What a mesh cache built, evicted and holds.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -61,12 +61,6 @@ pub struct MeshCache {
     worker: Arc<std::sync::OnceLock<Option<MeshWorker>>>,
     /// Build prefetched meshes on the worker (default) or on the caller's thread.
     use_worker: bool,
-}
-
-/// Estimated heap bytes of a parry `TriMesh` with this many vertices and triangles: 12 B per
-/// vertex, 12 B per triangle of indices, about 2 BVH nodes of 32 B per triangle.
-pub fn trimesh_bytes(vertices: usize, triangles: usize) -> usize {
-    12 * vertices + 12 * triangles + 64 * triangles
 }
 
 /// [`trimesh_bytes`] of a geometry's mesh before it is built (a loaded mesh's vertices as

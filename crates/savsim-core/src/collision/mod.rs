@@ -7,7 +7,7 @@
 //! paper's node, rays, beta and box/mesh state) at a sensor rate. A mode swaps a stage, never
 //! adds a branch to every stage.
 //!
-//! Pure and synchronous: [`pipeline::Pipeline::step`] takes the scene and one vehicle's samples
+//! Pure and synchronous: [`crate::pipeline::Pipeline::step`] takes the scene and one vehicle's samples
 //! and pushes [`events::Event`]s. No tokio, no rerun, no files, no clap or mavlink types here.
 //!
 //! - [`config`]: the modes and every threshold.
@@ -28,7 +28,6 @@
 //!   [`swaps`]: its threat, collider swaps and residency.
 //! - [`threat`]: AHP weights and beta.
 //! - [`episodes`]: contacts and near misses into events.
-//! - [`pipeline`]: the per-tick orchestrator.
 //! - [`events`]: what is reported.
 //! - [`fan`]: exact ray fans (what a range sensor measures; the closed-loop feed).
 //! - [`approach`]: closest point of approach and NMAC between two tracks.
@@ -48,7 +47,6 @@ pub mod mesh_worker;
 pub mod meshes;
 pub mod moving;
 pub mod octree;
-pub mod pipeline;
 pub mod ray_height_field;
 pub mod sensing;
 pub mod shapes;

@@ -479,6 +479,12 @@ fn crossings_odd(vertices: &[Vec3], indices: &[[u32; 3]], p: Vec3) -> bool {
     indices.iter().filter(|t| crosses(t)).count() % 2 == 1
 }
 
+/// Estimated heap bytes of a parry `TriMesh` with this many vertices and triangles: 12 B per
+/// vertex, 12 B per triangle of indices, about 2 BVH nodes of 32 B per triangle.
+pub fn trimesh_bytes(vertices: usize, triangles: usize) -> usize {
+    12 * vertices + 12 * triangles + 64 * triangles
+}
+
 fn check_finite(points: &[Vec3]) -> Result<(), GeometryError> {
     if points.iter().all(|p| p.is_finite()) {
         Ok(())

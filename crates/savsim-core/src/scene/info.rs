@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use crate::collision::meshes::trimesh_bytes;
+use crate::scene::geometry::trimesh_bytes;
 use crate::scene::geometry::GeometrySource;
 use crate::scene::Scene;
 

@@ -1,4 +1,6 @@
-//! `savsim live` and `savsim record`: the session thread and its wiring.
+//! The live runner: a session fed by live links on its own thread, for `savsim live`,
+//! `savsim record` and every study row. It sits below `app` (the commands' wiring) and
+//! `study`, which both use it; it imports neither.
 //!
 //! The network runtime's worker runs one task per link ([`crate::ingest::live`]); this thread
 //! frames each chunk (one framer per TCP link, restarted at each connection), lets the
