@@ -5,7 +5,7 @@
 //! did hit, choosing per obstacle between a cheap box and an exact mesh collider (Li et al.
 //! 2019, see docs/ARCHITECTURE.md).
 
-pub use savsim_core::{collision, daa, geo, pipeline, world};
+pub use savsim_core::{collision, daa, geo, pipeline, sensors, world};
 
 pub mod app;
 pub mod batch;

@@ -24,6 +24,8 @@
 //!   cast, `replay --feed-out` read by pymavlink against the wire rules, two vehicles fed live.
 //! - `extremes`: numerics at the poles, the antimeridian, -400 m to 20 km, 0 to 300 m/s, rays
 //!   along faces and edges, millimetre to 10 km meshes, coplanar contact, gimbal lock.
+//! - `sensor_models`: the sensor models against their specifications (distributions,
+//!   correlation, reception, fields of regard, determinism, bad definitions).
 //! - `scenes`: the scene file format and its errors.
 //! - `collision`: golden scenarios, one per step of the algorithm.
 //! - `terrain`: SRTM and ArduPilot elevation files, real flights over them.
@@ -86,6 +88,7 @@ mod pairing;
 mod properties;
 mod results;
 mod scenes;
+mod sensor_models;
 mod shared_fixtures;
 mod signing;
 mod sitl;

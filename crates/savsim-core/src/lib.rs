@@ -26,4 +26,5 @@ pub mod geo;
 pub mod pipeline;
 pub mod reference;
 pub mod scene;
+pub mod sensors;
 pub mod world;

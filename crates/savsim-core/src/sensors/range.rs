@@ -1,0 +1,208 @@
+//! What a range device reads: its beams (directions in the device's frame), and each reading
+//! made from the true distances along them by the device's errors: invalid rays, false
+//! returns, the noise (constant, proportional, stereo), the run's bias, the correlated error,
+//! rounding, readings lost alone or in bursts, and the limits of its range.
+
+use glam::DVec3;
+
+use crate::sensors::device::RangeModel;
+use crate::sensors::draws::{mix, Draws};
+use crate::sensors::errors::{quantise, uniform_bias, MarkovState, MAX_STEPS};
+
+/// What one beam of a reading says.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BeamReading {
+    /// A return at this distance, metres.
+    Range(f64),
+    /// Nothing within the device's range.
+    Clear,
+    /// No reading: an invalid ray, a return nearer than the device reads, a lost reading.
+    NoData,
+}
+
+/// The channels a range device draws from (each its own stream).
+#[derive(Debug, Clone, Copy)]
+#[repr(u64)]
+enum Channel {
+    Invalid = 1,
+    False = 2,
+    FalseRange = 3,
+    Noise = 4,
+    Lost = 5,
+    Burst = 6,
+    Bias = 7,
+    Markov = 8,
+}
+
+/// A range device's state on one vehicle: its correlated error, its bursts, its last instant.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RangeState {
+    markov: MarkovState,
+    in_burst: bool,
+    burst_instant: Option<u64>,
+}
+
+/// A beam: the rays cast for it (one, or a single beam's centre and edge) in the device's frame
+/// (x along its boresight, y to its right, z down), unit vectors.
+pub type Beam = smallvec::SmallVec<[DVec3; 5]>;
+
+impl RangeModel {
+    /// The device's beams in its frame, across then up-down (row by row from the top): a grid
+    /// over its field of view at its steps, centred on the boresight; a field of 360 degrees
+    /// wraps without its last ray.
+    ///
+    /// ```
+    /// use savsim_core::sensors::spec::DeviceSpec;
+    /// use savsim_core::sensors::device::Model;
+    /// let spec = DeviceSpec { preset: Some("rplidar-a2".into()), ..DeviceSpec::default() };
+    /// let Model::Range(lidar) = spec.build().unwrap().model else { panic!() };
+    /// assert_eq!(lidar.beams().len(), 800); // 360 / 0.45
+    /// let spec = DeviceSpec { preset: Some("tfmini".into()), ..DeviceSpec::default() };
+    /// let Model::Range(beam) = spec.build().unwrap().model else { panic!() };
+    /// assert_eq!((beam.beams().len(), beam.beams()[0].len()), (1, 5));
+    /// ```
+    pub fn beams(&self) -> Vec<Beam> {
+        let angles = |fov: f64, step: f64| -> Vec<f64> {
+            if fov <= 0.0 || step <= 0.0 {
+                return vec![0.0];
+            }
+            if fov >= 360.0 {
+                let n = (360.0 / step).round().max(1.0) as usize;
+                return (0..n)
+                    .map(|i| -180.0 + i as f64 * 360.0 / n as f64)
+                    .collect();
+            }
+            let n = (fov / step).floor() as usize;
+            let first = -(n as f64) * step / 2.0;
+            (0..=n).map(|i| first + i as f64 * step).collect()
+        };
+        let across = angles(self.fov_deg[0], self.step_deg[0]);
+        let up_down = angles(self.fov_deg[1], self.step_deg[1]);
+        let mut out = Vec::with_capacity(across.len() * up_down.len());
+        for &el in up_down.iter().rev() {
+            for &az in &across {
+                out.push(self.beam(az, el));
+            }
+        }
+        out
+    }
+
+    /// The beam at azimuth `az_deg` (right of the boresight) and elevation `el_deg` (up).
+    fn beam(&self, az_deg: f64, el_deg: f64) -> Beam {
+        let mut beam = Beam::new();
+        beam.push(direction(az_deg, el_deg));
+        if self.beam_deg > 0.0 {
+            let h = self.beam_deg / 2.0;
+            for (da, de) in [(h, 0.0), (-h, 0.0), (0.0, h), (0.0, -h)] {
+                beam.push(direction(az_deg + da, el_deg + de));
+            }
+        }
+        beam
+    }
+
+    /// The noise's standard deviation at true distance `d_m`, metres.
+    pub fn sigma_at(&self, d_m: f64) -> f64 {
+        self.sigma_m + self.proportional * d_m + self.stereo.map_or(0.0, |s| s.sigma_m(d_m))
+    }
+
+    /// The reading at the device's instant `k` (instants `dt_s` apart from the start of the
+    /// vehicle's clock) from the true distance of each beam (`None`: nothing within range),
+    /// written to `out`. Draws are keyed by `key` (the run, vehicle and device), the channel,
+    /// the beam and `k`: the readings do not depend on when they were asked. False when the
+    /// whole reading is lost (then `out` holds `NoData`).
+    pub fn read(
+        &self,
+        state: &mut RangeState,
+        draws: &mut Draws,
+        key: u64,
+        (k, dt_s): (u64, f64),
+        truths: &[Option<f64>],
+        out: &mut [BeamReading],
+    ) -> bool {
+        let stream = |channel: Channel, beam: u64| mix(mix(key, channel as u64), beam);
+        let lost = self.lost(state, draws, key, k)
+            || (self.dropout > 0.0 && draws.uniform(stream(Channel::Lost, 0), k) < self.dropout);
+        if lost {
+            out.iter_mut().for_each(|r| *r = BeamReading::NoData);
+            return false;
+        }
+        let bias = uniform_bias(draws, stream(Channel::Bias, 0), self.bias_m);
+        let common = bias
+            + self.markov.at(
+                &mut state.markov,
+                draws,
+                stream(Channel::Markov, 0),
+                k,
+                dt_s,
+            );
+        let [near_m, far_m] = self.range_m;
+        for (j, (truth, reading)) in truths.iter().zip(out.iter_mut()).enumerate() {
+            let j = j as u64;
+            if self.invalid_ray > 0.0
+                && draws.uniform(stream(Channel::Invalid, j), k) < self.invalid_ray
+            {
+                *reading = BeamReading::NoData;
+                continue;
+            }
+            let truth = if self.false_return > 0.0
+                && draws.uniform(stream(Channel::False, j), k) < self.false_return
+            {
+                Some(near_m + (far_m - near_m) * draws.uniform(stream(Channel::FalseRange, j), k))
+            } else {
+                *truth
+            };
+            *reading = match truth {
+                None => BeamReading::Clear,
+                Some(d) if d < near_m => BeamReading::NoData,
+                Some(d) if d > far_m => BeamReading::Clear,
+                Some(d) => {
+                    let noise = self.sigma_at(d) * draws.normal(stream(Channel::Noise, j), k);
+                    let measured = quantise(d + common + noise, self.quantum_m);
+                    if measured < near_m {
+                        BeamReading::NoData
+                    } else if measured > far_m {
+                        BeamReading::Clear
+                    } else {
+                        BeamReading::Range(measured)
+                    }
+                }
+            };
+        }
+        true
+    }
+
+    /// Whether instant `k` falls in a burst of lost readings, stepping the burst channel
+    /// through every instant since the last asked (from instant 0 the first time).
+    fn lost(&self, state: &mut RangeState, draws: &mut Draws, key: u64, k: u64) -> bool {
+        let Some(burst) = self.burst else {
+            return false;
+        };
+        let stream = mix(key, Channel::Burst as u64);
+        let (mut i, mut in_burst) = match state.burst_instant {
+            Some(last) if last <= k && k - last <= MAX_STEPS => (last, state.in_burst),
+            _ => {
+                let start = k.saturating_sub(MAX_STEPS);
+                (start, draws.uniform(stream, start) < burst.enter)
+            }
+        };
+        while i < k {
+            i += 1;
+            let u = draws.uniform(stream, i);
+            in_burst = if in_burst {
+                u >= 1.0 / burst.mean_readings
+            } else {
+                u < burst.enter
+            };
+        }
+        state.in_burst = in_burst;
+        state.burst_instant = Some(k);
+        in_burst
+    }
+}
+
+/// The unit vector at azimuth `az_deg` (right) and elevation `el_deg` (up) in a forward-right-
+/// down frame.
+pub fn direction(az_deg: f64, el_deg: f64) -> DVec3 {
+    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+    DVec3::new(el.cos() * az.cos(), el.cos() * az.sin(), -el.sin())
+}
