@@ -429,6 +429,16 @@ pub struct FeedArgs {
     /// ADSB_LIST_RADIUS default; ArduPlane's is 10000).
     #[arg(long, default_value_t = 2000.0)]
     pub feed_adsb_radius_m: f64,
+    /// The vehicle's sensors the feed sends from: `ideal` (exact), or devices: presets with
+    /// settings and files of [[sensor]] tables, e.g.
+    /// `realsense-d435,tfmini-down,adsb-1090es:nacp=7` (docs/sensors.md). Default: the
+    /// scene's [[sensor]] tables if it has any, else `ideal`.
+    #[arg(long)]
+    pub sensors: Option<String>,
+    /// The seed of the sensors' errors (the same seed, the same errors at the same instants
+    /// of the vehicle's clock).
+    #[arg(long, default_value_t = 1)]
+    pub sensor_seed: u64,
 }
 
 /// `savsim demo`.

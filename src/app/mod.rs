@@ -107,6 +107,8 @@ fn start_feed(session: &mut Session, args: &FeedArgs) -> Result<Option<f64>> {
         orientations: args.feed_orientations.clone(),
         sensor_type: args.feed_sensor_type,
         adsb_radius_m: args.feed_adsb_radius_m,
+        sensors: crate::feed::sensors_for(args.sensors.as_deref(), session.scene())?,
+        sensor_seed: args.sensor_seed,
         ..Default::default()
     })?;
     Ok(Some(args.feed_hz))

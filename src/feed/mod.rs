@@ -9,12 +9,21 @@
 //! Pure and synchronous: samples in, messages out ([`FeedMessage`]); the live session sends
 //! them to the link each vehicle is on, replay writes them to a tlog.
 //!
+//! With `--sensors` other than `ideal`, what is sent is what the modelled devices measured
+//! ([`devices`]); `ideal` is the exact feed described above, bit for bit.
+//!
+//! - [`devices`]: the feed from modelled devices (their rays, rates, latencies and errors),
+//!   with `picture` (the bins they fill, and the messages made from them) and `tracks` (the
+//!   reports of other aircraft as they arrive, and what the vehicle was told).
 //! - [`sectors`]: which way each reading looks (levelled, clockwise from the nose).
 //! - [`wire`]: the MAVLink messages and their units.
 //! - [`threats`]: closest approach of the other aircraft, for COLLISION.
 
+pub mod devices;
+mod picture;
 pub mod sectors;
 pub mod threats;
+mod tracks;
 pub mod wire;
 
 use std::collections::BTreeMap;
@@ -31,6 +40,7 @@ use crate::world::clock::{self, ClockStep};
 use crate::world::report::Report;
 use crate::world::TrackSample;
 use sectors::{Levelled, BINS, SECTORS};
+pub use tracks::Told;
 use wire::Range;
 
 /// MAV_SENSOR_ORIENTATION of the upward reading.
@@ -118,6 +128,10 @@ pub struct FeedConfig {
     pub collision_vertical_m: f64,
     /// ... within this many seconds.
     pub collision_horizon_s: f64,
+    /// The vehicle's sensors: `ideal` (the exact feed) or modelled devices.
+    pub sensors: savsim_core::sensors::suite::Suite,
+    /// The seed of the devices' errors.
+    pub sensor_seed: u64,
 }
 
 impl Default for FeedConfig {
@@ -136,6 +150,8 @@ impl Default for FeedConfig {
             collision_horizontal_m: 150.0,
             collision_vertical_m: 30.0,
             collision_horizon_s: 30.0,
+            sensors: savsim_core::sensors::suite::Suite::Ideal,
+            sensor_seed: 0,
         }
     }
 }
@@ -162,6 +178,29 @@ impl FeedConfig {
             return Err(FeedError::Orientation(o));
         }
         Ok(())
+    }
+}
+
+/// The sensors a run's feed sends from: those `list` names (`ideal`, presets with settings,
+/// files of `[[sensor]]` tables, read within `crate::files`' bound), else the scene's
+/// `[[sensor]]` tables, else `ideal`.
+pub fn sensors_for(
+    list: Option<&str>,
+    scene: Option<&Scene>,
+) -> crate::error::Result<savsim_core::sensors::suite::Suite> {
+    use savsim_core::sensors::suite::Suite;
+    let usage = |e: savsim_core::sensors::suite::SuiteError| {
+        crate::error::Error::Usage(format!("--sensors: {e}"))
+    };
+    match (list, scene) {
+        (Some(list), _) => Suite::parse(list, |path| {
+            crate::files::read_text(std::path::Path::new(path), 1 << 20).map_err(|e| e.to_string())
+        })
+        .map_err(usage),
+        (None, Some(scene)) if !scene.sensors.is_empty() => {
+            Suite::from_specs(&scene.sensors).map_err(usage)
+        }
+        _ => Ok(Suite::Ideal),
     }
 }
 
@@ -230,6 +269,8 @@ struct VehicleFeed {
     last_stamp_ms: Option<u32>,
     next_adsb_ms: Option<u32>,
     counts: FeedCounts,
+    /// Its modelled devices' state (with `--sensors` other than `ideal`).
+    devices: devices::VehicleDevices,
 }
 
 /// One range reading of the last frame, for the viewer: which way it looked and what it said.
@@ -253,6 +294,8 @@ pub struct Feed {
     dirs: [DVec3; BINS],
     bins: [Option<f64>; BINS],
     readings: Vec<Reading>,
+    /// The modelled devices, unless the sensors are `ideal`.
+    devices: Option<devices::Devices>,
 }
 
 /// One feed frame's inputs: the scene, the vehicle and its sample, the moving bodies around it.
@@ -274,6 +317,14 @@ pub struct FrameInput<'a> {
 impl Feed {
     /// A feed with no vehicles yet.
     pub fn new(config: FeedConfig) -> Self {
+        let devices = match &config.sensors {
+            savsim_core::sensors::suite::Suite::Ideal => None,
+            savsim_core::sensors::suite::Suite::Devices(d) => Some(devices::Devices::new(
+                d.clone(),
+                config.sensor_seed,
+                config.kinds.adsb,
+            )),
+        };
         Self {
             config,
             adsb_echoes: 0,
@@ -281,7 +332,16 @@ impl Feed {
             dirs: [DVec3::ZERO; BINS],
             bins: [None; BINS],
             readings: Vec::new(),
+            devices,
         }
+    }
+
+    /// What each vehicle was told of each aircraft by its modelled devices (empty with
+    /// `ideal` sensors): the aircraft by its ICAO address.
+    pub fn told(&self) -> impl Iterator<Item = (SenderId, u64, Told)> + '_ {
+        self.vehicles
+            .iter()
+            .flat_map(|(id, v)| v.devices.told.iter().map(move |(k, t)| (*id, *k, *t)))
     }
 
     /// True (and counted) for an ADS-B report of an aircraft this feed sends as ADS-B: the
@@ -320,6 +380,7 @@ impl Feed {
             v.last_stamp_ms = None;
             v.next_adsb_ms = None;
             v.counts.restarts += 1;
+            devices::Devices::restart(&mut v.devices);
         }
         let early_ms = period_ms / 4;
         match v.next_due_ms {
@@ -372,6 +433,10 @@ impl Feed {
         out: &mut Vec<FeedMessage>,
     ) {
         self.readings.clear();
+        if self.devices.is_some() && self.config.kinds.any() {
+            self.on_sample_devices(pipeline, input, out);
+            return;
+        }
         if !self.config.kinds.any() || !self.due(input.sender, input.current.time_boot_ms) {
             return;
         }
@@ -391,6 +456,50 @@ impl Feed {
             self.adsb(&mut frame);
         }
         if kinds.collision {
+            self.collisions(&mut frame);
+        }
+        let made = (frame.out.len() - first) as u64;
+        self.vehicles
+            .entry(input.sender)
+            .or_default()
+            .counts
+            .messages += made;
+    }
+
+    /// [`Feed::on_sample`] with modelled devices: they read at every sample whose instant
+    /// came (and send the reports that arrived); the range picture goes out at the feed's
+    /// pace.
+    fn on_sample_devices(
+        &mut self,
+        pipeline: &mut Pipeline,
+        input: &FrameInput<'_>,
+        out: &mut Vec<FeedMessage>,
+    ) {
+        let time_boot_ms = input.current.time_boot_ms;
+        let due = self.due(input.sender, time_boot_ms);
+        let first = out.len();
+        let stamp = if due {
+            self.stamp(input.sender, time_boot_ms)
+        } else {
+            time_boot_ms
+        };
+        let mut frame = Frame {
+            input,
+            stamp,
+            up_enu: input.plane.up_at(&input.current.position),
+            out,
+        };
+        let Some(devices) = self.devices.as_mut() else {
+            return;
+        };
+        let v = self.vehicles.entry(input.sender).or_default();
+        let picture = devices.on_sample(&mut v.devices, pipeline, &mut frame);
+        let kinds = self.config.kinds;
+        if due && (kinds.needs_bins() || kinds.rangefinder) {
+            picture::send_picture(&picture, devices.range, &self.config, &mut frame);
+            self.readings.extend(picture::readings_of(&picture, &frame));
+        }
+        if due && kinds.collision {
             self.collisions(&mut frame);
         }
         let made = (frame.out.len() - first) as u64;
@@ -608,6 +717,19 @@ const VEHICLE_ICAO: u32 = 0xF1_0000;
 /// Whether `icao` is one the feed gives an aircraft.
 fn is_feed_icao(icao: u32) -> bool {
     matches!(icao & 0xFF_0000, TRACK_ICAO | VEHICLE_ICAO)
+}
+
+/// Whether a moving body carries a transponder: a scene track as its `[[dynamic]]` says
+/// (default yes), every MAVLink vehicle.
+fn has_transponder(input: &FrameInput<'_>, body: &DynamicBody) -> bool {
+    match body.key.source {
+        BodySource::Scripted(i) => input
+            .scene
+            .dynamic
+            .get(i as usize)
+            .is_none_or(|d| d.transponder),
+        _ => true,
+    }
 }
 
 /// The aircraft a vehicle is told about: the scene's scripted tracks and declared vehicles, and

@@ -108,6 +108,36 @@ pub fn obstacle_distance(
     })
 }
 
+/// OBSTACLE_DISTANCE from modelled devices' bins: a return in centimetres, clear as max + 1,
+/// no data as UINT16_MAX ("unknown"); otherwise as [`obstacle_distance`].
+pub fn obstacle_distance_cells(
+    time_boot_ms: u32,
+    range: Range,
+    bins: &[savsim_core::sensors::range::BeamReading; BINS],
+    sensor_type: u8,
+) -> MavMessage {
+    use savsim_core::sensors::range::BeamReading;
+    let mut distances = [0u16; BINS];
+    for (out, cell) in distances.iter_mut().zip(bins) {
+        *out = match cell {
+            BeamReading::Range(d) => range.reading_cm(Some(*d)),
+            BeamReading::Clear => range.reading_cm(None),
+            BeamReading::NoData => u16::MAX,
+        };
+    }
+    MavMessage::OBSTACLE_DISTANCE(OBSTACLE_DISTANCE_DATA {
+        time_usec: u64::from(time_boot_ms) * 1000,
+        distances,
+        sensor_type: MavDistanceSensor::from_u8(sensor_type).unwrap_or_default(),
+        max_distance: range.max_cm(),
+        min_distance: range.min_cm(),
+        increment: BIN_DEG as u8,
+        increment_f: BIN_DEG as f32,
+        angle_offset: BIN0_DEG as f32,
+        frame: MavFrame::MAV_FRAME_BODY_FRD,
+    })
+}
+
 /// An aircraft for ADSB_VEHICLE.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Aircraft<'a> {

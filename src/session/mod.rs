@@ -187,6 +187,11 @@ impl Session {
         &self.world
     }
 
+    /// The scene, when collisions are checked.
+    pub fn scene(&self) -> Option<&Scene> {
+        self.scene.as_deref()
+    }
+
     /// The collision pipeline, when collisions are checked.
     pub fn pipeline(&self) -> Option<&Pipeline> {
         self.pipeline.as_ref()

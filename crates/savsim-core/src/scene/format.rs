@@ -85,13 +85,14 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
     for key in root.keys() {
         if ![
             "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain", "city", "osm",
+            "sensor",
         ]
         .contains(&key.as_str())
         {
             return Err(fail(
                 None,
                 Some(key.clone()),
-                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city, osm)"
+                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city, osm, sensor)"
                     .into(),
             ));
         }
@@ -156,6 +157,7 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
     }
 
     let dynamic = sections::dynamic(&mut b, &array("dynamic")?, &threats, &kind_models, &mut ids)?;
+    let sensors = sections::sensors(&b, &array("sensor")?)?;
 
     Ok(Scene {
         name: name.to_owned(),
@@ -167,5 +169,6 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
         vehicle_models,
         kind_models,
         osm,
+        sensors,
     })
 }

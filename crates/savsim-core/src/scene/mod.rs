@@ -373,6 +373,9 @@ pub struct DynamicObstacle {
     pub geometry_index: usize,
     /// Where its motion comes from.
     pub source: DynamicSource,
+    /// Whether it carries a transponder (ADS-B out): ADS-B devices report it; without one,
+    /// only radar and EO/IR see it. Default true.
+    pub transponder: bool,
 }
 
 /// A loaded scene.
@@ -396,6 +399,9 @@ pub struct Scene {
     pub kind_models: Vec<(Kind, usize)>,
     /// What each `[[osm]]` file gave.
     pub osm: Vec<OsmStats>,
+    /// The vehicles' sensors the scene defines (`[[sensor]]`), each checked; empty when it
+    /// defines none (the run's `--sensors` decides).
+    pub sensors: Vec<crate::sensors::spec::DeviceSpec>,
 }
 
 /// What one `[[osm]]` file gave: its buildings and where their heights came from.
@@ -455,7 +461,8 @@ impl Scene {
     }
 
     /// Add a scripted track of `kind` (the kind's model; linear between `waypoints`, held at
-    /// the ends), e.g. a study row's intruder. False, and nothing added, when `id` is taken.
+    /// the ends), e.g. a study row's intruder, with a transponder. False, and nothing added,
+    /// when `id` is taken.
     pub fn push_track(&mut self, id: &str, kind: Kind, waypoints: Vec<Waypoint>) -> bool {
         if self.dynamic.iter().any(|d| &*d.id == id) {
             return false;
@@ -468,6 +475,7 @@ impl Scene {
             geometry: self.geometries[geometry_index].clone(),
             geometry_index,
             source: DynamicSource::Waypoints(waypoints),
+            transponder: true,
         });
         true
     }

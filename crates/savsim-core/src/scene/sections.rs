@@ -514,6 +514,7 @@ pub(crate) fn dynamic(
             geometry: b.geometries[geometry_index].clone(),
             geometry_index,
             source,
+            transponder: spec.transponder.unwrap_or(true),
         });
     }
     Ok(dynamic)
@@ -538,4 +539,25 @@ fn terrain_patches(
             Geometry::terrain(patch).ok().map(|g| (g, x0, y0))
         })
     })
+}
+
+/// `[[sensor]]`: devices of the vehicles, each checked now (its error names the item and the
+/// field); the run decides whether they are used.
+pub(crate) fn sensors(
+    b: &Builder<'_>,
+    items: &[toml::Value],
+) -> Result<Vec<crate::sensors::spec::DeviceSpec>, SceneError> {
+    let mut out = Vec::new();
+    for (i, value) in items.iter().enumerate() {
+        let item = item_name("sensor", value, i);
+        let spec: crate::sensors::spec::DeviceSpec = parse_item(b, value, &item)?;
+        spec.build()
+            .map_err(|e| b.err(Some(item.clone()), Some(e.field), e.why))?;
+        out.push(spec);
+    }
+    if !out.is_empty() {
+        crate::sensors::suite::Suite::from_specs(&out)
+            .map_err(|e| b.err(Some("[[sensor]]".into()), None, e.to_string()))?;
+    }
+    Ok(out)
 }

@@ -73,6 +73,7 @@ pub(crate) struct DynamicSpec {
     pub(crate) system_id: Option<u8>,
     pub(crate) icao: Option<u32>,
     pub(crate) threat: Option<f64>,
+    pub(crate) transponder: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
