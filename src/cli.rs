@@ -178,6 +178,11 @@ pub enum StudyCommand {
         /// speed changes) instead of a straight line; misses drawn wider (docs/study.md).
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Fly each pair's mitigated row once per sensor set (repeat the flag; each a
+        /// `--sensors` list, e.g. `--sensors ideal --sensors adsb-1090es:nacp=7`): variants
+        /// `mitigated/SET`, each against the same `nominal` row (docs/sensors.md).
+        #[arg(long)]
+        sensors: Vec<String>,
         /// Where the manifest and its scenes go (created).
         #[arg(long)]
         out: PathBuf,

@@ -29,6 +29,28 @@ pub struct Told {
     pub reports_received: u64,
 }
 
+impl Told {
+    /// Two aircraft's (or vehicles') together: the earlier detection, the closer approach, the
+    /// reports summed.
+    pub fn and(&self, other: &Told) -> Told {
+        let earlier = match (self.first_detection_s, other.first_detection_s) {
+            (Some(a), Some(b)) if b < a => other,
+            (Some(_), _) | (None, None) => self,
+            (None, Some(_)) => other,
+        };
+        Told {
+            first_detection_s: earlier.first_detection_s,
+            first_detection_range_m: earlier.first_detection_range_m,
+            sensed_closest_m: match (self.sensed_closest_m, other.sensed_closest_m) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            },
+            reports_lost: self.reports_lost + other.reports_lost,
+            reports_received: self.reports_received + other.reports_received,
+        }
+    }
+}
+
 /// Whether a target `range_m` away is within a surveillance device's reach (for counting lost
 /// reports).
 pub(super) fn in_range(device: &Device, range_m: f64) -> bool {

@@ -710,6 +710,14 @@ impl Session {
                 "kinds": f.config.kinds,
                 "hz": f.config.hz,
                 "adsb_echoes": f.adsb_echoes,
+                "sensors": f.config.sensors,
+                "sensor_seed": f.config.sensor_seed,
+                "told": f.told().map(|(id, icao, t)| json!({
+                    "sysid": id.system_id,
+                    "compid": id.component_id,
+                    "icao": icao,
+                    "told": t,
+                })).collect::<Vec<_>>(),
                 "vehicles": f.counts().map(|(id, c)| json!({
                     "sysid": id.system_id,
                     "compid": id.component_id,

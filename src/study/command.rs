@@ -30,8 +30,16 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
             n,
             seed,
             model,
+            sensors,
             out,
-        }) => gen(*kind, autopilot, *n, *seed, model.as_deref(), out),
+        }) => gen(
+            *kind,
+            autopilot,
+            (*n, *seed),
+            model.as_deref(),
+            sensors,
+            out,
+        ),
         None => study(args, shutdown),
     }
 }
@@ -271,11 +279,14 @@ fn report(results: &[StudyResult], path: &Path) -> String {
 fn gen(
     kind: StudyGenKind,
     autopilot: &str,
-    n: usize,
-    seed: u64,
+    (n, seed): (usize, u64),
     model: Option<&Path>,
+    sensors: &[String],
     out: &Path,
 ) -> Result<()> {
+    for set in sensors {
+        crate::feed::sensors_for(Some(set), None)?;
+    }
     if n == 0 || n > 1_000_000 {
         return Err(Error::Usage(format!("--n {n}: give 1 to 1000000")));
     }
@@ -321,6 +332,7 @@ fn gen(
         .flatten()
         .collect(),
     };
+    let rows = crate::study::gen::per_sensor_set(rows, sensors);
     let path = out.join("study.csv");
     let file = std::fs::File::create(&path).map_err(|e| Error::file(&path, e))?;
     manifest::write_csv(&rows, std::io::BufWriter::new(file))

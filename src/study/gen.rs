@@ -272,3 +272,38 @@ fn approach(k: usize, seed: u64, px4: bool, rng: &mut ChaCha8Rng) -> Approach {
         },
     }
 }
+
+/// Each `mitigated` row flown once per sensor set (`--sensors` lists): variant
+/// `mitigated/SET`, id `ID/SET`, `sensors` the set; `nominal` rows once, as they are. No sets:
+/// the rows as they are.
+///
+/// ```
+/// let pairs = savsim::study::gen::encounters(1, 5);
+/// let rows = pairs.into_iter().flatten().collect();
+/// let sets = ["ideal".to_string(), "adsb-1090es:nacp=7".to_string()];
+/// let rows = savsim::study::gen::per_sensor_set(rows, &sets);
+/// let variants: Vec<_> = rows.iter().map(|r| r.variant.clone().unwrap()).collect();
+/// assert_eq!(variants, ["nominal", "mitigated/ideal", "mitigated/adsb-1090es:nacp=7"]);
+/// assert_eq!(rows[2].sensors.as_deref(), Some("adsb-1090es:nacp=7"));
+/// ```
+pub fn per_sensor_set(rows: Vec<StudyRow>, sets: &[String]) -> Vec<StudyRow> {
+    if sets.is_empty() {
+        return rows;
+    }
+    let mut out = Vec::with_capacity(rows.len() * sets.len());
+    for row in rows {
+        if row.variant.as_deref() != Some("mitigated") {
+            out.push(row);
+            continue;
+        }
+        for set in sets {
+            out.push(StudyRow {
+                id: row.id.as_ref().map(|id| format!("{id}/{set}")),
+                variant: Some(format!("mitigated/{set}")),
+                sensors: Some(set.clone()),
+                ..row.clone()
+            });
+        }
+    }
+    out
+}

@@ -34,6 +34,11 @@ pub struct StudyRow {
     pub params: Option<String>,
     /// The feed, as `--feed` (`proximity`, `obstacle-distance`, `adsb`...); none by default.
     pub feed: Option<String>,
+    /// The vehicle's sensors the feed sends from, as `--sensors` (`ideal` by default, or the
+    /// scene's `[[sensor]]` tables).
+    pub sensors: Option<String>,
+    /// The seed of the sensors' errors (default: `seed`, else 1).
+    pub sensor_seed: Option<u64>,
     /// The flight plan (`study::plan`).
     pub plan: Option<String>,
     /// An intruder's track, waypoints `"t_s e_m n_m u_m; ..."` in the scene's ENU frame, `t_s`

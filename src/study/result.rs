@@ -106,6 +106,9 @@ pub struct StudyResult {
     pub autopilot_did: AutopilotDid,
     /// Feed frames sent to the vehicle.
     pub feed_frames: u64,
+    /// What the vehicle was told of other aircraft by its modelled sensors (all of them
+    /// together; none with `ideal` sensors).
+    pub told: crate::feed::Told,
     /// The position's datagram received -> its feed frame handed to the link, wall
     /// microseconds: 99th percentile and largest (measured). At speedup S a wall microsecond is
     /// S microseconds of the vehicle's clock: how stale its sensors were.
@@ -138,6 +141,7 @@ impl StudyResult {
             legs_completed: 0,
             plan_completed: false,
             autopilot_did: AutopilotDid::default(),
+            told: crate::feed::Told::default(),
             feed_frames: 0,
             feed_latency_p99_us: None,
             feed_latency_max_us: None,

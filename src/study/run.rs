@@ -235,9 +235,16 @@ pub fn run_row(index: usize, row: &StudyRow, instance: u16, setup: &Setup) -> St
     result
 }
 
-/// The session for a row: its scene, on the vehicle's clock, small-UAS well clear, its feed.
-fn session_for(scene: Arc<Scene>, feed: Option<FeedKinds>) -> Result<Session, RowError> {
+/// The session for a row: its scene, on the vehicle's clock, small-UAS well clear, its feed
+/// from its sensors.
+fn session_for(
+    row: &StudyRow,
+    scene: Arc<Scene>,
+    feed: Option<FeedKinds>,
+) -> Result<Session, RowError> {
     let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
+    let sensors = crate::feed::sensors_for(row.sensors.as_deref(), Some(&scene))
+        .map_err(|e| input("sensors", e.to_string()))?;
     let mut session =
         Session::new(Some(scene), CollisionConfig::default(), None).map_err(savsim)?;
     session.use_vehicle_clock();
@@ -247,6 +254,8 @@ fn session_for(scene: Arc<Scene>, feed: Option<FeedKinds>) -> Result<Session, Ro
             .start_feed(FeedConfig {
                 kinds,
                 hz: FEED_HZ,
+                sensors,
+                sensor_seed: row.sensor_seed.or(row.seed).unwrap_or(1),
                 ..FeedConfig::default()
             })
             .map_err(savsim)?;
@@ -285,7 +294,7 @@ fn fly_row(
     let checked = check(row, setup.speedup)?;
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
-    let session = session_for(scene.clone(), checked.feed)?;
+    let session = session_for(row, scene.clone(), checked.feed)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -559,6 +568,11 @@ fn record(
     result.feed_frames = session
         .feed()
         .map_or(0, |f| f.counts().map(|(_, c)| c.frames).sum());
+    if let Some(feed) = session.feed() {
+        result.told = feed
+            .told()
+            .fold(crate::feed::Told::default(), |all, (_, _, t)| all.and(&t));
+    }
     result.armed_t_s = flown.armed_t_s;
     result.legs_completed = flown.legs_completed as u64;
     result.plan_completed = flown.legs_completed == legs;

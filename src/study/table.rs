@@ -58,6 +58,8 @@ fn input_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("pair", text(|r| r.inputs.pair.as_ref())),
         ("params", text(|r| r.inputs.params.as_ref())),
         ("feed", text(|r| r.inputs.feed.as_ref())),
+        ("sensors", text(|r| r.inputs.sensors.as_ref())),
+        ("sensor_seed", counts(rows, |r| r.inputs.sensor_seed)),
         ("plan", text(|r| r.inputs.plan.as_ref())),
         ("intruder", text(|r| r.inputs.intruder.as_ref())),
         ("intruder_kind", text(|r| r.inputs.intruder_kind.as_ref())),
@@ -129,6 +131,23 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             strings(rows, |r| r.autopilot_did.version.clone()),
         ),
         ("feed_frames", counts(rows, |r| Some(r.feed_frames))),
+        (
+            "first_detection_s",
+            floats(rows, |r| r.told.first_detection_s),
+        ),
+        (
+            "first_detection_range_m",
+            floats(rows, |r| r.told.first_detection_range_m),
+        ),
+        (
+            "sensed_closest_m",
+            floats(rows, |r| r.told.sensed_closest_m),
+        ),
+        ("reports_lost", counts(rows, |r| Some(r.told.reports_lost))),
+        (
+            "reports_received",
+            counts(rows, |r| Some(r.told.reports_received)),
+        ),
         (
             "feed_latency_p99_us",
             counts(rows, |r| r.feed_latency_p99_us),
