@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""Write savsim's own DAIDALUS state files (tests/fixtures/daa/*.daa): encounters for running
-savsim daa and DAIDALUS's DaidalusAlerting side by side (docs/daa.md). Deterministic.
+"""Write savsim's own DAIDALUS state files (tests/fixtures/daa/*.daa, and with the state
+uncertainty columns of sensor uncertainty mitigation, tests/fixtures/daa/sum/*.daa): encounters
+for running savsim daa and DAIDALUS's DaidalusAlerting side by side (docs/daa.md).
+Deterministic.
 
     python3 scripts/gen_daa_scenarios.py tests/fixtures/daa
 """
@@ -76,6 +78,31 @@ def write_polar(path, aircraft, duration_s):
                         f"{math.hypot(v[0], v[1]):.6f}, {v[2]:.6f}, {t:.1f}\n")
 
 
+# 1-sigma state errors (s_EW, s_NS, s_EN, sz in m; v_EW, v_NS, v_EN, vz in m/s): NACp 8 and
+# NACv 2 (DO-365 Appendix Q's ownship), an intruder seen by ADS-B at NACp 7 with a correlated
+# east-north error, and one with none.
+SIGMA = {
+    "own": (37.8, 37.8, 0.0, 4.5, 1.22, 1.22, 0.0, 0.3),
+    "adsb": (75.6, 60.0, -30.0, 7.6, 1.5, 1.0, 0.5, 0.87),
+    "exact": (0.0,) * 8,
+}
+
+
+def write_sum(path, aircraft, sigmas, duration_s):
+    """A Euclidean file with the uncertainty columns, in metres and m/s (the ownship first)."""
+    with open(path, "w") as f:
+        f.write("NAME, sx, sy, sz, vx, vy, vz, time, s_EW_std, s_NS_std, s_EN_std, sz_std, "
+                "v_EW_std, v_NS_std, v_EN_std, vz_std\n")
+        f.write("unitless, [m], [m], [m], [m/s], [m/s], [m/s], [s], [m], [m], [m], [m], "
+                "[m/s], [m/s], [m/s], [m/s]\n")
+        for t in range(duration_s + 1):
+            for (name, track), sigma in zip(aircraft, sigmas):
+                (e, n, u), v = track(t)
+                stds = ", ".join(f"{x:.4f}" for x in SIGMA[sigma])
+                f.write(f"{name}, {e:.4f}, {n:.4f}, {u:.4f}, {v[0]:.6f}, {v[1]:.6f}, "
+                        f"{v[2]:.6f}, {t:.1f}, {stds}\n")
+
+
 def main(out):
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -105,6 +132,25 @@ def main(out):
         ("Left", straight([-3000, 2000, 110], [25, 5, 0])),
         ("Right", straight([2800, 3200, 90], [-20, 0, 0.5])),
     ], 180)
+    # The same kinds of encounter with state errors (DAIDALUS's SUM alerters).
+    (out / "sum").mkdir(exist_ok=True)
+    write_sum(out / "sum" / "sum_head_on.daa", [
+        ("Own", straight([0, -4000, 120], [0, 30, 0])),
+        ("Intruder", straight([150, 4000, 160], [0, -30, 0])),
+    ], ["own", "adsb"], 170)
+    write_sum(out / "sum" / "sum_crossing.daa", [
+        ("Own", straight([0, -3000, 122], [0, 30, 0])),
+        ("Intruder", straight([2600, 40, 135], [-25, 0, -0.5])),
+    ], ["own", "adsb"], 160)
+    write_sum(out / "sum" / "sum_near_miss_exact_intruder.daa", [
+        ("Own", straight([0, 0, 150], [0, 20, 0.5])),
+        ("Intruder", straight([400, 2600, 140], [-4, -20, 0])),
+    ], ["own", "exact"], 170)
+    write_sum(out / "sum" / "sum_three_aircraft.daa", [
+        ("Own", straight([0, 0, 100], [0, 25, 0])),
+        ("Left", straight([-3000, 2000, 110], [25, 5, 0])),
+        ("Right", straight([2800, 3200, 90], [-20, 0, 0.5])),
+    ], ["own", "adsb", "exact"], 180)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 //!
 //! - `architecture`: ARCHITECTURE.md's import rules, checked on the `crate::` paths of the
 //!   source.
+//! - `daa_sum`: DAIDALUS's sensor uncertainty mitigation in `savsim daa` (H1_SUM's levels;
+//!   parity with DaidalusAlerting with `SAVSIM_DAIDALUS`).
 //! - `common`: helpers (paths, pymavlink availability, synthetic flights).
 //! - `geo`: geodesy against PROJ's values (tests/fixtures/geo_reference.json).
 //! - `ingest`: framing, decoding, bad input, and tlogs written by pymavlink.
@@ -73,6 +75,7 @@ mod cities;
 mod cli;
 mod collision;
 mod common;
+mod daa_sum;
 mod extremes;
 mod faults;
 mod feed;

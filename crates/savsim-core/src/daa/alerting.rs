@@ -6,6 +6,7 @@
 //!
 //! Pure: an [`Alerter`] and [`Filter`] per intruder, stepped in time order.
 
+use crate::daa::sum::{self, Errors};
 use crate::daa::well_clear::{Relative, Volume};
 
 /// One alert level of an alerter.
@@ -19,6 +20,8 @@ pub struct Level {
     pub early_alerting_time_s: f64,
     /// The guidance region of the level (`NONE`, `FAR`, `MID`, `NEAR`...), as configured.
     pub region: String,
+    /// Its detector mitigates sensor uncertainty (DAIDALUS's `WCV_TAUMOD_SUM`).
+    pub sum: bool,
 }
 
 /// An alerter: its name and its levels, least severe first (level 1 is `levels[0]`).
@@ -41,6 +44,28 @@ pub struct Conflict {
 }
 
 impl Conflict {
+    /// The violation of `level`'s volume by `rel` within `[0, lookahead_s]`: under the
+    /// relative state `errors` when the level mitigates uncertainty and they are not all 0
+    /// (DAIDALUS's SUM interval), else nominal.
+    pub fn of_level(level: &Level, rel: &Relative, errors: &Errors, lookahead_s: f64) -> Self {
+        let uncertain = if level.sum {
+            sum::interval(&level.volume, rel.s_m, rel.v_mps, *errors, 0.0, lookahead_s)
+        } else {
+            None
+        };
+        match uncertain {
+            Some(loss) if loss.conflict() => Conflict {
+                time_in_s: loss.t_in,
+                time_out_s: loss.t_out,
+            },
+            Some(_) => Conflict {
+                time_in_s: lookahead_s,
+                time_out_s: 0.0,
+            },
+            None => Conflict::of(&level.volume, rel, lookahead_s),
+        }
+    }
+
     /// The violation of `volume` by `rel` within `[0, lookahead_s]`.
     pub fn of(volume: &Volume, rel: &Relative, lookahead_s: f64) -> Self {
         match volume.interval(rel, 0.0, lookahead_s) {
@@ -77,6 +102,18 @@ impl Alerter {
     /// its alerting time, or its early alerting time when `previous` (the filtered level of the
     /// previous step, at an earlier time) is that level; 0 for none.
     pub fn raw_level(&self, rel: &Relative, lookahead_s: f64, previous: Option<i32>) -> i32 {
+        self.raw_level_with(rel, &Errors::default(), lookahead_s, previous)
+    }
+
+    /// [`Alerter::raw_level`] with the relative state's `errors`: levels that mitigate
+    /// uncertainty test their volume under them.
+    pub fn raw_level_with(
+        &self,
+        rel: &Relative,
+        errors: &Errors,
+        lookahead_s: f64,
+        previous: Option<i32>,
+    ) -> i32 {
         for (k, level) in self.levels.iter().enumerate().rev() {
             let number = k as i32 + 1;
             let within = if previous == Some(number) {
@@ -84,7 +121,7 @@ impl Alerter {
             } else {
                 level.alerting_time_s
             };
-            if Conflict::of(&level.volume, rel, lookahead_s).before(within) {
+            if Conflict::of_level(level, rel, errors, lookahead_s).before(within) {
                 return number;
             }
         }

@@ -159,13 +159,18 @@ fn row(
     let alerter = &config.alerters[alerter_index];
     let rel = relative(own, intruder);
     let lookahead = config.lookahead_s;
-    let raw = alerter.raw_level(&rel, lookahead, filter.previous(time_s));
+    let errors = config.z_scores.errors(
+        &own.uncertainty,
+        &intruder.uncertainty,
+        rel.s_m.truncate().length(),
+    );
+    let raw = alerter.raw_level_with(&rel, &errors, lookahead, filter.previous(time_s));
     let level = filter.step(raw, time_s);
     let time_to_volume_s = alerter
         .levels
         .iter()
         .map(|l| {
-            let c = Conflict::of(&l.volume, &rel, lookahead);
+            let c = Conflict::of_level(l, &rel, &errors, lookahead);
             if c.lasts() {
                 c.time_in_s
             } else {

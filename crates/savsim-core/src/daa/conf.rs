@@ -3,9 +3,11 @@
 //! `persistence_time`, `alerting_m`, `alerting_n`) and every alerter named in `alerters`, with
 //! its levels (`<A>_alert_<k>_region`, `_alerting_time`, `_early_alerting_time`, `_detector`)
 //! and their detectors (`<A>_<det>_WCV_DTHR`, `_ZTHR`, `_TTHR`, `_TCOA`, with
-//! `<A>_load_core_detection_<det>` naming `WCV_TAUMOD`). Other keys (bands, recovery,
-//! uncertainty) are read and left: they do not change alert levels with the detectors savsim
-//! supports. A detector of another kind is an error that names it.
+//! `<A>_load_core_detection_<det>` naming `WCV_TAUMOD`, or `WCV_TAUMOD_SUM` for sensor
+//! uncertainty mitigation with the global z-scores `h_pos_z_score`, `h_vel_z_score_min`,
+//! `h_vel_z_score_max`, `h_vel_z_distance`, `v_pos_z_score`, `v_vel_z_score`). Other keys
+//! (bands, recovery) are read and left: they do not change alert levels. A detector of another
+//! kind, and a per-detector z-score (which savsim does not read), are errors that name them.
 
 use std::collections::HashMap;
 
@@ -28,6 +30,9 @@ pub struct Config {
     pub alerting_n: usize,
     /// The alerters, in the order `alerters` names them (alerter 1 first).
     pub alerters: Vec<Alerter>,
+    /// The z-scores of sensor uncertainty mitigation (levels whose detector is
+    /// `WCV_TAUMOD_SUM`).
+    pub z_scores: crate::daa::sum::ZScores,
     /// Whether an intruder's alerter is the ownship's (`ownship_centric_alerting`), not its own.
     pub ownship_centric: bool,
     /// The region from which a level is corrective (`corrective_region`; `MID` by default).
@@ -92,7 +97,9 @@ pub enum ConfError {
         why: &'static str,
     },
     /// A detector savsim does not implement.
-    #[error("alerter {alerter}: detector {detector} is {class}; savsim supports WCV_TAUMOD")]
+    #[error(
+        "alerter {alerter}: detector {detector} is {class}; savsim supports WCV_TAUMOD and WCV_TAUMOD_SUM"
+    )]
     Detector {
         /// The alerter.
         alerter: String,
@@ -144,6 +151,23 @@ impl Config {
             }
             Ok(x as usize)
         };
+        const GLOBAL_Z: [&str; 6] = [
+            "h_pos_z_score",
+            "h_vel_z_score_min",
+            "h_vel_z_score_max",
+            "h_vel_z_distance",
+            "v_pos_z_score",
+            "v_vel_z_score",
+        ];
+        if let Some(key) = keys.keys().find(|k| {
+            (k.contains("z_score") || k.ends_with("h_vel_z_distance"))
+                && !GLOBAL_Z.contains(&k.as_str())
+        }) {
+            return Err(ConfError::Unsupported {
+                key: key.clone(),
+                why: "savsim reads the global z-scores only, not a detector's own",
+            });
+        }
         if keys
             .get("dta_logic")
             .is_some_and(|v| value_si(v, "unitless") != Some(0.0))
@@ -169,6 +193,14 @@ impl Config {
             alerting_m: count("alerting_m")?,
             alerting_n: count("alerting_n")?,
             alerters,
+            z_scores: crate::daa::sum::ZScores {
+                h_pos: number("h_pos_z_score", "unitless", 0.0)?,
+                h_vel_min: number("h_vel_z_score_min", "unitless", 0.0)?,
+                h_vel_max: number("h_vel_z_score_max", "unitless", 0.0)?,
+                h_vel_distance_m: number("h_vel_z_distance", "m", 0.0)?,
+                v_pos: number("v_pos_z_score", "unitless", 0.0)?,
+                v_vel: number("v_vel_z_score", "unitless", 0.0)?,
+            },
             ownship_centric: keys
                 .get("ownship_centric_alerting")
                 .is_some_and(|v| v.eq_ignore_ascii_case("true")),
@@ -267,13 +299,17 @@ fn alerter(keys: &HashMap<String, String>, name: &str) -> Result<Alerter, ConfEr
             }
         }
         let class = get(format!("{name}_load_core_detection_{detector}"))?;
-        if class.rsplit('.').next() != Some("WCV_TAUMOD") {
-            return Err(ConfError::Detector {
-                alerter: name.into(),
-                detector: detector.clone(),
-                class,
-            });
-        }
+        let sum = match class.rsplit('.').next() {
+            Some("WCV_TAUMOD") => false,
+            Some("WCV_TAUMOD_SUM") => true,
+            _ => {
+                return Err(ConfError::Detector {
+                    alerter: name.into(),
+                    detector: detector.clone(),
+                    class,
+                })
+            }
+        };
         let metres = |what: &str| -> Result<f64, ConfError> {
             let key = format!("{name}_{detector}_WCV_{what}");
             let v = get(key.clone())?;
@@ -302,6 +338,7 @@ fn alerter(keys: &HashMap<String, String>, name: &str) -> Result<Alerter, ConfEr
                 .get(&format!("{name}_alert_{k}_region"))
                 .cloned()
                 .unwrap_or_else(|| "NONE".into()),
+            sum,
         });
     }
     if levels.is_empty() {

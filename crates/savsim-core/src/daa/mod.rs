@@ -6,6 +6,7 @@
 //! - [`alerting`]: alert levels, and their filtering (M of N, hysteresis, persistence).
 //! - [`conf`], [`scenario`], [`units`]: DAIDALUS's configuration and state files.
 //! - [`projection`]: geodetic states made Euclidean as DAIDALUS does.
+//! - [`sum`]: sensor uncertainty mitigation: the violation interval under state errors.
 //! - [`alerting_run`]: a state file's alerting, row by row, as `DaidalusAlerting` reports it.
 //! - [`episodes`]: losses of well clear over a flight, for events, summaries and batch rows.
 //! - [`encounter_model`]: MIT LL's encounter models read and sampled into tracks.
@@ -23,5 +24,6 @@ pub mod pairing_ini;
 pub mod projection;
 pub mod ratios;
 pub mod scenario;
+pub mod sum;
 pub mod units;
 pub mod well_clear;

@@ -6,9 +6,11 @@
 //! nmi, nmi, ft; `east` and `north` are read as `sx` and `sy`, as MIT LL's encounter tools
 //! write their trajectory files); the velocity, Cartesian (`vx`, `vy`, `vz`: east, north, up; knot, knot, fpm)
 //! or polar (`trk`, `gs`, `vs`; deg from north, knot, fpm); the time (`time`, `clock`, `tm`,
-//! `st`; s, or `hh:mm:ss`); optionally `alerter` (the alerter's number or name). A units line
-//! (`[deg]`, `[ft]`, `unitless`...) overrides the defaults column by column. Other columns
-//! (uncertainty, for example) are kept nowhere.
+//! `st`; s, or `hh:mm:ss`); optionally `alerter` (the alerter's number or name), and the state
+//! uncertainty of sensor uncertainty mitigation (`s_EW_std`, `s_NS_std`, `s_EN_std`, `sz_std`,
+//! `v_EW_std`, `v_NS_std`, `v_EN_std`, `vz_std`: 1-sigma, SI units unless the units line names a
+//! known unit; an empty cell or a missing column is 0). A units line (`[deg]`, `[ft]`,
+//! `unitless`...) overrides the defaults column by column. Other columns are kept nowhere.
 
 use glam::DVec3;
 
@@ -41,6 +43,8 @@ pub struct State {
     pub velocity_enu_mps: DVec3,
     /// The alerter the row names (1-based), if it names one.
     pub alerter: Option<AlerterRef>,
+    /// Its state's uncertainty (all 0 without the columns).
+    pub uncertainty: crate::daa::sum::Uncertainty,
 }
 
 /// An alerter named by a row: by number or by name.
@@ -132,7 +136,14 @@ struct Columns {
     velocity: [(usize, f64); 3],
     time: (usize, f64),
     alerter: Option<usize>,
+    /// The uncertainty columns present (`s_EW_std` ... `vz_std`), each with its unit's factor.
+    uncertainty: [Option<(usize, f64)>; 8],
 }
+
+/// The uncertainty columns, in [`crate::daa::sum::Uncertainty`]'s order.
+const UNCERTAINTY: [&str; 8] = [
+    "s_ew_std", "s_ns_std", "s_en_std", "sz_std", "v_ew_std", "v_ns_std", "v_en_std", "vz_std",
+];
 
 /// Most rows a state file may hold (`savsim daa` reads it whole).
 pub const MAX_ROWS: usize = 10_000_000;
@@ -287,6 +298,12 @@ fn columns(headers: &[String], units: Option<&[String]>) -> Result<Columns, Scen
         velocity,
         time: at(&["time", "clock", "tm", "st"], "time", "s")?,
         alerter: find(&["alerter"]),
+        // DAIDALUS: a known unit converts; none, or one it does not know, is SI already.
+        uncertainty: UNCERTAINTY.map(|name| {
+            let index = find(&[name])?;
+            let given = units.and_then(|u| u.get(index)).map(String::as_str);
+            Some((index, given.and_then(si_per).unwrap_or(1.0)))
+        }),
     })
 }
 
@@ -338,6 +355,14 @@ fn read_row(c: &Columns, row: &str) -> Result<(f64, State), RowError> {
             Ok(k) => AlerterRef::Index(k),
             Err(_) => AlerterRef::Name(a.to_string()),
         });
+    let mut sigma = [0.0; 8];
+    for (out, column) in sigma.iter_mut().zip(c.uncertainty) {
+        if let Some((i, si)) = column.filter(|(i, _)| fields.get(*i).is_some_and(|f| !f.is_empty()))
+        {
+            *out = number((i, si))?;
+        }
+    }
+    let [s_ew_m, s_ns_m, s_en_m, sz_m, v_ew_mps, v_ns_mps, v_en_mps, vz_mps] = sigma;
     Ok((
         time_s,
         State {
@@ -345,6 +370,16 @@ fn read_row(c: &Columns, row: &str) -> Result<(f64, State), RowError> {
             position,
             velocity_enu_mps,
             alerter,
+            uncertainty: crate::daa::sum::Uncertainty {
+                s_ew_m,
+                s_ns_m,
+                s_en_m,
+                sz_m,
+                v_ew_mps,
+                v_ns_mps,
+                v_en_mps,
+                vz_mps,
+            },
         },
     ))
 }
