@@ -41,6 +41,9 @@ pub struct Encounter {
     pub well_clear: Option<crate::daa::well_clear::Volume>,
 }
 
+/// An encounter's optional alerting on sensed states.
+pub type Sensed = Option<crate::batch::sensed::SensedDaa>;
+
 /// What an encounter produced.
 #[derive(Debug)]
 pub struct Flown {
@@ -174,8 +177,14 @@ pub fn track_from_tlog(
     Ok((track, ingestor.stats))
 }
 
-/// Fly `encounter` over `scene` with `pipeline` (new, built for `scene`).
-pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flown {
+/// Fly `encounter` over `scene` with `pipeline` (new, built for `scene`); `sensed` alerts on
+/// the sensed states at each sample.
+pub fn fly(
+    scene: &Scene,
+    mut pipeline: Pipeline,
+    encounter: &Encounter,
+    sensed: &mut Sensed,
+) -> Flown {
     let plane = LocalTangentPlane::new(scene.origin);
     let mut events = Vec::new();
     let mut digest = EventDigest::default();
@@ -233,6 +242,9 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
         );
         tick_costs.record(started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64);
         events.drain(..).for_each(|e| digest.take(&e));
+        if let Some(daa) = sensed.as_mut() {
+            sense(daa, &plane, encounter, &current, t_s);
+        }
         previous = Some(current);
     }
     pipeline.finish(&mut events);
@@ -243,6 +255,40 @@ pub fn fly(scene: &Scene, mut pipeline: Pipeline, encounter: &Encounter) -> Flow
         approaches,
         tick_costs,
     }
+}
+
+/// One sample of alerting on sensed states: the intruders' truth at `t_s`.
+fn sense(
+    daa: &mut crate::batch::sensed::SensedDaa,
+    plane: &LocalTangentPlane,
+    encounter: &Encounter,
+    current: &TrackSample,
+    t_s: f64,
+) {
+    let truths: smallvec::SmallVec<[crate::batch::sensed::Truth; 4]> = encounter
+        .intruders
+        .iter()
+        .enumerate()
+        .map(|(index, (_, track))| {
+            let (pose, velocity_enu_mps) = waypoint_pose(track, t_s);
+            let p = pose.position_enu_m;
+            crate::batch::sensed::Truth {
+                index,
+                target: crate::sensors::surveillance::Target {
+                    key: index as u64 + 1,
+                    position_enu_m: p,
+                    velocity_enu_mps,
+                    altitude_m: plane.geodetic_from_enu_m(p).alt_m,
+                },
+            }
+        })
+        .collect();
+    let own = crate::batch::sensed::own_of(
+        current.position_enu_m,
+        current.velocity_enu_mps,
+        current.attitude.enu_from_frd,
+    );
+    daa.step(t_s, &own, &truths);
 }
 
 /// The ownship on its track at `t_s`: level, nose along its course.

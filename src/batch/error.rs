@@ -50,6 +50,9 @@ pub enum RowError {
     /// The replay or its session (a tlog that cannot be read, a session that cannot start).
     #[error(transparent)]
     Run(#[from] crate::error::Error),
+    /// The row's `daa_conf` or `sensors` that cannot be used.
+    #[error("{0}")]
+    Sensed(String),
     /// A panic caught while running the row: a bug.
     #[error("internal error, please report it: {0}")]
     Internal(String),

@@ -75,6 +75,16 @@ pub struct Run {
     /// every other an intruder. (The columns after `expect_nmac` came later: a CSV written
     /// with the earlier ones still reads.)
     pub daa: Option<String>,
+    /// The ownship's surveillance (and navigation) devices, as `--sensors`: its DAA system
+    /// alerts on the intruders as they report them (with `daa_conf`).
+    pub sensors: Option<String>,
+    /// The seed of the sensors' errors (default 1).
+    pub sensor_seed: Option<u64>,
+    /// A DAIDALUS configuration (`.conf`): the alert levels raised on the sensed states
+    /// (`sensors`; exact states without).
+    pub daa_conf: Option<String>,
+    /// Write the sensed states here as a DAIDALUS state file (with `daa_conf`).
+    pub sensed_daa: Option<String>,
 }
 
 impl Run {
@@ -96,6 +106,8 @@ impl Run {
         anchor(&mut self.tlog);
         anchor(&mut self.daa);
         anchor(&mut self.scene);
+        anchor(&mut self.daa_conf);
+        anchor(&mut self.sensed_daa);
         for track in [&mut self.own, &mut self.intruder] {
             if track
                 .as_deref()

@@ -4,6 +4,7 @@
 //! - [`manifest`]: the runs, from CSV, TOML or JSON.
 //! - [`run`](mod@run): one run, its failure kept as its row's error.
 //! - [`encounter`]: an ownship and an intruder track through the collision pipeline.
+//! - [`sensed`]: alerting on the states the ownship's sensors report (`daa_conf`, `sensors`).
 //! - [`error`]: why a row, or one of its tracks, could not run.
 //! - [`row`]: what a run's row holds.
 //! - [`table`]: rows as Arrow and Parquet.
@@ -24,6 +25,7 @@ pub mod gen_pairing;
 pub mod manifest;
 pub mod row;
 pub mod run;
+pub mod sensed;
 pub mod summarize;
 pub mod table;
 pub mod trajectory;

@@ -95,6 +95,8 @@ pub struct RunRow {
     pub tick_cost_us_p99: f64,
     /// Wall time of the run, seconds (measured).
     pub wall_s: f64,
+    /// Alerting on the sensed states (rows with `daa_conf`).
+    pub sensed: Option<crate::batch::sensed::SensedAlerting>,
 }
 
 impl RunRow {
@@ -137,6 +139,7 @@ impl RunRow {
             tick_cost_us_median: 0.0,
             tick_cost_us_p99: 0.0,
             wall_s: 0.0,
+            sensed: None,
         }
     }
 

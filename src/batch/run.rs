@@ -172,7 +172,8 @@ fn fly_encounter(
         duration_s,
         well_clear: well_clear(run)?,
     };
-    let flown = encounter::fly(scene, pipeline, &encounter);
+    let mut sensed = sensed_daa(run, scene)?;
+    let flown = encounter::fly(scene, pipeline, &encounter, &mut sensed);
     row.record_run(
         flown.pipeline.totals(),
         &flown.digest,
@@ -180,7 +181,45 @@ fn fly_encounter(
         &flown.tick_costs,
         0.0,
     );
+    if let Some(daa) = sensed {
+        let (found, file) = daa.finish();
+        row.sensed = Some(found);
+        if let (Some(text), Some(path)) = (file, run.sensed_daa.as_deref()) {
+            std::fs::write(path, text)
+                .map_err(|e| RowError::Sensed(format!("sensed_daa {path}: {e}")))?;
+        }
+    }
     Ok(())
+}
+
+/// The row's DAA system on sensed states, when it names a `daa_conf`: its devices (`ideal`:
+/// exact ADS-B), seeded by `sensor_seed`.
+fn sensed_daa(run: &Run, scene: &Scene) -> Result<encounter::Sensed, RowError> {
+    let Some(conf) = run.daa_conf.as_deref().filter(|c| !c.is_empty()) else {
+        return Ok(None);
+    };
+    let bad = |e: String| RowError::Sensed(e);
+    let text = crate::files::read_text(Path::new(conf), 1 << 20)
+        .map_err(|e| bad(format!("daa_conf {conf}: {e}")))?;
+    let config =
+        crate::daa::conf::Config::parse(&text).map_err(|e| bad(format!("daa_conf {conf}: {e}")))?;
+    let suite = crate::feed::sensors_for(run.sensors.as_deref(), Some(scene))
+        .map_err(|e| bad(e.to_string()))?;
+    let devices = match suite {
+        crate::sensors::suite::Suite::Ideal => {
+            crate::sensors::suite::Suite::parse("ideal-adsb", |_| Err(String::new()))
+                .map_err(|e| bad(e.to_string()))?
+                .devices()
+                .to_vec()
+        }
+        s => s.devices().to_vec(),
+    };
+    Ok(Some(crate::batch::sensed::SensedDaa::new(
+        config,
+        &devices,
+        run.sensor_seed.unwrap_or(1),
+        run.sensed_daa.is_some(),
+    )))
 }
 
 /// A track given as waypoints, a tlog path or a trajectory file.

@@ -134,8 +134,43 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
             floats(rows, |r| Some(r.tick_cost_us_p99)),
         ),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),
+        ("sensors", strings(rows, |r| r.inputs.sensors.as_deref())),
+        ("sensor_seed", counts(rows, |r| r.inputs.sensor_seed)),
+        ("daa_conf", strings(rows, |r| r.inputs.daa_conf.as_deref())),
+        (
+            "alert_max_level",
+            counts(rows, |r| {
+                r.sensed.as_ref().map(|s| s.max_level.max(0) as u64)
+            }),
+        ),
+        ("first_alert_1_t_s", floats(rows, |r| first_level(r, 0))),
+        ("first_alert_2_t_s", floats(rows, |r| first_level(r, 1))),
+        ("first_alert_3_t_s", floats(rows, |r| first_level(r, 2))),
+        (
+            "sensed_first_detection_t_s",
+            floats(rows, |r| {
+                r.sensed.as_ref().and_then(|s| s.first_detection_t_s)
+            }),
+        ),
+        (
+            "sensed_closest_m",
+            floats(rows, |r| r.sensed.as_ref().and_then(|s| s.sensed_closest_m)),
+        ),
+        (
+            "reports_received",
+            counts(rows, |r| r.sensed.as_ref().map(|s| s.reports_received)),
+        ),
+        (
+            "reports_lost",
+            counts(rows, |r| r.sensed.as_ref().map(|s| s.reports_lost)),
+        ),
     ];
     crate::runs::table::record_batch(columns, nullable)
+}
+
+/// When level `k + 1` was first raised on the sensed states.
+fn first_level(r: &RunRow, k: usize) -> Option<f64> {
+    r.sensed.as_ref().and_then(|s| s.first_level_t_s[k])
 }
 
 /// Whether a column may hold nulls.

@@ -26,6 +26,7 @@
 //!   cast, `replay --feed-out` read by pymavlink against the wire rules, two vehicles fed live.
 //! - `extremes`: numerics at the poles, the antimeridian, -400 m to 20 km, 0 to 300 m/s, rays
 //!   along faces and edges, millimetre to 10 km meshes, coplanar contact, gimbal lock.
+//! - `sensed_daa`: batch rows alerting on sensed states, against `savsim daa` (and DAIDALUS).
 //! - `sensor_feed`: the feed from modelled devices; `ideal` as before, bit for bit.
 //! - `sensor_models`: the sensor models against their specifications (distributions,
 //!   correlation, reception, fields of regard, determinism, bad definitions).
@@ -92,6 +93,7 @@ mod pairing;
 mod properties;
 mod results;
 mod scenes;
+mod sensed_daa;
 mod sensor_feed;
 mod sensor_models;
 mod shared_fixtures;

@@ -4,7 +4,7 @@
 use crate::sensors::spec::{DeviceSpec, MountSpec};
 
 /// Every preset's name.
-pub const NAMES: [&str; 9] = [
+pub const NAMES: [&str; 10] = [
     "realsense-d435",
     "rplidar-a2",
     "tfmini",
@@ -14,6 +14,7 @@ pub const NAMES: [&str; 9] = [
     "radar-appq",
     "eoir-appq",
     "ideal-adsb",
+    "gps-ins",
 ];
 
 /// DO-365 Appendix Q's ADS-B reception: at least one report in 3 s (to 10 NM) and in 7 s (to
@@ -136,6 +137,18 @@ pub fn spec(name: &str) -> Option<DeviceSpec> {
             range_sigma_m: Some(15.24),
             range_proportional: Some(0.03),
             ..kind("eoir", name)
+        },
+        // Appendix Q's ownship navigation (GPS/INS): NACp 8 and NACv 2 (37.8 m, 1.22 m/s),
+        // correlated over 300 s, 10 Hz, always available; what a DAA system knows of its own
+        // state (batch rows' sensed alerting).
+        "gps-ins" => DeviceSpec {
+            rate_hz: Some(10.0),
+            nacp: Some(8),
+            nacv: Some(2),
+            tau_s: Some(300.0),
+            altitude_quantum_ft: Some(1.0),
+            reception: Some(vec![[1e6, 1e-3]]),
+            ..kind("adsb", name)
         },
         _ => return None,
     })
