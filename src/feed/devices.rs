@@ -29,11 +29,12 @@ use savsim_core::sensors::draws::{mix, Draws};
 use savsim_core::sensors::range::{Beam, BeamReading, RangeState};
 use savsim_core::sensors::surveillance::{Own, Target, TargetReport, TargetState};
 
+use super::aircraft::{aircraft, body_velocity, has_transponder};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
 use super::tracks::{in_range, send_report, take_arrived, Told};
 use super::wire::Range;
-use super::{aircraft, body_velocity, Frame};
+use super::Frame;
 use crate::pipeline::{Pipeline, Rays};
 use crate::scene::Kind;
 
@@ -317,7 +318,7 @@ impl Devices {
         };
         let state = &mut v.devices[i];
         for (a, body) in aircraft(f.input) {
-            let transponder = super::has_transponder(f.input, body);
+            let transponder = has_transponder(f.input, body);
             let reports_it = match device.model {
                 Model::Adsb(_) => transponder,
                 _ => !transponder || !has_adsb,
