@@ -30,6 +30,7 @@ fn main() -> ExitCode {
                 | savsim::error::Error::OutOfRange(_)
                 | savsim::error::Error::Address { .. }
                 | savsim::error::Error::Scene(_)
+                | savsim::error::Error::Log { .. }
                 | savsim::error::Error::Daa { .. } => ExitCode::from(2),
                 _ => ExitCode::FAILURE,
             }

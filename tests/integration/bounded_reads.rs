@@ -78,3 +78,22 @@ fn a_fifo_that_keeps_writing_is_read_up_to_the_bound() {
     std::fs::write(&small, b"abc").unwrap();
     assert_eq!(savsim::files::read(Path::new(&small), 3).unwrap(), b"abc");
 }
+
+/// ULog files under 1 KiB whose formats would take gigabytes, or never end, flattened
+/// (scripts/crafted_ulog.py): a clear error naming the topic, exit code 2.
+#[test]
+fn crafted_ulogs_are_refused_by_their_format() {
+    let dir = tempfile::tempdir().unwrap();
+    crate::common::python(
+        &crate::common::root().join("scripts/crafted_ulog.py"),
+        &[dir.path().to_str().unwrap()],
+    );
+    for name in ["huge_array.ulg", "endless_count.ulg", "nested.ulg"] {
+        let path = dir.path().join(name);
+        assert!(std::fs::metadata(&path).unwrap().len() < 1024);
+        let out = savsim().arg("replay").arg(&path).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains("ULog format of topic"), "{name}: {err}");
+    }
+}
