@@ -115,7 +115,8 @@ pub struct SceneReport {
     pub flights: Vec<FlightRow>,
 }
 
-/// A goal of issue 5 and whether this run met it.
+/// A goal the bench checks (docs/performance.md, docs/accuracy-vs-speed.md) and whether this
+/// run met it.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Goal {
     /// The goal.
