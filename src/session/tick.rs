@@ -1,7 +1,8 @@
 //! One collision tick of a session, for the vehicle whose position just arrived: its samples,
 //! the moving bodies within its watch range, well clear, the pipeline's step, the feed, and
-//! the viewer's frame. After warm-up it allocates nothing of its own (the viewer's frame, when
-//! `--rerun` is on, is built for the logger thread).
+//! the viewer's frame. Its buffers (the moving bodies, the well-clear changes, the events) are
+//! the session's, reused from tick to tick; the viewer's frame, when `--rerun` is on, is built
+//! anew for the logger thread.
 
 use std::time::Instant;
 
