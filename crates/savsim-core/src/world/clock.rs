@@ -14,7 +14,7 @@
 
 use std::collections::VecDeque;
 
-/// A stamp further back than this from the one before is a restart; less far back, a reordered
+/// A stamp this far back from the one before, or further, is a restart; less far back, a reordered
 /// message (UDP, a router). A reboot that comes back less than this far behind is taken for
 /// reordering (how far back real restarts come: docs/live.md).
 pub const RESTART_BACK_MS: u32 = 500;
