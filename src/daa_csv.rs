@@ -35,7 +35,7 @@ pub fn command(args: &DaaArgs) -> Result<()> {
     }
 }
 
-/// A DAIDALUS file or an encounter model, whole: at most [`MAX_INPUT_BYTES`], as text
+/// A DAIDALUS file or an encounter model, whole: at most 1 GiB (`MAX_INPUT_BYTES`), as text
 /// (`crate::files::read_text`: a device or a FIFO that keeps writing is an error too).
 pub fn read(path: &Path) -> Result<String> {
     crate::files::read_text(path, MAX_INPUT_BYTES).map_err(|e| Error::file(path, e))

@@ -11,8 +11,8 @@ use std::path::Path;
 /// model), may hold: 4 GiB.
 pub const MAX_SCENE_FILE_BYTES: u64 = 4 << 30;
 /// The most a manifest (batch or study), a DAIDALUS state file or configuration, or an
-/// encounter model may hold: 4 GiB (a million generated encounters are about 10 GB of CSV
-/// across shards; one shard's manifest stays well within).
+/// encounter model may hold: 4 GiB (one shard of a generated manifest stays well within:
+/// docs/batch.md).
 pub const MAX_TABLE_FILE_BYTES: u64 = 4 << 30;
 /// The most a flight log read whole (ULog, DataFlash) may hold: 8 GiB.
 pub const MAX_LOG_BYTES: u64 = 8 << 30;

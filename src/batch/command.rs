@@ -32,68 +32,90 @@ fn read_pairing(path: &Path) -> Result<crate::daa::pairing_ini::PairingSettings>
     })
 }
 
-/// Run `savsim batch ...`.
+/// Run `savsim batch ...`: generate a manifest of encounters, summarize a results directory,
+/// or run one shard of a manifest.
 pub fn run(args: &BatchArgs) -> Result<()> {
-    if let Some(BatchCommand::GenEncounters {
-        n,
-        seed,
-        scene,
-        mode,
-        duration_s,
-        rate_hz,
-        intruder_kind,
-        model,
-        pairing,
-        out,
-    }) = &args.command
-    {
-        let scene = scene
-            .as_ref()
-            .map(|p| std::fs::canonicalize(p).map_err(|e| Error::file(p, e)))
-            .transpose()?;
-        let mut options = GenOptions {
-            n: *n,
-            seed: *seed,
-            scene: scene.map(|p| p.to_string_lossy().into_owned()),
-            mode: Mode::from(*mode).name().into(),
-            duration_s: duration_s.unwrap_or(180.0),
-            rate_hz: *rate_hz,
-            intruder_kind: intruder_kind.clone(),
-        };
-        let runs = match (model, pairing) {
-            (None, _) => gen::encounters(&options)?,
-            (Some(path), None) => {
-                crate::batch::gen_model::encounters(&options, &read_model(path)?)?
-            }
-            (Some(path), Some(ini)) => {
-                let settings = read_pairing(ini)?;
-                let length = settings.duration_s as f64;
-                if duration_s.is_some_and(|d| d != length) {
-                    return Err(Error::Usage(format!(
-                        "--duration-s: {} s, but {} sets sample_time = {length} s: give one",
-                        duration_s.unwrap_or_default(),
-                        ini.display()
-                    )));
-                }
-                options.duration_s = length;
-                crate::batch::gen_pairing::encounters(&options, &read_model(path)?, &settings)?
-            }
-        };
-        let csv_error = |path: &Path, e: csv::Error| Error::file(path, std::io::Error::other(e));
-        return match out {
-            Some(path) => {
-                let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
-                manifest::write_csv(&runs, std::io::BufWriter::new(file))
-                    .map_err(|e| csv_error(path, e))
-            }
-            None => manifest::write_csv(&runs, std::io::stdout().lock())
-                .map_err(|e| csv_error(Path::new("stdout"), e)),
-        };
+    match &args.command {
+        Some(BatchCommand::GenEncounters {
+            n,
+            seed,
+            scene,
+            mode,
+            duration_s,
+            rate_hz,
+            intruder_kind,
+            model,
+            pairing,
+            out,
+        }) => {
+            let scene = scene
+                .as_ref()
+                .map(|p| std::fs::canonicalize(p).map_err(|e| Error::file(p, e)))
+                .transpose()?;
+            let options = GenOptions {
+                n: *n,
+                seed: *seed,
+                scene: scene.map(|p| p.to_string_lossy().into_owned()),
+                mode: Mode::from(*mode).name().into(),
+                duration_s: duration_s.unwrap_or(180.0),
+                rate_hz: *rate_hz,
+                intruder_kind: intruder_kind.clone(),
+            };
+            let runs = generate(options, model.as_deref(), pairing.as_deref(), *duration_s)?;
+            write_manifest(&runs, out.as_deref())
+        }
+        Some(BatchCommand::Summarize { dir, nominal, json }) => {
+            crate::batch::summarize::read_dir(dir)?.print(nominal, *json);
+            Ok(())
+        }
+        None => run_shard(args),
     }
-    if let Some(BatchCommand::Summarize { dir, nominal, json }) = &args.command {
-        crate::batch::summarize::read_dir(dir)?.print(nominal, *json);
-        return Ok(());
+}
+
+/// The encounters: straight lines, or sampled from an encounter `model`, paired by importance
+/// sampling when `pairing` is given (its `sample_time` is their length: a `duration_s` given
+/// too must equal it).
+fn generate(
+    mut options: GenOptions,
+    model: Option<&Path>,
+    pairing: Option<&Path>,
+    duration_s: Option<f64>,
+) -> Result<Vec<manifest::Run>> {
+    match (model, pairing) {
+        (None, _) => gen::encounters(&options),
+        (Some(path), None) => crate::batch::gen_model::encounters(&options, &read_model(path)?),
+        (Some(path), Some(ini)) => {
+            let settings = read_pairing(ini)?;
+            let length = settings.duration_s as f64;
+            if duration_s.is_some_and(|d| d != length) {
+                return Err(Error::Usage(format!(
+                    "--duration-s: {} s, but {} sets sample_time = {length} s: give one",
+                    duration_s.unwrap_or_default(),
+                    ini.display()
+                )));
+            }
+            options.duration_s = length;
+            crate::batch::gen_pairing::encounters(&options, &read_model(path)?, &settings)
+        }
     }
+}
+
+/// Write a manifest as CSV to `out` (stdout when `None`).
+fn write_manifest(runs: &[manifest::Run], out: Option<&Path>) -> Result<()> {
+    let csv_error = |path: &Path, e: csv::Error| Error::file(path, std::io::Error::other(e));
+    match out {
+        Some(path) => {
+            let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
+            manifest::write_csv(runs, std::io::BufWriter::new(file)).map_err(|e| csv_error(path, e))
+        }
+        None => manifest::write_csv(runs, std::io::stdout().lock())
+            .map_err(|e| csv_error(Path::new("stdout"), e)),
+    }
+}
+
+/// One shard of a manifest (`--shard`, or the scheduler's variables) run on `--jobs` threads
+/// into its Parquet file in `--out`; skipped when that file exists (unless `--force`).
+fn run_shard(args: &BatchArgs) -> Result<()> {
     let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };

@@ -49,7 +49,7 @@ pub struct GenOptions {
     pub intruder_kind: String,
 }
 
-/// The most encounters one `gen-encounters` writes (about 5 GB of CSV).
+/// The most encounters one `gen-encounters` writes (what that many weigh: docs/batch.md).
 pub const MAX_GENERATED: usize = 10_000_000;
 
 /// A two-point waypoint track: at `start` at 0 s, flying `velocity` for `duration_s`.

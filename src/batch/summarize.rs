@@ -1,5 +1,5 @@
 //! `savsim batch summarize DIR`: a results directory's shards read into a
-//! [`Summary`](crate::runs::summary::Summary). A row ended with an `error`, a `collision`
+//! [`Summary`]. A row ended with an `error`, a `collision`
 //! (any), an `nmac`, else `pass`; the rates and ratios count NMAC, loss of well clear and
 //! collisions.
 

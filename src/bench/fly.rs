@@ -73,6 +73,40 @@ pub fn run_samples(
     (costs, events)
 }
 
+/// One mode's pipeline over a scene's flights: what it cost to start, what each tick cost,
+/// and its contact time errors against the reference.
+struct ModeRun {
+    mode: Mode,
+    pipeline: Pipeline,
+    startup_s: f64,
+    costs: Costs,
+    /// First-contact time errors against the reference, seconds.
+    errors: Vec<f64>,
+}
+
+impl ModeRun {
+    /// `mode`'s pipeline for `scene`, timed.
+    fn start(scene: &Scene, mode: Mode, options: &BenchOptions) -> Self {
+        let t = Instant::now();
+        let pipeline = Pipeline::new(
+            scene,
+            CollisionConfig {
+                mode,
+                ..options.config
+            },
+        );
+        ModeRun {
+            mode,
+            pipeline,
+            startup_s: t.elapsed().as_secs_f64(),
+            costs: Costs::default(),
+            errors: Vec::new(),
+        }
+    }
+}
+
+/// Fly every flight through every mode (mode after mode, flight by flight; vehicle `k + 1`
+/// flies flight `k`) and judge each mode against the `reference`, which `modes` must hold.
 pub(crate) fn bench_scene(
     scene: &Scene,
     load_s: f64,
@@ -81,27 +115,15 @@ pub(crate) fn bench_scene(
     options: &BenchOptions,
     progress: &mut impl FnMut(&str),
 ) -> SceneReport {
-    let mut pipelines: Vec<(Pipeline, f64)> = modes
+    let mut runs: Vec<ModeRun> = modes
         .iter()
-        .map(|&mode| {
-            let t = Instant::now();
-            let p = Pipeline::new(
-                scene,
-                CollisionConfig {
-                    mode,
-                    ..options.config
-                },
-            );
-            (p, t.elapsed().as_secs_f64())
-        })
+        .map(|&mode| ModeRun::start(scene, mode, options))
         .collect();
-    let mut costs: Vec<Costs> = vec![Costs::default(); modes.len()];
-    let mut per_mode_errors: Vec<Vec<f64>> = vec![Vec::new(); modes.len()];
-    let mut flight_rows = Vec::new();
     let truth_index = modes
         .iter()
         .position(|&m| m == Mode::Reference)
         .expect("the reference runs");
+    let mut flight_rows = Vec::new();
     for (k, flight) in flights.iter().enumerate() {
         progress(&format!(
             "{}: {} ({} ticks)",
@@ -110,92 +132,13 @@ pub(crate) fn bench_scene(
             flight.samples.len()
         ));
         let vehicle = k as u16 + 1;
-        let events: Vec<Vec<Event>> = pipelines
-            .iter_mut()
-            .enumerate()
-            .map(|(m, (pipeline, _))| {
-                let (c, e) =
-                    run_samples(pipeline, scene, vehicle, &flight.samples, &flight.traffic);
-                costs[m].extend(c);
-                e
-            })
-            .collect();
-        let truth = collisions(&events[truth_index]);
-        let results = modes
-            .iter()
-            .enumerate()
-            .map(|(m, mode)| {
-                let found = collisions(&events[m]);
-                let (missed, false_collisions, errors, first) = compare(&truth, &found);
-                per_mode_errors[m].extend(errors);
-                FlightResult {
-                    mode: mode.name().to_owned(),
-                    collisions: found.len(),
-                    missed,
-                    false_collisions,
-                    near_misses: events[m]
-                        .iter()
-                        .filter(|e| matches!(e.kind, EventKind::NearMiss { .. }))
-                        .count(),
-                    first_contact_error_s: first,
-                }
-            })
-            .collect();
-        flight_rows.push(FlightRow {
-            name: flight.name.clone(),
-            what: flight.what.clone(),
-            rate_hz: flight.rate_hz,
-            speed_mps: flight.speed_mps,
-            ticks: flight.samples.len(),
-            modes: results,
-        });
+        flight_rows.push(fly(scene, vehicle, flight, &mut runs, truth_index));
     }
-    let box_median = percentiles_us(&costs[0].tick_ns).0;
-    let mode_rows = modes
+    let box_median = percentiles_us(&runs[0].costs.tick_ns).0;
+    let mode_rows = runs
         .iter()
         .enumerate()
-        .map(|(m, mode)| {
-            let (pipeline, startup_s) = &pipelines[m];
-            let totals = &pipeline.totals();
-            let ticks = totals.ticks.max(1) as f64;
-            let (median, p99) = percentiles_us(&costs[m].tick_ns);
-            let (contact_median, contact_p99) = percentiles_us(&costs[m].contact_ns);
-            let (sensing_median, _) = percentiles_us(&costs[m].sensing_ns);
-            let errors = &per_mode_errors[m];
-            let sum = |f: fn(&FlightResult) -> usize| {
-                flight_rows.iter().map(|r| f(&r.modes[m])).sum::<usize>()
-            };
-            ModeRow {
-                mode: mode.name().to_owned(),
-                ticks: totals.ticks,
-                cost_median_us: median,
-                cost_p99_us: p99,
-                cost_vs_box: median / box_median.max(1e-9),
-                contact_median_us: contact_median,
-                contact_p99_us: contact_p99,
-                sensing_frames: totals.sensing_frames,
-                sensing_median_us: sensing_median,
-                meshes_built_on_contact: pipeline.meshes().counts().built_on_contact,
-                active_box_mean: totals.active_box_sum as f64 / ticks,
-                active_mesh_mean: totals.active_mesh_sum as f64 / ticks,
-                triangles_mean: totals.active_triangles_sum as f64 / ticks,
-                triangles_max: totals.active_triangles_max,
-                memory_bytes: pipeline.octree().memory_bytes() + pipeline.meshes().counts().bytes,
-                startup_s: *startup_s,
-                mesh_build_s: pipeline.meshes().counts().build_time.as_secs_f64(),
-                collisions: sum(|r| r.collisions),
-                missed: sum(|r| r.missed),
-                false_collisions: sum(|r| r.false_collisions),
-                contact_time_error_mean_s: (!errors.is_empty())
-                    .then(|| errors.iter().sum::<f64>() / errors.len() as f64),
-                contact_time_error_max_s: errors.iter().copied().reduce(f64::max),
-                wrong_flights: flight_rows
-                    .iter()
-                    .filter(|r| r.modes[m].missed + r.modes[m].false_collisions > 0)
-                    .map(|r| r.name.clone())
-                    .collect(),
-            }
-        })
+        .map(|(m, run)| mode_row(run, m, &flight_rows, box_median))
         .collect();
     SceneReport {
         scene: scene.name.clone(),
@@ -208,5 +151,103 @@ pub(crate) fn bench_scene(
         load_s,
         modes: mode_rows,
         flights: flight_rows,
+    }
+}
+
+/// One flight through every mode's pipeline as `vehicle`; each mode's collisions compared with
+/// the reference's (`runs[truth_index]`).
+fn fly(
+    scene: &Scene,
+    vehicle: u16,
+    flight: &Flight,
+    runs: &mut [ModeRun],
+    truth_index: usize,
+) -> FlightRow {
+    let events: Vec<Vec<Event>> = runs
+        .iter_mut()
+        .map(|run| {
+            let (c, e) = run_samples(
+                &mut run.pipeline,
+                scene,
+                vehicle,
+                &flight.samples,
+                &flight.traffic,
+            );
+            run.costs.extend(c);
+            e
+        })
+        .collect();
+    let truth = collisions(&events[truth_index]);
+    let results = runs
+        .iter_mut()
+        .zip(&events)
+        .map(|(run, events)| {
+            let found = collisions(events);
+            let (missed, false_collisions, errors, first) = compare(&truth, &found);
+            run.errors.extend(errors);
+            FlightResult {
+                mode: run.mode.name().to_owned(),
+                collisions: found.len(),
+                missed,
+                false_collisions,
+                near_misses: events
+                    .iter()
+                    .filter(|e| matches!(e.kind, EventKind::NearMiss { .. }))
+                    .count(),
+                first_contact_error_s: first,
+            }
+        })
+        .collect();
+    FlightRow {
+        name: flight.name.clone(),
+        what: flight.what.clone(),
+        rate_hz: flight.rate_hz,
+        speed_mps: flight.speed_mps,
+        ticks: flight.samples.len(),
+        modes: results,
+    }
+}
+
+/// Mode `m`'s row over every flight: costs, colliders, memory, accuracy; its median cost over
+/// `box_median_us`.
+fn mode_row(run: &ModeRun, m: usize, flight_rows: &[FlightRow], box_median_us: f64) -> ModeRow {
+    let pipeline = &run.pipeline;
+    let totals = &pipeline.totals();
+    let ticks = totals.ticks.max(1) as f64;
+    let (median, p99) = percentiles_us(&run.costs.tick_ns);
+    let (contact_median, contact_p99) = percentiles_us(&run.costs.contact_ns);
+    let (sensing_median, _) = percentiles_us(&run.costs.sensing_ns);
+    let errors = &run.errors;
+    let sum =
+        |f: fn(&FlightResult) -> usize| flight_rows.iter().map(|r| f(&r.modes[m])).sum::<usize>();
+    ModeRow {
+        mode: run.mode.name().to_owned(),
+        ticks: totals.ticks,
+        cost_median_us: median,
+        cost_p99_us: p99,
+        cost_vs_box: median / box_median_us.max(1e-9),
+        contact_median_us: contact_median,
+        contact_p99_us: contact_p99,
+        sensing_frames: totals.sensing_frames,
+        sensing_median_us: sensing_median,
+        meshes_built_on_contact: pipeline.meshes().counts().built_on_contact,
+        active_box_mean: totals.active_box_sum as f64 / ticks,
+        active_mesh_mean: totals.active_mesh_sum as f64 / ticks,
+        triangles_mean: totals.active_triangles_sum as f64 / ticks,
+        triangles_max: totals.active_triangles_max,
+        memory_bytes: pipeline.octree().memory_bytes() + pipeline.meshes().counts().bytes,
+        startup_s: run.startup_s,
+        mesh_build_s: pipeline.meshes().counts().build_time.as_secs_f64(),
+        collisions: sum(|r| r.collisions),
+        missed: sum(|r| r.missed),
+        false_collisions: sum(|r| r.false_collisions),
+        contact_time_error_mean_s: (!errors.is_empty())
+            .then(|| errors.iter().sum::<f64>() / errors.len() as f64),
+        contact_time_error_max_s: errors.iter().copied().reduce(f64::max),
+        wrong_flights: flight_rows
+            .iter()
+            .filter(|r| r.modes[m].missed + r.modes[m].false_collisions > 0)
+            .map(|r| r.name.clone())
+            .collect(),
     }
 }

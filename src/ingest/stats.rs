@@ -490,10 +490,10 @@ impl SequenceCounts {
         self.restarts += 1;
     }
 
-    /// A sequence starting again at 0 after a pause this long is a reboot, s: PX4 SITL is
-    /// silent for 0.49 s from its shutdown to its first frame after a restart (docs/live.md),
-    /// a real autopilot longer; a stream this slow is only heartbeats, whose 0 after 255
-    /// continues the count anyway.
+    /// A sequence starting again at 0 after a pause this long is a reboot, s: shorter than any
+    /// autopilot's silence across a restart (PX4 SITL's, the shortest seen, is in
+    /// docs/live.md), longer than a gap in a stream of positions; a stream this slow is only
+    /// heartbeats, whose 0 after 255 continues the count anyway.
     pub const REBOOT_PAUSE_S: f64 = 0.2;
 
     /// The sender rebooted (told by its clock, at `t_s`): restart at `sequence`, unless a pause

@@ -9,6 +9,9 @@
 //! deadline, or when a link fails; what was queued is still processed, so the summary counts
 //! every byte received (after a signal, for at most [`STOP_DRAIN`]; the rest is counted as
 //! unprocessed).
+//!
+//! The link report the summary carries is built in `report`; the thread's per-chunk work in
+//! `session`, `forwarding` and `feed`.
 
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -17,27 +20,26 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use serde::Serialize;
-
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
-use crate::ingest::forward::{ForwardCounts, Forwarder};
+use crate::ingest::forward::Forwarder;
 use crate::ingest::live::{unix_now_s, Chunk, Link, LinkCounters, Network, Outgoing};
 use crate::ingest::outbox::Outbox;
-use crate::ingest::signing::{Signing, SigningCounts, SigningKey};
+use crate::ingest::signing::{Signing, SigningKey};
 use crate::ingest::stats::SenderId;
 use crate::ingest::supervisor::Endpoint;
-use crate::ingest::supervisor::{
-    LinkId, Supervisor, SupervisorConfig, SupervisorCounts, VehicleLink,
-};
+use crate::ingest::supervisor::{LinkId, Supervisor, SupervisorConfig};
 use crate::ingest::tlog::TlogWriter;
 use crate::session::Session;
 
 mod feed;
 mod forwarding;
+mod report;
 mod session;
 
 use feed::FeedSender;
+use report::{latency, link_report, new_histogram, Ending};
+pub use report::{FeedLinkReport, ForwardReport, Latency, LinkReport};
 pub use session::LiveSession;
 
 /// How a live run behaves.
@@ -111,20 +113,6 @@ impl Default for LiveOptions {
     }
 }
 
-/// Datagram (or TCP read) received -> its frames decoded, run through the session and their
-/// events written, microseconds.
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Latency {
-    /// Chunks measured.
-    pub chunks: u64,
-    /// Median.
-    pub p50_us: u64,
-    /// 99th percentile.
-    pub p99_us: u64,
-    /// Largest.
-    pub max_us: u64,
-}
-
 /// The feed's component: MAV_COMP_ID_OBSTACLE_AVOIDANCE.
 pub const FEED_COMPONENT: u8 = 196;
 
@@ -135,76 +123,12 @@ pub const FEED_FROM: SenderId = SenderId {
     component_id: FEED_COMPONENT,
 };
 
-/// What the closed-loop feed sent, for the summary's `link.feed`.
-#[derive(Debug, Clone, Serialize)]
-pub struct FeedLinkReport {
-    /// Messages sent to a vehicle's link.
-    pub sent: u64,
-    /// Messages for a vehicle with no route yet (not heard as an autopilot): not sent.
-    pub unrouted: u64,
-    /// The feed component's heartbeats sent.
-    pub heartbeats: u64,
-    /// Datagram (or read) with the pose received -> its feed frame handed to the link.
-    pub latency: Option<Latency>,
-}
-
 /// After a signal, what the links had queued is processed for at most this long; the rest is
 /// counted, not processed, so that a run behind its stream still stops promptly.
 pub const STOP_DRAIN: Duration = Duration::from_secs(1);
 
 /// A link that brings nothing for this long is logged (once per silence), s.
 const SILENT_LINK_S: f64 = 5.0;
-
-/// What the links did, for the summary's `link` object.
-#[derive(Debug, Clone, Serialize)]
-pub struct LinkReport {
-    /// The addresses, in `--connect` order (a link's index).
-    pub endpoints: Vec<String>,
-    /// Requests, re-requests, reboots, heartbeats.
-    #[serde(flatten)]
-    pub counts: SupervisorCounts,
-    /// Each autopilot: where it was last heard, its requests, reboots and returns.
-    pub vehicles: Vec<VehicleLink>,
-    /// Chunks dropped because the session thread was behind.
-    pub dropped_chunks: u64,
-    /// Bytes in those.
-    pub dropped_bytes: u64,
-    /// Chunks still queued when a signal stopped the run and [`STOP_DRAIN`] had passed: not
-    /// processed (0 when the run ended otherwise: then the whole queue is processed).
-    pub unprocessed_chunks: u64,
-    /// Bytes in those.
-    pub unprocessed_bytes: u64,
-    /// Messages to send that could not be (no connection yet, a full queue, an error).
-    pub unsent: u64,
-    /// TCP connections made or accepted.
-    pub connects: u64,
-    /// TCP connections the peer closed.
-    pub closes: u64,
-    /// Times a link brought nothing for 5 s (each logged as a warning).
-    pub silences: u64,
-    /// The most chunks that waited for the session thread at once (of `LiveOptions::queue_len`).
-    pub queue_peak: u64,
-    /// Receive -> processed.
-    pub latency: Option<Latency>,
-    /// The closed-loop feed, when on.
-    pub feed: Option<FeedLinkReport>,
-    /// `--forward`: what was routed to and from the ground stations.
-    pub forward: Option<ForwardReport>,
-    /// `--signing-key`: what signing judged and signed.
-    pub signing: Option<SigningCounts>,
-}
-
-/// What `--forward` did, for the summary's `link.forward`.
-#[derive(Debug, Clone, Serialize)]
-pub struct ForwardReport {
-    /// The stations' links, in `--forward` order.
-    pub stations: Vec<String>,
-    /// Frames routed each way, dropped and shown.
-    #[serde(flatten)]
-    pub counts: ForwardCounts,
-    /// A chunk received -> its frames handed to the other side's links.
-    pub latency: Option<Latency>,
-}
 
 /// A finished live run: the session (for its summary), what the links did, and how the run
 /// ended (a link's error, a recording that could not be written). The summary is written
@@ -244,21 +168,6 @@ pub fn run_blocking(
     run_links(runtime.handle(), links, options, session, record, shutdown)
 }
 
-/// A latency histogram, microseconds: 1 us to an hour at 3 significant figures (fixed bounds:
-/// `saturating_record` does not grow an auto-resizing one, it clamps to its initial range).
-pub(super) fn new_histogram() -> hdrhistogram::Histogram<u64> {
-    hdrhistogram::Histogram::new_with_bounds(1, 3_600_000_000, 3).expect("valid bounds")
-}
-
-fn latency(h: &hdrhistogram::Histogram<u64>) -> Option<Latency> {
-    (!h.is_empty()).then(|| Latency {
-        chunks: h.len(),
-        p50_us: h.value_at_quantile(0.5),
-        p99_us: h.value_at_quantile(0.99),
-        max_us: h.max(),
-    })
-}
-
 /// [`run_blocking`] on links already open on `runtime` (tests bind them to port 0): the
 /// vehicles' first, then `options.forward.len()` stations'.
 pub fn run_links(
@@ -269,13 +178,7 @@ pub fn run_links(
     record: Option<&Path>,
     shutdown: Arc<AtomicBool>,
 ) -> Result<LiveRun> {
-    let recorder = record
-        .map(|p| {
-            std::fs::File::create(p)
-                .map(|f| TlogWriter::new(BufWriter::new(f)))
-                .map_err(|e| Error::file(p, e))
-        })
-        .transpose()?;
+    let recorder = open_recording(record)?;
     let Wiring {
         supervisor,
         vehicle_fixed,
@@ -284,12 +187,7 @@ pub fn run_links(
         endpoints,
     } = Wiring::of(&links, options)?;
     let feeding = session.feed().is_some();
-    if options.feed_out.is_some() && !feeding {
-        return Err(Error::Usage("--feed-out needs --feed".into()));
-    }
-    if options.signing_require && options.signing_key.is_none() {
-        return Err(Error::Usage("--signing require needs --signing-key".into()));
-    }
+    check_feed_and_signing(options, feeding)?;
     let signing = options
         .signing_key
         .as_ref()
@@ -334,22 +232,7 @@ pub fn run_links(
     let counters = network.counters.clone();
     let stopped = network.stop();
     let unprocessed = drain(&mut thread, &chunks, shutdown.load(Ordering::Relaxed));
-    if let Some(rec) = thread.recorder.as_mut() {
-        if let Err(e) = rec.flush() {
-            thread.result = thread.result.and(Err(Error::file("recording", e)));
-        }
-    }
-    if let Some((path, rec)) = thread.feed.record.as_mut() {
-        if let Err(e) = rec.flush() {
-            thread.result = thread.result.and(Err(Error::file(path.clone(), e)));
-        }
-    }
-    thread
-        .session
-        .set_interrupted(shutdown.load(Ordering::Relaxed));
-    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
-    thread.session.stats_mut().dropped_chunks = load(&counters.dropped_chunks);
-    thread.session.stats_mut().dropped_bytes = load(&counters.dropped_bytes);
+    close_session(&mut thread, &counters, &shutdown);
     let ending = Ending {
         endpoints,
         first_station,
@@ -366,45 +249,48 @@ pub fn run_links(
     })
 }
 
-/// What the end of a run adds to the session thread's counts for its report.
-struct Ending {
-    endpoints: Vec<String>,
-    first_station: usize,
-    /// Chunks and bytes left unprocessed.
-    unprocessed: (u64, u64),
-    silences: u64,
-    /// Frames the GCS outbox signed.
-    gcs_signed: u64,
-    feeding: bool,
+/// The tlog every frame received is recorded to (`record`), created now.
+fn open_recording(record: Option<&Path>) -> Result<Option<TlogWriter<BufWriter<std::fs::File>>>> {
+    record
+        .map(|p| {
+            std::fs::File::create(p)
+                .map(|f| TlogWriter::new(BufWriter::new(f)))
+                .map_err(|e| Error::file(p, e))
+        })
+        .transpose()
 }
 
-fn link_report(thread: &LiveSession, counters: &LinkCounters, end: Ending) -> LinkReport {
-    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
-    LinkReport {
-        counts: thread.supervisor.counts,
-        vehicles: thread.supervisor.vehicles(),
-        dropped_chunks: load(&counters.dropped_chunks),
-        dropped_bytes: load(&counters.dropped_bytes),
-        unprocessed_chunks: end.unprocessed.0,
-        unprocessed_bytes: end.unprocessed.1,
-        unsent: load(&counters.unsent),
-        silences: end.silences,
-        queue_peak: load(&counters.queue_peak),
-        connects: load(&counters.connects),
-        closes: load(&counters.closes),
-        latency: latency(&thread.latency_us),
-        feed: end.feeding.then(|| thread.feed.report()),
-        forward: thread.forward.as_ref().map(|f| ForwardReport {
-            stations: end.endpoints[end.first_station..].to_vec(),
-            counts: f.router.counts,
-            latency: latency(&f.latency_us),
-        }),
-        signing: thread.signing.as_ref().map(|(_, counts)| SigningCounts {
-            sent_signed: end.gcs_signed + thread.feed.outbox.signed,
-            ..*counts
-        }),
-        endpoints: end.endpoints,
+/// `--feed-out` needs the feed, and `--signing require` a key.
+fn check_feed_and_signing(options: &LiveOptions, feeding: bool) -> Result<()> {
+    if options.feed_out.is_some() && !feeding {
+        return Err(Error::Usage("--feed-out needs --feed".into()));
     }
+    if options.signing_require && options.signing_key.is_none() {
+        return Err(Error::Usage("--signing require needs --signing-key".into()));
+    }
+    Ok(())
+}
+
+/// The end of the session thread's run, after the drain: the recordings flushed (the first
+/// failure, if the run had none, becomes its ending), whether a signal stopped it, and what the links dropped, in the
+/// session's counts.
+fn close_session(thread: &mut LiveSession, counters: &LinkCounters, shutdown: &AtomicBool) {
+    if let Some(rec) = thread.recorder.as_mut() {
+        if let (Err(e), Ok(())) = (rec.flush(), &thread.result) {
+            thread.result = Err(Error::file("recording", e));
+        }
+    }
+    if let Some((path, rec)) = thread.feed.record.as_mut() {
+        if let (Err(e), Ok(())) = (rec.flush(), &thread.result) {
+            thread.result = Err(Error::file(path.clone(), e));
+        }
+    }
+    thread
+        .session
+        .set_interrupted(shutdown.load(Ordering::Relaxed));
+    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    thread.session.stats_mut().dropped_chunks = load(&counters.dropped_chunks);
+    thread.session.stats_mut().dropped_bytes = load(&counters.dropped_bytes);
 }
 
 /// The session thread's state for a run: the feed's identity, signing and recording as
@@ -554,22 +440,4 @@ fn drain(thread: &mut LiveSession, chunks: &Receiver<Chunk>, signalled: bool) ->
         }
     }
     (unprocessed_chunks, unprocessed_bytes)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn latencies_are_recorded_as_they_are() {
-        let mut h = new_histogram();
-        for us in [3, 40, 5_000, 2_000_000] {
-            h.saturating_record(us);
-        }
-        let l = latency(&h).unwrap();
-        assert_eq!(l.chunks, 4);
-        assert_eq!(l.p50_us, 40, "{l:?}");
-        assert!((1_999_000..=2_001_000).contains(&l.p99_us), "{l:?}");
-        assert!((1_999_000..=2_001_000).contains(&l.max_us), "{l:?}");
-    }
 }

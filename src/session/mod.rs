@@ -1,6 +1,11 @@
 //! A run: decoded messages in, world state and collision ticks through, events and a summary
 //! out. Synchronous; replay drives it directly, live from its own named thread.
+//!
+//! One collision tick is `tick`; the bodies a tick watches, `traffic`; the summary a run
+//! writes, `summary`.
 
+mod summary;
+mod tick;
 mod traffic;
 
 use std::fs::File;
@@ -10,20 +15,18 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use serde::Serialize;
-use serde_json::json;
 
 use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::digest::EventDigest;
 use crate::collision::events::{Event, EventKind};
-use crate::daa::episodes::Change;
 use crate::error::{Error, Result};
-use crate::feed::{Feed, FeedConfig, FeedMessage, FrameInput};
+use crate::feed::{Feed, FeedConfig, FeedMessage};
 use crate::ingest::frame::{FrameStatus, RawFrame};
 use crate::ingest::outbox::Outbox;
 use crate::ingest::stats::SenderId;
 use crate::ingest::tlog::TlogWriter;
 use crate::ingest::Ingestor;
-use crate::pipeline::{BodyPose, CollisionConfig, MovingBodies, Pipeline, VehicleKey};
+use crate::pipeline::{CollisionConfig, MovingBodies, Pipeline};
 use crate::scene::Scene;
 use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 
@@ -398,155 +401,6 @@ impl Session {
         Ok(())
     }
 
-    fn tick(&mut self, sender: SenderId) -> Result<()> {
-        let (Some(scene), Some(pipeline)) = (self.scene.clone(), self.pipeline.as_mut()) else {
-            return Ok(());
-        };
-        let Some(track) = self.world.vehicles.get(&sender) else {
-            return Ok(());
-        };
-        let Some(current) = track.history.latest().copied() else {
-            return Ok(());
-        };
-        let previous = track.history.previous().copied();
-        let generation = track.generation;
-        // On the vehicle's clock the flight starts at its boot (time_boot_ms 0): scripted
-        // traffic is then timed from the same instant whenever its positions begin to arrive.
-        let boot_s = if self.vehicle_clock {
-            f64::from(current.time_boot_ms) / 1000.0
-        } else {
-            0.0
-        };
-        let start = *self.flight_start_t_s.get_or_insert(current.t_s - boot_s);
-        let watch = traffic::Watch {
-            collision: *pipeline.config(),
-            volume: self.approaches.volume(),
-            feed: self
-                .feed
-                .as_ref()
-                .map(|f| traffic::Watch::feed_of(&f.config)),
-            max_model_radius_m: self.max_model_radius_m,
-        };
-        let interval = traffic::Interval {
-            own: sender,
-            previous: previous.as_ref(),
-            current: &current,
-            flight_start_t_s: start,
-        };
-        traffic::fill_dynamic(
-            &mut self.dynamic,
-            &scene,
-            &mut self.world,
-            &watch,
-            &interval,
-        );
-        let first = self.events.len();
-        self.approaches.observe(
-            sender.system_id,
-            previous.as_ref(),
-            &current,
-            self.dynamic.as_slice(),
-            &mut self.well_clear_changes,
-        );
-        for c in &self.well_clear_changes {
-            let kind = well_clear_event(&self.approaches, sender.system_id, c);
-            self.events.push(Event {
-                t: current.t_s,
-                time_boot_ms: current.time_boot_ms,
-                vehicle: u16::from(sender.system_id),
-                compid: sender.component_id,
-                kind,
-            });
-        }
-        let started = Instant::now();
-        let key = VehicleKey {
-            vehicle: u16::from(sender.system_id),
-            component_id: sender.component_id,
-            generation,
-        };
-        let report = pipeline.step(
-            &scene,
-            key,
-            previous.as_ref(),
-            &current,
-            &self.dynamic,
-            &mut self.events,
-        );
-        let cost_ns = started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64;
-        self.tick_costs.record(cost_ns);
-        if let Some(feed) = &mut self.feed {
-            let input = FrameInput {
-                scene: &scene,
-                plane: self.world.plane(),
-                sender,
-                key,
-                current: &current,
-                dynamic: &self.dynamic,
-            };
-            feed.on_sample(pipeline, &input, &mut self.feed_out);
-        }
-        self.ticks += 1;
-        #[cfg(not(feature = "viz"))]
-        let _ = (first, report);
-        #[cfg(feature = "viz")]
-        if let Some(viz) = &mut self.viz {
-            let sensing = pipeline
-                .vehicle(key.vehicle, key.component_id)
-                .map(|v| &v.sensing);
-            viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
-                tick: self.ticks,
-                t_s: current.t_s,
-                t0_s: self
-                    .ingestor
-                    .stats
-                    .time_span_s
-                    .map_or(current.t_s, |(first, _)| first),
-                time_boot_ms: current.time_boot_ms,
-                system_id: sender.system_id,
-                pose: BodyPose::of(&current),
-                model: scene.vehicle_model(sender.system_id),
-                rays: sensing.map_or_else(Vec::new, |s| {
-                    s.rays
-                        .iter()
-                        .map(|(dir, hit)| (*dir, hit.map(|h| h.distance_m)))
-                        .collect()
-                }),
-                ray_length_m: pipeline.config().ray_length_m,
-                feed: self
-                    .feed
-                    .as_ref()
-                    .map_or_else(Vec::new, |f| f.readings().to_vec()),
-                feed_max_m: self.feed.as_ref().map_or(0.0, |f| f.config.range.max_m),
-                node: sensing
-                    .and_then(|s| s.node())
-                    .map(|n| pipeline.octree().node_aabb(n)),
-                colliders: sensing.map_or_else(Vec::new, |s| s.colliders().collect()),
-                dynamic: self
-                    .dynamic
-                    .as_slice()
-                    .iter()
-                    .map(|d| (d.key, d.id.to_string(), d.kind, d.geometry_index, d.current))
-                    .collect(),
-                events: self.events[first..]
-                    .iter()
-                    .filter(|e| {
-                        matches!(
-                            e.kind,
-                            EventKind::Collision { .. }
-                                | EventKind::NearMiss { .. }
-                                | EventKind::WellClearLost { .. }
-                        )
-                    })
-                    .cloned()
-                    .collect(),
-                report,
-                cost_us: cost_ns as f64 / 1e3,
-            })));
-        }
-        self.write_feed()?;
-        self.flush_events()
-    }
-
     fn flush_events(&mut self) -> Result<()> {
         for e in self.events.drain(..) {
             self.digest.take(&e);
@@ -590,160 +444,6 @@ impl Session {
         }
         Ok(())
     }
-
-    /// The summary object `--summary-json` writes.
-    pub fn summary(&self, command: &str, input: &str) -> serde_json::Value {
-        let stats = &self.ingestor.stats;
-        let vehicles: Vec<_> = self
-            .world
-            .seen
-            .iter()
-            .map(|(id, seen)| {
-                json!({
-                    "sysid": id.system_id,
-                    "compid": id.component_id,
-                    "messages": stats.by_sender.get(id).copied().unwrap_or(0),
-                    "sequence": stats.sequence.get(id),
-                    "positions": seen.positions,
-                    "boot_resets": seen.boot_resets,
-                    "returns": seen.returns,
-                    "clock_reanchors": seen.clock_reanchors,
-                })
-            })
-            .collect();
-        let pairs = self.approaches.pairs();
-        let collision = self.pipeline.as_ref().map(|p| {
-            let totals = p.totals();
-            let ticks = totals.ticks.max(1) as f64;
-            let (median_us, p99_us) = self.tick_costs.percentiles_us();
-            json!({
-                "mode": p.config().mode.name(),
-                "ticks": totals.ticks,
-                "collisions": totals.collisions,
-                "collider_swaps": totals.swaps,
-                "sensing_frames": totals.sensing_frames,
-                "state_resets": totals.state_resets,
-                "near_misses": totals.near_misses,
-                "telemetry_gaps": totals.telemetry_gaps,
-                "notable_not_listed": self.notable_not_kept,
-                "terrain_clearance_min_m": totals.terrain_clearance_min_m,
-                "implausible_samples": totals.implausible_samples,
-                "reference_capped": totals.reference_capped,
-                "per_tick": {
-                    "active_box_mean": totals.active_box_sum as f64 / ticks,
-                    "active_box_max": totals.active_box_max,
-                    "active_mesh_mean": totals.active_mesh_sum as f64 / ticks,
-                    "active_mesh_max": totals.active_mesh_max,
-                    "active_triangles_mean": totals.active_triangles_sum as f64 / ticks,
-                    "active_triangles_max": totals.active_triangles_max,
-                    "narrow_tests_mean": totals.narrow_tests as f64 / ticks,
-                    "cost_us_median": median_us,
-                    "cost_us_p99": p99_us,
-                },
-                "meshes_built": p.meshes().counts().built,
-                "meshes_built_on_contact": p.meshes().counts().built_on_contact,
-                "meshes_evicted": p.meshes().counts().evicted,
-                "meshes_prefetch_refused": p.meshes().counts().prefetch_refused,
-                "meshes_worker_failures": p.meshes().counts().worker_failures,
-                "mesh_budget_bytes": p.meshes().budget(),
-                "mesh_bytes_peak": p.meshes().counts().peak_bytes,
-                "mesh_triangles_built": p.meshes().counts().triangles,
-                "mesh_bytes_built": p.meshes().counts().bytes,
-                "mesh_build_s": p.meshes().counts().build_time.as_secs_f64(),
-                "octree": { "nodes": p.octree().node_count(), "depth": p.octree().depth() },
-                "ahp": p.config().ahp,
-            })
-        });
-        json!({
-            "savsim": env!("CARGO_PKG_VERSION"),
-            "command": command,
-            "input": input,
-            "scene": self.scene.as_ref().map(|s| s.name.clone()),
-            "ingest": stats.to_summary(),
-            "log": self.log,
-            "vehicles": vehicles,
-            "traffic_aircraft": self.world.traffic.len(),
-            "traffic_pressure_altitude": self.world.traffic.values().filter(|t| t.pressure_altitude).count(),
-            "approaches": pairs
-                .iter()
-                .map(|(vehicle, pair)| {
-                    let a = &pair.approach;
-                    json!({
-                        "vehicle": vehicle,
-                        "track": &*pair.id,
-                        "distance_m": a.distance_m,
-                        "horizontal_m": a.horizontal_m,
-                        "vertical_m": a.vertical_m,
-                        "t_s": self.elapsed_s(a.t_s),
-                        "nmac": a.nmac,
-                    })
-                })
-                .collect::<Vec<_>>(),
-            "well_clear": {
-                "volume": self.approaches.volume().map(|v| json!({
-                    "dthr_m": v.dthr_m,
-                    "zthr_m": v.zthr_m,
-                    "tthr_s": v.tthr_s,
-                    "tcoa_s": v.tcoa_s,
-                })),
-                "pairs": pairs
-                    .iter()
-                    .filter(|(_, pair)| !pair.well_clear.episodes.is_empty())
-                    .map(|(vehicle, pair)| {
-                        let log = &pair.well_clear;
-                        json!({
-                            "vehicle": vehicle,
-                            "track": &*pair.id,
-                            "lowc_first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
-                            "lowc_duration_s": log.duration_s(),
-                            "episodes": log.episodes.len(),
-                            "min_tau_mod_s": log.min_tau_mod_s,
-                            "min_horizontal_m": log.episodes.iter().map(|e| e.min_horizontal_m).reduce(f64::min),
-                            "min_vertical_m": log.episodes.iter().map(|e| e.min_vertical_m).reduce(f64::min),
-                        })
-                    })
-                    .collect::<Vec<_>>(),
-            },
-            "tracks_expired": self.world.expired,
-            "collision": collision,
-            "feed": self.feed.as_ref().map(|f| json!({
-                "kinds": f.config.kinds,
-                "hz": f.config.hz,
-                "adsb_echoes": f.adsb_echoes,
-                "sensors": f.config.sensors,
-                "sensor_seed": f.config.sensor_seed,
-                "told": f.told().map(|(id, icao, t)| json!({
-                    "sysid": id.system_id,
-                    "compid": id.component_id,
-                    "icao": icao,
-                    "told": t,
-                })).collect::<Vec<_>>(),
-                "vehicles": f.counts().map(|(id, c)| json!({
-                    "sysid": id.system_id,
-                    "compid": id.component_id,
-                    "counts": c,
-                    "rate_hz": (c.span_ms > 0).then(|| (c.frames - 1) as f64 * 1000.0 / c.span_ms as f64),
-                })).collect::<Vec<_>>(),
-            })),
-            "rerun": self.rerun_summary(),
-            "interrupted": self.interrupted,
-            "wall_time_s": self.started.elapsed().as_secs_f64(),
-        })
-    }
-}
-
-impl Session {
-    #[cfg(feature = "viz")]
-    fn rerun_summary(&self) -> Option<serde_json::Value> {
-        self.viz
-            .as_ref()
-            .map(|v| json!({ "sent": v.sent(), "dropped": v.dropped() }))
-    }
-
-    #[cfg(not(feature = "viz"))]
-    fn rerun_summary(&self) -> Option<serde_json::Value> {
-        None
-    }
 }
 
 /// Write a JSON value to `path` atomically (a temporary file renamed into place), so a reader
@@ -753,28 +453,4 @@ pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
     let text = serde_json::to_vec_pretty(value).map_err(|e| Error::file(path, e.into()))?;
     std::fs::write(&tmp, text).map_err(|e| Error::file(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
-}
-
-/// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
-/// regain with its length.
-fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
-    match c.change {
-        Change::Lost { t_s } => {
-            let episode = approaches.pair(own, c.source).and_then(|pair| {
-                let episodes = pair.well_clear.episodes.iter();
-                episodes.rev().find(|e| e.start_t_s == t_s)
-            });
-            EventKind::WellClearLost {
-                track: c.body.to_string(),
-                lost_t: t_s,
-                horizontal_m: episode.map_or(f64::NAN, |e| e.lost_horizontal_m),
-                vertical_m: episode.map_or(f64::NAN, |e| e.lost_vertical_m),
-            }
-        }
-        Change::Regained { t_s, duration_s } => EventKind::WellClearRegained {
-            track: c.body.to_string(),
-            regained_t: t_s,
-            duration_s,
-        },
-    }
 }

@@ -8,8 +8,8 @@ use mavlink::dialects::ardupilotmega::MavCmd;
 use crate::study::pilot::{goto_velocity, leg_done, mode, Fix, Pilot, PilotError};
 use crate::study::plan::Leg;
 
-/// How long an autopilot may take to arm, seconds of its clock (ArduCopter SITL's EKF and GPS
-/// take about 20-30 s after boot).
+/// How long an autopilot may take to arm, seconds of its clock: well beyond the time SITL's EKF
+/// and GPS take to be ready after boot (docs/study.md, "Measured").
 pub const ARM_WITHIN_S: f64 = 180.0;
 /// Mode and arm requests are repeated this often while waiting, seconds of the vehicle's clock.
 const ASK_EVERY_S: f64 = 1.0;

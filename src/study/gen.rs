@@ -33,8 +33,8 @@ pub const MITIGATED_PARAMS: &str =
     "PRX1_TYPE=2;PRX_FILT=0;AVOID_ENABLE=3;AVOID_BEHAVE=1;AVOID_MARGIN=3";
 /// The nominal rows': avoidance off.
 pub const NOMINAL_PARAMS: &str = "AVOID_ENABLE=0";
-/// PX4's mitigated rows: Collision Prevention keeping 5 m, in the Position-mode variant that
-/// has it in PX4 1.15 (smoothed velocity; the default, acceleration-based, has none there).
+/// PX4's mitigated rows: Collision Prevention keeping 5 m, in a Position-mode variant that has
+/// it (smoothed velocity; which variants have it: docs/study.md).
 pub const PX4_MITIGATED_PARAMS: &str = "CP_DIST=5;MPC_POS_MODE=3";
 /// PX4's nominal rows: Collision Prevention off, the same Position-mode variant.
 pub const PX4_NOMINAL_PARAMS: &str = "CP_DIST=-1;MPC_POS_MODE=3";

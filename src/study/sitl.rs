@@ -177,8 +177,9 @@ impl Px4 {
             .is_some_and(|l| l.contains("type=\"INT32\""))
     }
 
-    /// Whether its startup script leaves SIH's home altitude (SIH_LOC_H0) at its default
-    /// (PX4 1.15 maps PX4_HOME_LAT and _LON only): then savsim boots it once to set SIH_LOC_H0
+    /// Whether its startup script leaves SIH's home altitude (SIH_LOC_H0) at its default (maps
+    /// PX4_HOME_LAT and _LON only; which releases do: docs/study.md): then savsim boots it once
+    /// to set SIH_LOC_H0
     /// over MAVLink (`study::run`), or the vehicle would fly hundreds of metres from the scene's
     /// height.
     pub fn home_alt_by_param(&self) -> bool {

@@ -53,12 +53,6 @@ impl Markers {
         f: &TickFrame,
         at: Where<'_>,
     ) -> RecordingStreamResult<Option<(f64, f64)>> {
-        let Where {
-            offset,
-            normal_m,
-            recent,
-            now,
-        } = at;
         let id = f.system_id;
         match &e.kind {
             EventKind::Collision {
@@ -69,31 +63,14 @@ impl Markers {
                 ..
             } => {
                 self.collisions.push(Marker {
-                    at: local(offset, DVec3::from(*point_enu_m)),
+                    at: local(at.offset, DVec3::from(*point_enu_m)),
                     label: format!(
                         "COLLISION v{id} {obstacle} +{:.2} s",
                         time_of_impact - f.t0_s
                     ),
                     normal: DVec3::from(*normal_enu).as_vec3(),
                 });
-                log_points(
-                    rec,
-                    paths::COLLISIONS,
-                    &self.collisions,
-                    10.0,
-                    [255, 0, 0],
-                    true,
-                )?;
-                rec.log(
-                    paths::COLLISION_NORMALS,
-                    &Arrows3D::from_vectors(
-                        self.collisions
-                            .iter()
-                            .map(|m| (m.normal * normal_m).to_array()),
-                    )
-                    .with_origins(self.collisions.iter().map(|m| m.at.to_array()))
-                    .with_colors([Color::from_rgb(255, 0, 0)]),
-                )?;
+                self.log_collisions(rec, at.normal_m)?;
                 Ok(Some((
                     time_of_impact - FOCUS_BEFORE_S,
                     time_of_impact + FOCUS_AFTER_S,
@@ -104,12 +81,8 @@ impl Markers {
                 closest_m,
                 closest_t,
             } => {
-                let at = recent
-                    .iter()
-                    .min_by(|a, b| (a.0 - closest_t).abs().total_cmp(&(b.0 - closest_t).abs()))
-                    .map_or(now, |r| r.1);
                 self.near_misses.push(Marker {
-                    at,
+                    at: at.position_at(*closest_t),
                     label: format!("near miss v{id} {obstacle} {closest_m:.1} m"),
                     normal: Vec3::ZERO,
                 });
@@ -129,12 +102,8 @@ impl Markers {
                 horizontal_m,
                 vertical_m,
             } => {
-                let at = recent
-                    .iter()
-                    .min_by(|a, b| (a.0 - lost_t).abs().total_cmp(&(b.0 - lost_t).abs()))
-                    .map_or(now, |r| r.1);
                 self.well_clear.push(Marker {
-                    at,
+                    at: at.position_at(*lost_t),
                     label: format!(
                         "LoWC v{id} {track} {horizontal_m:.0} m / {vertical_m:.0} m +{:.1} s",
                         lost_t - f.t0_s
@@ -153,6 +122,40 @@ impl Markers {
             }
             _ => Ok(None),
         }
+    }
+
+    /// Every collision so far: its point, labelled, and its normal as an arrow `normal_m`
+    /// long.
+    fn log_collisions(&self, rec: &RecordingStream, normal_m: f32) -> RecordingStreamResult<()> {
+        log_points(
+            rec,
+            paths::COLLISIONS,
+            &self.collisions,
+            10.0,
+            [255, 0, 0],
+            true,
+        )?;
+        rec.log(
+            paths::COLLISION_NORMALS,
+            &Arrows3D::from_vectors(
+                self.collisions
+                    .iter()
+                    .map(|m| (m.normal * normal_m).to_array()),
+            )
+            .with_origins(self.collisions.iter().map(|m| m.at.to_array()))
+            .with_colors([Color::from_rgb(255, 0, 0)]),
+        )
+    }
+}
+
+impl Where<'_> {
+    /// The vehicle's logged position nearest `t_s` among the recent ones (now, if none is
+    /// kept).
+    fn position_at(&self, t_s: f64) -> Vec3 {
+        self.recent
+            .iter()
+            .min_by(|a, b| (a.0 - t_s).abs().total_cmp(&(b.0 - t_s).abs()))
+            .map_or(self.now, |r| r.1)
     }
 }
 

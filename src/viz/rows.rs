@@ -1,8 +1,8 @@
 //! Per-tick rows gathered into chunks before they reach the recording stream.
 //!
-//! `RecordingStream::log` hands every row to rerun's batcher thread through a channel; at a
-//! dozen rows per tick that cost the logger several times the collision core's own time. Rows
-//! logged here are kept per entity and sent as one chunk every [`ROWS_PER_CHUNK`] rows, when
+//! `RecordingStream::log` hands every row to rerun's batcher thread through a channel, one
+//! send per row (what that cost is in docs/performance.md, "The rerun logger"). Rows logged
+//! here are kept per entity and sent as one chunk every [`ROWS_PER_CHUNK`] rows, when
 //! [`MAX_HOLD`] has passed if a viewer watches live (it sees them that late at most), and at
 //! the end. Scalars, poses, arrows and line strips, the most frequent rows, are kept as plain
 //! columns and become arrow arrays once per chunk, not once per row.

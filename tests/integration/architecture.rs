@@ -98,6 +98,15 @@ fn must_not(
     }
 }
 
+/// `module` names no other module of its crate.
+fn imports_nothing(graph: &BTreeMap<String, BTreeSet<(String, String)>>, module: &str) {
+    let edges = graph.get(module).cloned().unwrap_or_default();
+    assert!(
+        edges.is_empty(),
+        "{module} imports {edges:?}; ARCHITECTURE.md says it imports no other module"
+    );
+}
+
 /// `module` names of `allowed_module` only the listed submodules.
 fn only(
     graph: &BTreeMap<String, BTreeSet<(String, String)>>,
@@ -120,6 +129,7 @@ fn the_core_imports_downward_only() {
     let core = edges(&crate::common::root().join("crates/savsim-core/src"));
     assert!(core.contains_key("pipeline") && core.contains_key("collision"));
     no_cycles(&core);
+    imports_nothing(&core, "bounds");
     must_not(
         &core,
         "geo",
@@ -162,6 +172,10 @@ fn savsim_imports_downward_only() {
     let wiring = [
         "app", "live", "session", "study", "batch", "bench", "viz", "runs", "replay",
     ];
+    imports_nothing(&app, "files");
+    for leaf in ["scene", "costs", "bundled"] {
+        must_not(&app, leaf, &wiring);
+    }
     must_not(&app, "ingest", &wiring);
     must_not(&app, "feed", &wiring);
     must_not(

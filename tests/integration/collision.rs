@@ -1,8 +1,8 @@
 //! Golden scenarios, one per step of the algorithm, run through `Pipeline::step` with
 //! synthetic flights (tests/integration/common.rs).
 
-use glam::DVec3;
-use savsim::bench::collisions;
+use glam::{DQuat, DVec3};
+use savsim::bench::{collisions, run_samples};
 use savsim::collision::events::{Event, EventKind};
 use savsim::collision::threat::{AhpWeights, PAPER_MATRIX};
 use savsim::collision::ColliderKind;
@@ -433,4 +433,125 @@ fn far_from_the_scene_origin_precision_holds() {
             );
         }
     }
+}
+
+/// `--near-miss-m 0`: a box the vehicle already overlaps at its first sample is a collision.
+#[test]
+fn near_miss_zero_still_reports_an_overlap_at_the_first_sample() {
+    let s = scene(
+        "[[obstacle]]\nid = \"cube\"\nkind = \"building\"\nshape = { box = [10.0, 10.0, 10.0] }\nposition_enu_m = [0.0, 0.0, 0.0]\n",
+    );
+    let flight = straight(
+        ORIGIN,
+        DVec3::new(0.0, 0.0, 5.0),
+        DVec3::new(0.0, 20.0, 5.0),
+        5.0,
+        10.0,
+    );
+    for mode in [Mode::Box, Mode::Mesh, Mode::Exact, Mode::Reference] {
+        let mut pipeline = Pipeline::new(
+            &s,
+            CollisionConfig {
+                mode,
+                near_miss_m: 0.0,
+                ..CollisionConfig::default()
+            },
+        );
+        let (_, events) = run_samples(&mut pipeline, &s, 1, &flight, &[]);
+        let hits = collisions(&events);
+        assert_eq!(hits.len(), 1, "{mode:?}: {hits:?}");
+        assert!((hits[0].1 - flight[0].t_s).abs() < 1e-9, "{mode:?}");
+    }
+}
+
+/// The sensing fan is configurable: a tower 50 m ahead and to the right at 45 degrees is seen
+/// by the eight-ray ring's second ray (forward, then clockwise) and by none of the paper's six
+/// axes; a levelled ring does not see the ground when the vehicle pitches down.
+#[test]
+fn the_sensing_fan_is_configurable() {
+    use savsim::pipeline::{MovingBodies, SensorFan};
+    let s = scene(
+        "[[obstacle]]\nid = \"tower\"\nkind = \"building\"\nshape = { box = [4.0, 4.0, 60.0] }\nposition_enu_m = [37.36, -37.36, 0.0]\n",
+    );
+    // Nose east at 20 m up: the tower is south-east, 45 degrees right of the nose.
+    let at = sample(ORIGIN, 1000.0, DVec3::new(0.0, 0.0, 20.0), DVec3::X);
+    let rays = |fan: SensorFan, sample: &TrackSample| {
+        let mut p = Pipeline::new(
+            &s,
+            CollisionConfig {
+                mode: Mode::Exact,
+                sensor_fan: fan,
+                ..CollisionConfig::default()
+            },
+        );
+        let mut events = Vec::new();
+        p.step(
+            &s,
+            VehicleKey::new(1),
+            None,
+            sample,
+            &MovingBodies::default(),
+            &mut events,
+        );
+        p.vehicle(1, 1).unwrap().sensing.rays.clone()
+    };
+    let six = rays(SensorFan::Axes, &at);
+    assert_eq!(six.len(), 6);
+    assert!(six.iter().all(|(_, hit)| hit.is_none()), "{six:?}");
+    let ring = rays(SensorFan::Ring { rays: 8 }, &at);
+    assert_eq!(ring.len(), 10);
+    let (dir, hit) = ring[1];
+    assert!(
+        (dir - DVec3::new(1.0, -1.0, 0.0).normalize()).length() < 1e-9,
+        "{dir}"
+    );
+    // The tower's near corner is at 50.0 - 2 sqrt(2) m along the diagonal.
+    let d = hit.expect("the second ray sees the tower").distance_m;
+    assert!((d - (52.83 - 2.0 * 2f64.sqrt())).abs() < 0.05, "{d}");
+    assert!(ring
+        .iter()
+        .enumerate()
+        .all(|(k, r)| k == 1 || r.1.is_none()));
+    // Pitched 30 degrees nose down over flat ground (a scene of terrain): the body ring's
+    // forward ray meets the ground, the levelled ring's does not.
+    let ground = scene(
+        "[[terrain]]\nid = \"flat\"\ngenerated = { seed = 1, size_m = [400.0, 400.0], cell_m = 20.0, relief_m = 0.0 }\nposition_enu_m = [-200.0, -200.0, 0.0]\n",
+    );
+    let mut pitched = at;
+    pitched.attitude.enu_from_frd =
+        DQuat::from_rotation_y(30f64.to_radians()) * DQuat::from_rotation_x(std::f64::consts::PI);
+    let cast = |fan| {
+        let mut p = Pipeline::new(
+            &ground,
+            CollisionConfig {
+                mode: Mode::Exact,
+                sensor_fan: fan,
+                ..CollisionConfig::default()
+            },
+        );
+        let mut events = Vec::new();
+        p.step(
+            &ground,
+            VehicleKey::new(1),
+            None,
+            &pitched,
+            &MovingBodies::default(),
+            &mut events,
+        );
+        p.vehicle(1, 1).unwrap().sensing.rays.clone()
+    };
+    let body = cast(SensorFan::Ring { rays: 4 });
+    let level = cast(SensorFan::LevelRing { rays: 4 });
+    let forward_body = body[0]
+        .1
+        .expect("pitched down, the body's forward ray meets the ground");
+    assert!(
+        (forward_body.distance_m - 40.0).abs() < 0.05,
+        "{forward_body:?}"
+    );
+    assert!(level[..4].iter().all(|r| r.1.is_none()), "{level:?}");
+    assert!(
+        (level[4].1.unwrap().distance_m - 20.0).abs() < 0.05,
+        "the levelled down ray"
+    );
 }

@@ -322,3 +322,32 @@ pub fn udp_link(
     let local = link.local_addr().unwrap();
     (link, local)
 }
+
+/// The collisions of vehicle `vehicle` among `events`: (obstacle, time of impact).
+pub fn collisions_on(
+    events: &[savsim::collision::events::Event],
+    vehicle: u16,
+) -> Vec<(String, f64)> {
+    events
+        .iter()
+        .filter(|e| e.vehicle == vehicle)
+        .filter_map(|e| match &e.kind {
+            savsim::collision::events::EventKind::Collision {
+                obstacle,
+                time_of_impact,
+                ..
+            } => Some((obstacle.clone(), *time_of_impact)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The down reading of a feed frame, metres (`None`: max + 1, nothing within range).
+pub fn rangefinder_m(messages: &[MavMessage]) -> Option<f64> {
+    messages.iter().find_map(|m| match m {
+        MavMessage::DISTANCE_SENSOR(d) if d.orientation as u8 == 25 => {
+            (d.current_distance <= d.max_distance).then(|| f64::from(d.current_distance) / 100.0)
+        }
+        _ => None,
+    })
+}

@@ -2,6 +2,7 @@
 
 use std::collections::BTreeMap;
 
+use glam::DVec3;
 use savsim::geo::Geodetic;
 use savsim::ingest::decode::{decode, Rejection, Report};
 use savsim::ingest::frame::{scan, FrameStatus, Scan};
@@ -9,12 +10,14 @@ use savsim::ingest::stats::{IngestStats, SenderId, SequenceCounts};
 use savsim::ingest::stream::frames_in_datagram;
 use savsim::ingest::tlog::{TlogReader, TlogWriter};
 use savsim::ingest::Ingestor;
+use savsim::pipeline::CollisionConfig;
+use savsim::session::Session;
 use savsim::world::{WorldConfig, WorldStore};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
 use mavlink::{MavHeader, MavlinkVersion};
 
-use crate::common::{have_pymavlink, python, root};
+use crate::common::{feed, frame_v2, have_pymavlink, python, root};
 
 fn frame(version: MavlinkVersion, system_id: u8, message: &MavMessage) -> Vec<u8> {
     let mut buf = Vec::new();
@@ -276,4 +279,60 @@ fn a_sequence_from_zero_after_a_half_second_pause_is_a_restart() {
     counts.observe_at(250, 200.0);
     counts.observe_at(0, 200.12);
     assert_eq!((counts.lost, counts.restarts), (5, 0));
+}
+
+fn adsb_frame(icao: u32, flags: u16, altitude_type: u8) -> Vec<u8> {
+    use mavlink::dialects::ardupilotmega::{
+        AdsbAltitudeType, AdsbEmitterType, AdsbFlags, ADSB_VEHICLE_DATA,
+    };
+    use num_traits::FromPrimitive;
+    let m = MavMessage::ADSB_VEHICLE(ADSB_VEHICLE_DATA {
+        ICAO_address: icao,
+        lat: -353_600_000,
+        lon: 1_491_600_000,
+        altitude_type: AdsbAltitudeType::from_u8(altitude_type).unwrap(),
+        altitude: 900_000,
+        heading: 9_000,
+        hor_velocity: 5_000,
+        ver_velocity: 300,
+        callsign: (*b"TEST1234\0").into(),
+        emitter_type: AdsbEmitterType::ADSB_EMITTER_TYPE_LARGE,
+        tslc: 1,
+        flags: AdsbFlags::from_bits_truncate(flags),
+        squawk: 1200,
+    });
+    frame_v2(50, 1, 0, &m)
+}
+
+#[test]
+fn adsb_reports_are_read_by_their_flags_and_altitude_type() {
+    let mut session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    // Coordinates and altitude valid, heading and speeds too: a moving aircraft.
+    feed(&mut session, 1.0, &adsb_frame(0x10, 0x1FF, 1));
+    // No valid coordinates: not a position (Mode S relays).
+    feed(&mut session, 1.0, &adsb_frame(0x11, 0x1FE, 1));
+    // Coordinates but no altitude: not placed.
+    feed(&mut session, 1.0, &adsb_frame(0x12, 0x1FD, 1));
+    // Valid position, heading and velocity not: held still, not extrapolated.
+    feed(&mut session, 1.0, &adsb_frame(0x13, 0x03, 1));
+    // QNH barometric altitude: kept, and counted apart.
+    feed(&mut session, 1.0, &adsb_frame(0x14, 0x1FF, 0));
+    let traffic = &session.world().traffic;
+    assert_eq!(
+        traffic.keys().copied().collect::<Vec<_>>(),
+        [0x10, 0x13, 0x14]
+    );
+    let v = |icao: u32| traffic[&icao].history.latest().unwrap().velocity_enu_mps;
+    assert!(
+        (v(0x10).truncate().length() - 50.0).abs() < 0.01 && v(0x10).z > 2.9,
+        "{}",
+        v(0x10)
+    );
+    assert_eq!(v(0x13), DVec3::ZERO);
+    assert!(traffic[&0x14].pressure_altitude && !traffic[&0x10].pressure_altitude);
+    let rejected = &session.stats().rejected;
+    assert_eq!(
+        rejected.get(&savsim::ingest::decode::Rejection::AdsbNoPosition),
+        Some(&2)
+    );
 }

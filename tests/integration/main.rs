@@ -18,6 +18,12 @@
 //! - `sitl_px4`: two PX4 SIH quadrotors on one UDP link, one restarted (needs `SAVSIM_PX4`).
 //! - `sitl_px4_feed`: PX4's collision prevention keeps its distance from a wall with savsim's
 //!   OBSTACLE_DISTANCE feed, and PX4's obstacle map is savsim's bins (needs `SAVSIM_PX4`).
+//! - `forward`: `--forward`: a pymavlink ground station through savsim to a vehicle played by
+//!   a tokio task.
+//! - `signing`: MAVLink 2 signing against pymavlink's: bad frames dropped and counted, savsim's
+//!   own frames accepted.
+//! - `sitl_forward`: ground stations and routers (pymavlink, MAVProxy) against ArduCopter SITL
+//!   (needs `SAVSIM_ARDUCOPTER`).
 //! - `supervisor`: per-vehicle routing, requests, fallback, stale streams and reboots, on
 //!   frames and times the test chooses.
 //! - `faults`: live faults (garbage, truncation, repeats, reordering, reboots) and a 10 s burst
@@ -39,17 +45,26 @@
 //! - `solids`: closed meshes (OSM and CityJSON buildings) as solids in every mode; open meshes
 //!   as surfaces.
 //! - `results`: figures drawn from every event of a run, never from the capped report list.
-//! - `issue_11_layers`: identities across ticks, the vehicle's clock, `--near-miss-m 0`,
-//!   reboots mid-contact, vehicle-vehicle collisions, the mesh budget, rotating sweeps against
-//!   the reference.
-//! - `issue_23_trust`: what outside checks found (rays against height fields, the feed's
-//!   rangefinder over terrain, clocks, reboots, bounded inputs, the feed's geometry, ingest),
-//!   each failing before its fix.
-//! - `issue_24_daa`: well clear and alerting against values worked by hand, `savsim daa`'s
-//!   CSV, and parity with DAIDALUS's DaidalusAlerting (needs `SAVSIM_DAIDALUS`).
+//! - `identities`: moving bodies and vehicles keep their identity across ticks (come, go,
+//!   reorder, expire, reboot mid-contact, collide with each other, a swarm).
+//! - `sweeps`: turning, rolling and climbing sweeps past a corner and over hills, and a fast
+//!   low pass into the ground, against the reference.
+//! - `mesh_residency`: a mesh budget smaller than the flight, the mesh worker, clones of one
+//!   pipeline sharing its meshes.
+//! - `clocks`: the vehicle's clock (two samples in one read, a quick reboot, speedups and
+//!   drift, a far-future tlog stamp).
+//! - `rays`: exact rays and the rangefinder against terrain held as height fields, checked by
+//!   an analytic cast.
+//! - `feed_geometry`: the feed far from the scene's origin (rangefinder over the ellipsoid,
+//!   level sectors, ADS-B heading, climb and radius, COLLISION inside its volume).
+//! - `bounded_inputs`: absurd numbers in batch rows and flags are errors, never hangs or
+//!   panics.
+//! - `daa`: well clear and alerting against values worked by hand, `savsim daa`'s CSV, the
+//!   encounter model's sampler, and parity with DAIDALUS's DaidalusAlerting (needs
+//!   `SAVSIM_DAIDALUS`).
 //! - `pairing`: importance-sampled pairing of model tracks against its distributions and the
 //!   model's own, weights included.
-//! - `issue_26_logs`: PX4 ULog and ArduPilot DataFlash logs of ../shared/fixtures/realdata
+//! - `flight_logs`: PX4 ULog and ArduPilot DataFlash logs of ../shared/fixtures/realdata
 //!   against pyulog's and pymavlink's readings of them; bad logs.
 //! - `study`: `savsim study`: the generator's boxes across their paths, bad rows, the results
 //!   table's risk ratios; obstacle-approach pairs on ArduCopter SITL (needs
@@ -71,26 +86,30 @@
 mod architecture;
 mod batch;
 mod bench;
+mod bounded_inputs;
 mod bounded_reads;
 mod cities;
 mod cli;
+mod clocks;
 mod collision;
 mod common;
+mod daa;
 mod daa_sum;
 mod extremes;
 mod faults;
 mod feed;
+mod feed_geometry;
+mod flight_logs;
 mod forward;
 mod geo;
+mod identities;
 mod ingest;
-mod issue_11_layers;
-mod issue_23_trust;
-mod issue_24_daa;
-mod issue_26_logs;
 mod live;
+mod mesh_residency;
 mod osm;
 mod pairing;
 mod properties;
+mod rays;
 mod results;
 mod scenes;
 mod sensed_daa;
@@ -106,6 +125,7 @@ mod sitl_px4_feed;
 mod solids;
 mod study;
 mod supervisor;
+mod sweeps;
 mod terrain;
 #[cfg(feature = "viz")]
 mod viz;

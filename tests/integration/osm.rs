@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use crate::issue_26_logs::realdata;
+use crate::flight_logs::realdata;
 
 /// A scene with `[[osm]]` over `file`, its origin at `lat`, `lon`.
 fn scene_over(dir: &Path, file: &Path, lat: f64, lon: f64, extra: &str) -> String {

@@ -12,7 +12,7 @@ use savsim::daa::encounter_model::{track, Model};
 use savsim::daa::pairing_ini::PairingSettings;
 
 use crate::common::root;
-use crate::issue_24_daa::chi_square_p;
+use crate::daa::chi_square_p;
 
 const FT: f64 = 0.3048;
 
@@ -330,8 +330,8 @@ fn mit_ll_trajectory_outputs_are_batch_rows() {
     let manifest = dir.path().join("m.csv");
     std::fs::write(&manifest, format!("id,daa\nmitll-1,{}\n", file.display())).unwrap();
     let out = dir.path().join("out");
-    crate::issue_24_daa::batch_on_one_job(&manifest, &out);
-    let batch = crate::issue_24_daa::only_shard(&out);
+    crate::daa::batch_on_one_job(&manifest, &out);
+    let batch = crate::daa::only_shard(&out);
     let error = crate::batch::column::<StringArray>(&batch, "error");
     assert!(error.is_null(0), "{}", error.value(0));
     let got = crate::batch::column::<Float64Array>(&batch, "cpa_m").value(0);
@@ -424,8 +424,8 @@ fn a_trajectory_file_is_a_track_placed_by_wgs84() {
     )
     .unwrap();
     let out = dir.path().join("out");
-    crate::issue_24_daa::batch_on_one_job(&manifest, &out);
-    let batch = crate::issue_24_daa::only_shard(&out);
+    crate::daa::batch_on_one_job(&manifest, &out);
+    let batch = crate::daa::only_shard(&out);
     let error = crate::batch::column::<StringArray>(&batch, "error");
     assert!(error.is_null(0), "{}", error.value(0));
     let cpa = crate::batch::column::<Float64Array>(&batch, "cpa_m").value(0);
@@ -443,8 +443,8 @@ fn a_trajectory_file_is_a_track_placed_by_wgs84() {
         ),
     )
     .unwrap();
-    crate::issue_24_daa::batch_on_one_job(&manifest, &out.join("bad"));
-    let batch = crate::issue_24_daa::only_shard(&out.join("bad"));
+    crate::daa::batch_on_one_job(&manifest, &out.join("bad"));
+    let batch = crate::daa::only_shard(&out.join("bad"));
     let error = crate::batch::column::<StringArray>(&batch, "error");
     assert!(error.value(0).contains("alt_MSL_ft"), "{}", error.value(0));
 }

@@ -4,7 +4,7 @@
 //! - `exact` (`collision::swept`): every obstacle the swept vehicle can reach (the static
 //!   `Bvh` for static obstacles, the moving bodies' broad phase), as its exact shape, swept
 //!   between the two samples. The truth savsim reports.
-//! - `box`, `mesh`, `paper` ([`Contacts::discrete`] with a [`Colliders`]): every obstacle near
+//! - `box`, `mesh`, `paper` (`Contacts::discrete` with a `Colliders`): every obstacle near
 //!   the vehicle as a box, a triangle mesh, or whatever collider the sensing layer holds, at the
 //!   sample. `exact` without a previous sample is also discrete, with the exact shapes.
 //!

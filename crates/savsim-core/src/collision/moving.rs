@@ -19,8 +19,8 @@ use crate::scene::{Aabb64, Placement, Scene};
 
 /// Above this many bodies, region queries go through a `Bvh` instead of a scan...
 const INDEX_ABOVE: usize = 24;
-/// ...once this many queries have been scanned (building the `Bvh` costs about as much as
-/// this many scans).
+/// ...once this many queries have been scanned: the point past which building the `Bvh` pays
+/// for itself (docs/performance.md, "Live fleets").
 const SCANS_BEFORE_INDEX: u32 = 8;
 
 /// The moving bodies of one tick.

@@ -31,6 +31,7 @@ const INSIDE_MARGIN_M: f64 = 1e-3;
 
 impl Contacts {
     /// The exact strategy over an interval: every reachable obstacle's exact shape, swept.
+    /// Returns the exact tests run.
     pub(crate) fn swept(
         &mut self,
         world: &World<'_>,
@@ -50,129 +51,213 @@ impl Contacts {
             motion.now,
             false,
         );
-        // A contact held all through needs a point of the vehicle that moves in a straight
-        // line: its reference point (the screw motion's pivot), if the vehicle holds it.
-        let holds_own_reference = vehicle_geometry.contains_local_point(glam::Vec3::ZERO);
-        let reach = motion.swept_box();
-        let (p0, p1) = (pose_before.position_enu_m, motion.now.position_enu_m);
-        let r = motion.radius_m;
+        let interval = Interval {
+            world,
+            vehicle: &vehicle,
+            vehicle_geometry,
+            // A contact held all through needs a point of the vehicle that moves in a
+            // straight line: its reference point (the screw motion's pivot), if the vehicle
+            // holds it.
+            holds_own_reference: vehicle_geometry.contains_local_point(glam::Vec3::ZERO),
+            reach: motion.swept_box(),
+            pose_before,
+            band_m,
+            motion,
+            before,
+        };
         let mut tests = 0;
         for k in 0..self.candidates.len() {
             let o = self.candidates[k];
-            let Some(v) = view(world.scene, world.dynamic, o) else {
-                continue;
-            };
-            let near_box = v.aabb_enu_m.distance_to(p1) < band_m + r;
-            let moved_m = v.current.position_enu_m.distance(v.previous.position_enu_m);
-            let could_touch =
-                v.aabb_enu_m.inflated(moved_m).intersects(&reach) && !above_terrain(&v, &reach);
-            let near_miss_candidate = near_box && !v.geometry.is_terrain();
-            if !(could_touch || near_miss_candidate) {
-                continue;
-            }
-            let body = world
-                .shapes
-                .body(v.geometry_index, v.geometry, meshes, v.current, true);
-            let mut gap_now: Option<f64> = None;
-            if could_touch {
-                let was_touching = before.touching.contains(&o);
-                if was_touching
-                    && holds_own_reference
-                    && matches!(o, ObstacleRef::Static(_))
-                    && held_throughout(v.geometry, &v.current, p0, p1)
-                {
-                    self.touching.push((
-                        o,
-                        Touch {
-                            point_enu_m: p1,
-                            normal_enu: DVec3::Z,
-                            fraction: 0.0,
-                            swept: true,
-                            holds_now: true,
-                        },
-                    ));
-                    continue;
-                }
-                let (a0, a1, b0, b1) = (
-                    vehicle.at(pose_before),
-                    vehicle.placed(),
-                    body.at(v.previous),
-                    body.placed(),
-                );
-                let under_terrain = v.geometry.is_terrain()
-                    && (inside_solid(v.geometry, &v.current, p0)
-                        || inside_solid(v.geometry, &v.current, p1));
-                let apart = if under_terrain {
-                    false
-                } else {
-                    let closing = contact::closing_bound_m(&a0, &a1, &b0, &b1);
-                    let slack =
-                        2.0 * f64::from(contact::tolerance_m(a0.shape, b0.shape)) + GAP_SLACK_M;
-                    // A gap parry could not measure (infinite) proves nothing.
-                    let beyond = |gaps: f64| gaps.is_finite() && gaps > closing + slack;
-                    // Terrain: half of that gap at each end, read off the height grid.
-                    let half_m = (0.5 * (closing + slack) * (1.0 + 1e-6) + 1e-6) as f32;
-                    let local = |p: DVec3| (p - v.current.position_enu_m).as_vec3();
-                    let clear = |p: DVec3| v.geometry.terrain_clear_by(local(p), r as f32, half_m);
-                    // Lower bounds first (boxes and spheres), exact gaps only when needed.
-                    let lower0 = match o {
-                        ObstacleRef::Static(_) => v.aabb_enu_m.distance_to(p0) - r,
-                        ObstacleRef::Dynamic(_) => {
-                            p0.distance(v.previous.position_enu_m)
-                                - r
-                                - crate::collision::bodies::radius_m(v.geometry)
-                        }
-                    };
-                    let lower1 = v.aabb_enu_m.distance_to(p1) - r;
-                    beyond(lower0 + lower1) || (clear(p0) && clear(p1)) || {
-                        tests += 1;
-                        let d1 = contact::distance_m(&a1, &b1);
-                        gap_now = Some(d1);
-                        beyond(lower0 + d1) || {
-                            let cached = before
-                                .gaps
-                                .binary_search_by_key(&o, |g| g.0)
-                                .ok()
-                                .map(|i| before.gaps[i].1);
-                            let d0 = cached.unwrap_or_else(|| {
-                                tests += 1;
-                                contact::distance_m(&a0, &b0)
-                            });
-                            beyond(d0 + d1)
-                        }
-                    }
-                };
-                if !apart {
-                    tests += 2;
-                    let touches =
-                        sweep_touches(&vehicle, motion, &body, &v, vehicle_geometry, was_touching);
-                    if !touches.is_empty() {
-                        let holds = touches.iter().any(|t| t.holds_now);
-                        self.touching.extend(touches.into_iter().map(|t| (o, t)));
-                        if holds && matches!(o, ObstacleRef::Static(_)) {
-                            self.gaps.push((o, 0.0));
-                        }
-                        continue;
-                    }
-                }
-            }
-            let gap = match gap_now {
-                Some(d) => d,
-                None if near_miss_candidate => {
-                    tests += 1;
-                    contact::distance_m(&vehicle.placed(), &body.placed())
-                }
-                None => continue,
-            };
-            if matches!(o, ObstacleRef::Static(_)) {
-                self.gaps.push((o, gap));
-            }
-            if near_miss_candidate && gap < band_m {
-                self.near.push((o, gap));
-            }
+            tests += self.sweep_candidate(&interval, meshes, o);
         }
         self.gaps.sort_unstable_by_key(|g| g.0);
         tests
+    }
+
+    /// One candidate over the interval: a contact held all through, contacts swept, or its gap
+    /// (kept for the next interval when static; a near miss when within the band). Returns the
+    /// exact tests run.
+    fn sweep_candidate(
+        &mut self,
+        s: &Interval<'_>,
+        meshes: &mut MeshCache,
+        o: ObstacleRef,
+    ) -> usize {
+        let world = s.world;
+        let Some(v) = view(world.scene, world.dynamic, o) else {
+            return 0;
+        };
+        let (p0, p1) = (s.pose_before.position_enu_m, s.motion.now.position_enu_m);
+        let r = s.motion.radius_m;
+        let near_box = v.aabb_enu_m.distance_to(p1) < s.band_m + r;
+        let moved_m = v.current.position_enu_m.distance(v.previous.position_enu_m);
+        let could_touch =
+            v.aabb_enu_m.inflated(moved_m).intersects(&s.reach) && !above_terrain(&v, &s.reach);
+        let near_miss_candidate = near_box && !v.geometry.is_terrain();
+        if !(could_touch || near_miss_candidate) {
+            return 0;
+        }
+        let body = world
+            .shapes
+            .body(v.geometry_index, v.geometry, meshes, v.current, true);
+        let mut tests = 0;
+        let mut gap_now: Option<f64> = None;
+        if could_touch {
+            let was_touching = s.before.touching.contains(&o);
+            if was_touching
+                && s.holds_own_reference
+                && matches!(o, ObstacleRef::Static(_))
+                && held_throughout(v.geometry, &v.current, p0, p1)
+            {
+                self.touching.push((
+                    o,
+                    Touch {
+                        point_enu_m: p1,
+                        normal_enu: DVec3::Z,
+                        fraction: 0.0,
+                        swept: true,
+                        holds_now: true,
+                    },
+                ));
+                return 0;
+            }
+            let proof = s.apart(o, &v, &body);
+            tests += proof.tests;
+            gap_now = proof.gap_now_m;
+            if !proof.apart {
+                tests += 2;
+                let touches = sweep_touches(
+                    s.vehicle,
+                    s.motion,
+                    &body,
+                    &v,
+                    s.vehicle_geometry,
+                    was_touching,
+                );
+                if !touches.is_empty() {
+                    let holds = touches.iter().any(|t| t.holds_now);
+                    self.touching.extend(touches.into_iter().map(|t| (o, t)));
+                    if holds && matches!(o, ObstacleRef::Static(_)) {
+                        self.gaps.push((o, 0.0));
+                    }
+                    return tests;
+                }
+            }
+        }
+        let gap = match gap_now {
+            Some(d) => d,
+            None if near_miss_candidate => {
+                tests += 1;
+                contact::distance_m(&s.vehicle.placed(), &body.placed())
+            }
+            None => return tests,
+        };
+        if matches!(o, ObstacleRef::Static(_)) {
+            self.gaps.push((o, gap));
+        }
+        if near_miss_candidate && gap < s.band_m {
+            self.near.push((o, gap));
+        }
+        tests
+    }
+}
+
+/// One interval of the vehicle's motion, the same for every candidate.
+struct Interval<'a> {
+    world: &'a World<'a>,
+    /// The vehicle's exact shape.
+    vehicle: &'a Body,
+    vehicle_geometry: &'a Geometry,
+    /// The vehicle's model holds its own reference point.
+    holds_own_reference: bool,
+    /// The box the vehicle sweeps.
+    reach: Aabb64,
+    /// The vehicle's pose at the previous sample.
+    pose_before: BodyPose,
+    /// The near-miss band, metres.
+    band_m: f64,
+    motion: &'a Motion,
+    before: Before<'a>,
+}
+
+/// Whether a candidate was proved apart over the interval, the exact gap at the sample if one
+/// was measured for the proof, and the exact tests it took.
+struct Proof {
+    apart: bool,
+    gap_now_m: Option<f64>,
+    tests: usize,
+}
+
+impl Interval<'_> {
+    /// The gap proof: the gaps at the two ends add up to more than the gap can close in the
+    /// interval (lower bounds from boxes and spheres first, exact gaps only when needed; the
+    /// last interval's exact gap reused), or, for terrain, the vehicle clear of the height grid
+    /// by half of that at both ends. Never apart when the vehicle is under the terrain at
+    /// either end.
+    fn apart(&self, o: ObstacleRef, v: &ObstacleView<'_>, body: &Body) -> Proof {
+        let (p0, p1) = (
+            self.pose_before.position_enu_m,
+            self.motion.now.position_enu_m,
+        );
+        let r = self.motion.radius_m;
+        let mut proof = Proof {
+            apart: false,
+            gap_now_m: None,
+            tests: 0,
+        };
+        let under_terrain = v.geometry.is_terrain()
+            && (inside_solid(v.geometry, &v.current, p0)
+                || inside_solid(v.geometry, &v.current, p1));
+        if under_terrain {
+            return proof;
+        }
+        let (a0, a1, b0, b1) = (
+            self.vehicle.at(self.pose_before),
+            self.vehicle.placed(),
+            body.at(v.previous),
+            body.placed(),
+        );
+        let closing = contact::closing_bound_m(&a0, &a1, &b0, &b1);
+        let slack = 2.0 * f64::from(contact::tolerance_m(a0.shape, b0.shape)) + GAP_SLACK_M;
+        // A gap parry could not measure (infinite) proves nothing.
+        let beyond = |gaps: f64| gaps.is_finite() && gaps > closing + slack;
+        // Terrain: half of that gap at each end, read off the height grid.
+        let half_m = (0.5 * (closing + slack) * (1.0 + 1e-6) + 1e-6) as f32;
+        let local = |p: DVec3| (p - v.current.position_enu_m).as_vec3();
+        let clear = |p: DVec3| v.geometry.terrain_clear_by(local(p), r as f32, half_m);
+        // Lower bounds first (boxes and spheres), exact gaps only when needed.
+        let lower0 = match o {
+            ObstacleRef::Static(_) => v.aabb_enu_m.distance_to(p0) - r,
+            ObstacleRef::Dynamic(_) => {
+                p0.distance(v.previous.position_enu_m)
+                    - r
+                    - crate::collision::bodies::radius_m(v.geometry)
+            }
+        };
+        let lower1 = v.aabb_enu_m.distance_to(p1) - r;
+        if beyond(lower0 + lower1) || (clear(p0) && clear(p1)) {
+            proof.apart = true;
+            return proof;
+        }
+        proof.tests += 1;
+        let d1 = contact::distance_m(&a1, &b1);
+        proof.gap_now_m = Some(d1);
+        if beyond(lower0 + d1) {
+            proof.apart = true;
+            return proof;
+        }
+        let cached = self
+            .before
+            .gaps
+            .binary_search_by_key(&o, |g| g.0)
+            .ok()
+            .map(|i| self.before.gaps[i].1);
+        let d0 = cached.unwrap_or_else(|| {
+            proof.tests += 1;
+            contact::distance_m(&a0, &b0)
+        });
+        proof.apart = beyond(d0 + d1);
+        proof
     }
 }
 

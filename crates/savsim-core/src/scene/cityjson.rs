@@ -63,7 +63,7 @@ pub enum CityJsonError {
 
 /// Parse a CityJSON document and triangulate the objects of the given types. Positions are
 /// relative to `anchor_xyz` (dataset coordinates; `None`: the bounding box centre at z = 0,
-/// so that heights stay AMSL), turned by `rotation_deg`.
+/// so that heights stay AMSL), turned by `rotation_deg`. Buildings come sorted by id.
 pub fn buildings(
     text: &str,
     types: &[String],
@@ -74,31 +74,7 @@ pub fn buildings(
     if doc.get("type").and_then(Value::as_str) != Some("CityJSON") {
         return Err(CityJsonError::NotCityJson);
     }
-    let transform: Option<Transform> = match doc.get("transform") {
-        Some(t) => Some(serde_json::from_value(t.clone()).map_err(CityJsonError::Transform)?),
-        None => None,
-    };
-    let raw = doc
-        .get("vertices")
-        .and_then(Value::as_array)
-        .ok_or(CityJsonError::Missing("no \"vertices\" array"))?;
-    let mut vertices = Vec::with_capacity(raw.len());
-    for (i, v) in raw.iter().enumerate() {
-        let c = v
-            .as_array()
-            .filter(|c| c.len() == 3)
-            .and_then(|c| Some([c[0].as_f64()?, c[1].as_f64()?, c[2].as_f64()?]))
-            .ok_or(CityJsonError::Vertex(i))?;
-        let p = match &transform {
-            Some(t) => DVec3::new(
-                c[0] * t.scale[0] + t.translate[0],
-                c[1] * t.scale[1] + t.translate[1],
-                c[2] * t.scale[2] + t.translate[2],
-            ),
-            None => DVec3::from(c),
-        };
-        vertices.push(p);
-    }
+    let vertices = dataset_vertices(&doc)?;
     let anchor = match anchor_xyz {
         Some(a) => DVec3::from(a),
         None => {
@@ -126,76 +102,113 @@ pub fn buildings(
         if !types.iter().any(|t| t == ty) {
             continue;
         }
-        let Some(geometries) = object.get("geometry").and_then(Value::as_array) else {
+        let Some(geometry) = most_detailed(object) else {
             continue;
         };
-        // The most detailed geometry.
-        let lod = |g: &Value| {
-            g.get("lod")
-                .and_then(|l| {
-                    l.as_str()
-                        .map(str::to_owned)
-                        .or_else(|| l.as_f64().map(|f| f.to_string()))
-                })
-                .and_then(|l| l.parse::<f64>().ok())
-                .unwrap_or(0.0)
+        out.extend(building(id, geometry, &vertices, &place, &mut earcut)?);
+    }
+    out.sort_by(|a, b| a.id.cmp(&b.id));
+    Ok(out)
+}
+
+/// The dataset's vertices in its CRS, metres: the integers scaled and translated by its
+/// `transform` (when it has one).
+fn dataset_vertices(doc: &Value) -> Result<Vec<DVec3>, CityJsonError> {
+    let transform: Option<Transform> = match doc.get("transform") {
+        Some(t) => Some(serde_json::from_value(t.clone()).map_err(CityJsonError::Transform)?),
+        None => None,
+    };
+    let raw = doc
+        .get("vertices")
+        .and_then(Value::as_array)
+        .ok_or(CityJsonError::Missing("no \"vertices\" array"))?;
+    let mut vertices = Vec::with_capacity(raw.len());
+    for (i, v) in raw.iter().enumerate() {
+        let c = v
+            .as_array()
+            .filter(|c| c.len() == 3)
+            .and_then(|c| Some([c[0].as_f64()?, c[1].as_f64()?, c[2].as_f64()?]))
+            .ok_or(CityJsonError::Vertex(i))?;
+        let p = match &transform {
+            Some(t) => DVec3::new(
+                c[0] * t.scale[0] + t.translate[0],
+                c[1] * t.scale[1] + t.translate[1],
+                c[2] * t.scale[2] + t.translate[2],
+            ),
+            None => DVec3::from(c),
         };
-        let Some(best) = geometries.iter().max_by(|a, b| lod(a).total_cmp(&lod(b))) else {
-            continue;
-        };
-        let mut surfaces = Vec::new();
-        collect_surfaces(
-            best.get("boundaries").unwrap_or(&Value::Null),
-            &mut surfaces,
-        );
-        let mut points: Vec<DVec3> = Vec::new();
-        let mut triangles: Vec<[u32; 3]> = Vec::new();
-        for rings in surfaces {
-            triangulate(
-                &rings,
-                &vertices,
-                &place,
-                &mut earcut,
-                &mut points,
-                &mut triangles,
-            )
-            .map_err(|index| CityJsonError::Object {
-                id: id.clone(),
+        vertices.push(p);
+    }
+    Ok(vertices)
+}
+
+/// A city object's most detailed geometry (highest `lod`; a missing or unreadable one is 0).
+fn most_detailed(object: &Value) -> Option<&Value> {
+    let geometries = object.get("geometry").and_then(Value::as_array)?;
+    let lod = |g: &Value| {
+        g.get("lod")
+            .and_then(|l| {
+                l.as_str()
+                    .map(str::to_owned)
+                    .or_else(|| l.as_f64().map(|f| f.to_string()))
+            })
+            .and_then(|l| l.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
+    geometries.iter().max_by(|a, b| lod(a).total_cmp(&lod(b)))
+}
+
+/// A city object's geometry as a building: its surfaces triangulated (each vertex placed by
+/// `place`), its origin at the centre of its box at its lowest point. `None` when it has no
+/// triangles or no area at all (e.g. a degenerate footprint: not an obstacle).
+fn building(
+    id: &str,
+    geometry: &Value,
+    vertices: &[DVec3],
+    place: &impl Fn(DVec3) -> DVec3,
+    earcut: &mut earcut::Earcut<f64>,
+) -> Result<Option<CityBuilding>, CityJsonError> {
+    let mut surfaces = Vec::new();
+    collect_surfaces(
+        geometry.get("boundaries").unwrap_or(&Value::Null),
+        &mut surfaces,
+    );
+    let mut points: Vec<DVec3> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    for rings in surfaces {
+        triangulate(&rings, vertices, place, earcut, &mut points, &mut triangles).map_err(
+            |index| CityJsonError::Object {
+                id: id.to_owned(),
                 problem: format!(
                     "vertex index {index} out of range ({} vertices)",
                     vertices.len()
                 ),
-            })?;
-        }
-        if triangles.is_empty() {
-            continue;
-        }
-        let min = points
-            .iter()
-            .fold(DVec3::splat(f64::INFINITY), |a, p| a.min(*p));
-        let max = points
-            .iter()
-            .fold(DVec3::splat(f64::NEG_INFINITY), |a, p| a.max(*p));
-        let origin = DVec3::new((min.x + max.x) / 2.0, (min.y + max.y) / 2.0, min.z);
-        let local: Vec<Vec3> = points.iter().map(|p| (*p - origin).as_vec3()).collect();
-        match Geometry::mesh(local, triangles) {
-            Ok(geometry) => out.push(CityBuilding {
-                id: id.clone(),
-                origin_from_anchor_m: origin,
-                geometry,
-            }),
-            // A surface with no area at all (e.g. a degenerate footprint) is not an obstacle.
-            Err(crate::scene::geometry::GeometryError::Empty) => {}
-            Err(e) => {
-                return Err(CityJsonError::Object {
-                    id: id.clone(),
-                    problem: e.to_string(),
-                })
-            }
-        }
+            },
+        )?;
     }
-    out.sort_by(|a, b| a.id.cmp(&b.id));
-    Ok(out)
+    if triangles.is_empty() {
+        return Ok(None);
+    }
+    let min = points
+        .iter()
+        .fold(DVec3::splat(f64::INFINITY), |a, p| a.min(*p));
+    let max = points
+        .iter()
+        .fold(DVec3::splat(f64::NEG_INFINITY), |a, p| a.max(*p));
+    let origin = DVec3::new((min.x + max.x) / 2.0, (min.y + max.y) / 2.0, min.z);
+    let local: Vec<Vec3> = points.iter().map(|p| (*p - origin).as_vec3()).collect();
+    match Geometry::mesh(local, triangles) {
+        Ok(geometry) => Ok(Some(CityBuilding {
+            id: id.to_owned(),
+            origin_from_anchor_m: origin,
+            geometry,
+        })),
+        Err(crate::scene::geometry::GeometryError::Empty) => Ok(None),
+        Err(e) => Err(CityJsonError::Object {
+            id: id.to_owned(),
+            problem: e.to_string(),
+        }),
+    }
 }
 
 /// Surfaces (lists of rings of vertex indices) from any nesting of CityJSON boundaries:

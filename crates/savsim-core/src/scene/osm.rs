@@ -265,7 +265,7 @@ fn join_rings(mut ways: Vec<Vec<i64>>) -> Option<Vec<Vec<i64>>> {
 /// Every building footprint: closed ways tagged `building` or `building:part`, and
 /// `type=multipolygon` relations so tagged (outer and inner rings joined from their member
 /// ways; an empty role is outer). An outline keeps what its `building:part`s leave of it
-/// ([`prefer_parts`]). Outlines (and their pieces) in id order (ways, then relations), then the
+/// (`prefer_parts`). Outlines (and their pieces) in id order (ways, then relations), then the
 /// parts in that order.
 pub fn footprints(data: &OsmData) -> (Vec<Footprint>, Assembly) {
     let mut out = Vec::new();

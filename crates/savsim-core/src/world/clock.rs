@@ -14,9 +14,9 @@
 
 use std::collections::VecDeque;
 
-/// A stamp further back than this from the one before is a restart; less far back, a reordered
-/// message (UDP, a router). PX4 SITL restarted 0.49 s after its last frame and resumed about
-/// 5 s back; a reboot that comes back less than this far behind is taken for reordering.
+/// A stamp this far back from the one before, or further, is a restart; less far back, a reordered
+/// message (UDP, a router). A reboot that comes back less than this far behind is taken for
+/// reordering (how far back real restarts come: docs/live.md).
 pub const RESTART_BACK_MS: u32 = 500;
 
 /// A stamp further ahead than this from the one before is a new clock too (a different boot

@@ -1,6 +1,7 @@
-//! Issue 24: well clear and alerting. The formulas against values worked by hand from DO-365's
-//! definitions (in this file's comments); `savsim daa`'s CSV against hand values; losses of
-//! well clear in batch rows and events; and, when `SAVSIM_DAIDALUS` names a script that runs
+//! Detect and avoid: well clear and alerting. The formulas against values worked by hand from
+//! DO-365's definitions (in this file's comments); `savsim daa`'s CSV against hand values;
+//! losses of well clear in batch rows and events; the MIT LL encounter model's sampler against
+//! its networks, and model encounters' miss distances; and, when `SAVSIM_DAIDALUS` names a script that runs
 //! DAIDALUS's `DaidalusAlerting` (docs/daa.md says how to build one) and ../shared/fixtures/daa
 //! holds DAIDALUS's configurations, parity cell by cell on DAIDALUS's H1 scenario and savsim's
 //! own (tests/fixtures/daa).

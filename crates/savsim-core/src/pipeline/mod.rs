@@ -1,14 +1,14 @@
 //! The per-tick orchestrator: for one vehicle and one telemetry sample, run the stages of the
-//! mode (sensing frame, contacts, episodes) and count what they did.
+//! mode (sensing frame, contacts, episodes: `stages`) and count what they did.
 //!
 //! Like rapier's `CollisionPipeline`, it owns only caches and scratch buffers; the scene and the
 //! vehicle's samples come in as arguments. After warm-up a tick does not allocate, except when
 //! a mesh is built or an event is reported.
 
+mod stages;
+
 use std::collections::BTreeMap;
 use std::time::Instant;
-
-use glam::DVec3;
 
 pub use crate::collision::bodies::{
     BodyKey, BodyPose, BodySource, DynamicBody, ObstacleRef, VehicleKey,
@@ -18,14 +18,14 @@ pub use crate::collision::fan::Rays;
 pub use crate::collision::moving::MovingBodies;
 pub use crate::collision::sensing::{RayHit, SensingState};
 
-use crate::collision::bodies::{radius_m, World};
+use crate::collision::bodies::World;
 use crate::collision::broad_phase::StaticBroadPhase;
-use crate::collision::contacts::{Before, Contacts, Motion};
-use crate::collision::episodes::{sweepable_from, Episodes, Found};
+use crate::collision::contacts::Contacts;
+use crate::collision::episodes::{sweepable_from, Episodes};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::octree::Octree;
-use crate::collision::sensing::{Frame, Rules, Sensing};
+use crate::collision::sensing::{Rules, Sensing};
 use crate::collision::shapes::ExactShapes;
 use crate::reference::{Interval, Reference};
 use crate::scene::{Aabb64, Scene};
@@ -297,7 +297,7 @@ impl Pipeline {
                 self.totals.reference_capped = reference.capped;
                 TickReport {
                     swept: previous.is_some(),
-                    contact_ns: elapsed_ns(started),
+                    contact_ns: stages::elapsed_ns(started),
                     ..TickReport::default()
                 }
             }
@@ -353,6 +353,9 @@ impl Pipeline {
         }
     }
 
+    /// One tick of the mode's stages for one vehicle: its state (reset on a new generation),
+    /// the gap and implausible-sample rules, the sensing frame if due, the contacts and the
+    /// episodes.
     fn step_vehicle(
         &mut self,
         scene: &Scene,
@@ -363,48 +366,32 @@ impl Pipeline {
         events: &mut Vec<Event>,
     ) -> TickReport {
         let cfg = self.config;
-        let t = current.t_s;
         let event = |kind: EventKind| Event {
-            t,
+            t: current.t_s,
             time_boot_ms: current.time_boot_ms,
             vehicle: key.vehicle,
             compid: key.component_id,
             kind,
         };
         let mut report = TickReport::default();
-        let state = self
-            .vehicles
-            .entry((key.vehicle, key.component_id))
-            .or_insert_with(|| VehicleCollision {
-                generation: key.generation,
-                ..VehicleCollision::default()
-            });
-        if state.generation != key.generation {
-            // The track restarted (reboot, expiry and return): what was open is closed and
-            // nothing carries over.
-            state.episodes.close(&event, events);
-            *state = VehicleCollision {
-                generation: key.generation,
-                ..VehicleCollision::default()
-            };
-            self.totals.state_resets += 1;
-        }
+        let state =
+            stages::vehicle_state(&mut self.vehicles, &mut self.totals, key, &event, events);
         let previous = sweepable_from(previous, current, cfg.max_gap_s, &event, events);
-        // Terrain under the vehicle; a sample far below it is implausible.
+        // Terrain under the vehicle; a sample far below it is implausible, and is not swept
+        // from.
         if self.has_terrain {
             report.terrain_clearance_m =
-                terrain_clearance(&self.statics, scene, current.position_enu_m);
+                stages::terrain_clearance(&self.statics, scene, current.position_enu_m);
         }
-        let implausible = report
+        report.implausible = report
             .terrain_clearance_m
             .is_some_and(|c| c < -cfg.max_below_terrain_m);
-        let previous = if std::mem::replace(&mut state.last_implausible, implausible) {
+        let previous = if std::mem::replace(&mut state.last_implausible, report.implausible) {
             None
         } else {
             previous
         };
-        if implausible {
-            report.implausible = true;
+        if report.implausible {
             return report;
         }
         let world = World {
@@ -415,10 +402,16 @@ impl Pipeline {
             statics: &self.statics,
             shapes: &self.shapes,
         };
-        // Vehicle numbers beyond the MAVLink range (the bench's fleets) use the default model.
-        let geometry_index = scene.vehicle_model(u8::try_from(key.vehicle).unwrap_or(0));
-        let vehicle_geometry = &scene.geometries[geometry_index];
-
+        let tick = stages::Tick {
+            world: &world,
+            cfg: &cfg,
+            previous,
+            current,
+            // Vehicle numbers beyond the MAVLink range (the bench's fleets) use the default
+            // model.
+            geometry_index: scene.vehicle_model(u8::try_from(key.vehicle).unwrap_or(0)),
+            event: &event,
+        };
         // The sensing layer: every sample in `paper`, at the sensor rate in `exact`.
         let rules = match cfg.mode {
             Mode::Paper => Some(Rules::Paper),
@@ -426,76 +419,33 @@ impl Pipeline {
             _ => None,
         };
         if let Some(rules) = rules {
-            let period_s = if rules == Rules::Paper || cfg.sensor_hz <= 0.0 {
-                0.0
-            } else {
-                1.0 / cfg.sensor_hz
-            };
-            let due = state
-                .sensing
-                .last_frame_t_s
-                .is_none_or(|last| t - last >= period_s - 1e-9 || t < last);
-            if due {
-                let started = Instant::now();
-                // What the last frame asked the mesh worker for is resident from here on.
-                self.meshes.install_requested();
-                let frame = Frame {
-                    world: &world,
-                    cfg: &cfg,
-                    rules,
-                    current,
-                    event: &event,
-                };
-                let counts =
-                    self.sensing
-                        .frame(&frame, &mut self.meshes, &mut state.sensing, events);
-                report.sensing_ns = elapsed_ns(started);
-                report.sensed = true;
-                report.ray_tests = counts.ray_tests;
-            }
-            // Between frames the colliders are the last frame's.
-            let counts = state.sensing.counts;
-            report.active_box = counts.active_box;
-            report.active_mesh = counts.active_mesh;
-            report.active_triangles = counts.active_triangles;
+            let frame = tick.frame(rules);
+            stages::sense(
+                &mut self.sensing,
+                &mut self.meshes,
+                &frame,
+                &mut state.sensing,
+                events,
+                &mut report,
+            );
         }
-
-        // The contact layer and the episodes.
-        let started = Instant::now();
-        let motion = Motion {
-            before: previous.map(BodyPose::of),
-            now: BodyPose::of(current),
-            geometry_index,
-            radius_m: radius_m(vehicle_geometry),
-        };
-        report.swept = cfg.mode == Mode::Exact && motion.before.is_some();
-        let before = Before {
-            touching: state.episodes.touching(),
-            gaps: match previous {
-                Some(p) if state.gaps_t_s == Some(p.t_s) => &state.gaps,
-                _ => &[],
-            },
-        };
-        report.narrow_tests = self.contacts.run(
-            &world,
+        stages::collide(
+            &mut self.contacts,
             &mut self.meshes,
-            &cfg,
-            &state.sensing,
-            &motion,
-            before,
+            &tick,
+            state,
+            events,
+            &mut report,
         );
-        std::mem::swap(&mut state.gaps, &mut self.contacts.gaps);
-        state.gaps_t_s = Some(t);
-        let found = Found {
-            touching: &self.contacts.touching,
-            near: &self.contacts.near,
-        };
-        let interval = (previous.map_or(t, |p| p.t_s), t);
-        state
-            .episodes
-            .update(scene, dynamic, found, interval, &event, events);
-        report.contact_ns = elapsed_ns(started);
-        match cfg.mode {
+        self.count_every_collider(&tick, &mut report);
+        report
+    }
+
+    /// In `box` and `mesh` every obstacle is a collider: count them (and, in `mesh`, their
+    /// triangles and the vehicle's).
+    fn count_every_collider(&self, tick: &stages::Tick<'_>, report: &mut TickReport) {
+        let (scene, dynamic) = (tick.world.scene, tick.world.dynamic);
+        match tick.cfg.mode {
             Mode::Box => report.active_box = scene.obstacles.len() + dynamic.len(),
             Mode::Mesh => {
                 report.active_mesh = scene.obstacles.len() + dynamic.len();
@@ -505,21 +455,9 @@ impl Pipeline {
                         .iter()
                         .map(|d| scene.geometries[d.geometry_index].triangle_count())
                         .sum::<usize>()
-                    + vehicle_geometry.triangle_count();
+                    + scene.geometries[tick.geometry_index].triangle_count();
             }
             _ => {}
         }
-        report
     }
-}
-
-fn elapsed_ns(started: Instant) -> u64 {
-    started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64
-}
-
-/// Height of `position` above the highest terrain patch under it (None: no terrain there).
-fn terrain_clearance(statics: &StaticBroadPhase, scene: &Scene, position: DVec3) -> Option<f64> {
-    statics
-        .terrain_under(scene, position)
-        .map(|(_, ground)| position.z - ground)
 }

@@ -1,0 +1,255 @@
+//! One collision tick of a session, for the vehicle whose position just arrived: its samples,
+//! the moving bodies within its watch range, well clear, the pipeline's step, the feed, and
+//! the viewer's frame. Its buffers (the moving bodies, the well-clear changes, the events) are
+//! the session's, reused from tick to tick; the viewer's frame, when `--rerun` is on, is built
+//! anew for the logger thread.
+
+use std::time::Instant;
+
+use super::{traffic, Session};
+use crate::collision::approach::{Approaches, WellClearChange};
+use crate::collision::events::{Event, EventKind};
+use crate::daa::episodes::Change;
+use crate::error::Result;
+use crate::feed::FrameInput;
+use crate::ingest::stats::SenderId;
+use crate::pipeline::{TickReport, VehicleKey};
+use crate::scene::Scene;
+use crate::world::TrackSample;
+
+/// The tick at hand: whose it is and its two samples.
+struct TickInput {
+    sender: SenderId,
+    key: VehicleKey,
+    previous: Option<TrackSample>,
+    current: TrackSample,
+    /// When the flight started, seconds of the samples' clock.
+    flight_start_t_s: f64,
+}
+
+impl Session {
+    /// One tick for `sender`, whose track has a new position: nothing without a scene.
+    pub(super) fn tick(&mut self, sender: SenderId) -> Result<()> {
+        let (Some(scene), true) = (self.scene.clone(), self.pipeline.is_some()) else {
+            return Ok(());
+        };
+        let Some(tick) = self.tick_input(sender) else {
+            return Ok(());
+        };
+        self.fill_traffic(&scene, &tick);
+        let first_event = self.events.len();
+        self.judge_well_clear(&tick);
+        let (report, cost_ns) = self.step_pipeline(&scene, &tick);
+        self.feed_sample(&scene, &tick);
+        self.ticks += 1;
+        #[cfg(not(feature = "viz"))]
+        let _ = (first_event, report, cost_ns);
+        #[cfg(feature = "viz")]
+        self.send_viz_frame(&scene, &tick, first_event, report, cost_ns);
+        self.write_feed()?;
+        self.flush_events()
+    }
+
+    /// The track's last two samples and its generation; the flight's start, fixed at the
+    /// first tick.
+    fn tick_input(&mut self, sender: SenderId) -> Option<TickInput> {
+        let track = self.world.vehicles.get(&sender)?;
+        let current = track.history.latest().copied()?;
+        let previous = track.history.previous().copied();
+        let generation = track.generation;
+        // On the vehicle's clock the flight starts at its boot (time_boot_ms 0): scripted
+        // traffic is then timed from the same instant whenever its positions begin to arrive.
+        let boot_s = if self.vehicle_clock {
+            f64::from(current.time_boot_ms) / 1000.0
+        } else {
+            0.0
+        };
+        let flight_start_t_s = *self.flight_start_t_s.get_or_insert(current.t_s - boot_s);
+        Some(TickInput {
+            sender,
+            key: VehicleKey {
+                vehicle: u16::from(sender.system_id),
+                component_id: sender.component_id,
+                generation,
+            },
+            previous,
+            current,
+            flight_start_t_s,
+        })
+    }
+
+    /// The moving bodies within the vehicle's watch range, into `dynamic`.
+    fn fill_traffic(&mut self, scene: &Scene, tick: &TickInput) {
+        let Some(pipeline) = &self.pipeline else {
+            return;
+        };
+        let watch = traffic::Watch {
+            collision: *pipeline.config(),
+            volume: self.approaches.volume(),
+            feed: self
+                .feed
+                .as_ref()
+                .map(|f| traffic::Watch::feed_of(&f.config)),
+            max_model_radius_m: self.max_model_radius_m,
+        };
+        let interval = traffic::Interval {
+            own: tick.sender,
+            previous: tick.previous.as_ref(),
+            current: &tick.current,
+            flight_start_t_s: tick.flight_start_t_s,
+        };
+        traffic::fill_dynamic(&mut self.dynamic, scene, &mut self.world, &watch, &interval);
+    }
+
+    /// Closest approaches and well clear against the moving bodies; each change of well clear
+    /// an event.
+    fn judge_well_clear(&mut self, tick: &TickInput) {
+        let (sender, current) = (tick.sender, &tick.current);
+        self.approaches.observe(
+            sender.system_id,
+            tick.previous.as_ref(),
+            current,
+            self.dynamic.as_slice(),
+            &mut self.well_clear_changes,
+        );
+        for c in &self.well_clear_changes {
+            let kind = well_clear_event(&self.approaches, sender.system_id, c);
+            self.events.push(Event {
+                t: current.t_s,
+                time_boot_ms: current.time_boot_ms,
+                vehicle: u16::from(sender.system_id),
+                compid: sender.component_id,
+                kind,
+            });
+        }
+    }
+
+    /// The pipeline's step for the vehicle, its events into `events`; its report and what it
+    /// cost, nanoseconds (recorded in `tick_costs`).
+    fn step_pipeline(&mut self, scene: &Scene, tick: &TickInput) -> (TickReport, u64) {
+        let Some(pipeline) = self.pipeline.as_mut() else {
+            return (TickReport::default(), 0);
+        };
+        let started = Instant::now();
+        let report = pipeline.step(
+            scene,
+            tick.key,
+            tick.previous.as_ref(),
+            &tick.current,
+            &self.dynamic,
+            &mut self.events,
+        );
+        let cost_ns = started.elapsed().as_nanos().min(u128::from(u64::MAX)) as u64;
+        self.tick_costs.record(cost_ns);
+        (report, cost_ns)
+    }
+
+    /// The closed-loop feed's frame for this sample, if one is due, into `feed_out`.
+    fn feed_sample(&mut self, scene: &Scene, tick: &TickInput) {
+        let (Some(feed), Some(pipeline)) = (&mut self.feed, self.pipeline.as_mut()) else {
+            return;
+        };
+        let input = FrameInput {
+            scene,
+            plane: self.world.plane(),
+            sender: tick.sender,
+            key: tick.key,
+            current: &tick.current,
+            dynamic: &self.dynamic,
+        };
+        feed.on_sample(pipeline, &input, &mut self.feed_out);
+    }
+
+    /// What the viewer draws of this tick, sent to the logger thread (dropped and counted when
+    /// its queue is full).
+    #[cfg(feature = "viz")]
+    fn send_viz_frame(
+        &mut self,
+        scene: &Scene,
+        tick: &TickInput,
+        first_event: usize,
+        report: TickReport,
+        cost_ns: u64,
+    ) {
+        let (Some(viz), Some(pipeline)) = (&mut self.viz, &self.pipeline) else {
+            return;
+        };
+        let (sender, key, current) = (tick.sender, tick.key, &tick.current);
+        let sensing = pipeline
+            .vehicle(key.vehicle, key.component_id)
+            .map(|v| &v.sensing);
+        viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
+            tick: self.ticks,
+            t_s: current.t_s,
+            t0_s: self
+                .ingestor
+                .stats
+                .time_span_s
+                .map_or(current.t_s, |(first, _)| first),
+            time_boot_ms: current.time_boot_ms,
+            system_id: sender.system_id,
+            pose: crate::pipeline::BodyPose::of(current),
+            model: scene.vehicle_model(sender.system_id),
+            rays: sensing.map_or_else(Vec::new, |s| {
+                s.rays
+                    .iter()
+                    .map(|(dir, hit)| (*dir, hit.map(|h| h.distance_m)))
+                    .collect()
+            }),
+            ray_length_m: pipeline.config().ray_length_m,
+            feed: self
+                .feed
+                .as_ref()
+                .map_or_else(Vec::new, |f| f.readings().to_vec()),
+            feed_max_m: self.feed.as_ref().map_or(0.0, |f| f.config.range.max_m),
+            node: sensing
+                .and_then(|s| s.node())
+                .map(|n| pipeline.octree().node_aabb(n)),
+            colliders: sensing.map_or_else(Vec::new, |s| s.colliders().collect()),
+            dynamic: self
+                .dynamic
+                .as_slice()
+                .iter()
+                .map(|d| (d.key, d.id.to_string(), d.kind, d.geometry_index, d.current))
+                .collect(),
+            events: self.events[first_event..]
+                .iter()
+                .filter(|e| {
+                    matches!(
+                        e.kind,
+                        EventKind::Collision { .. }
+                            | EventKind::NearMiss { .. }
+                            | EventKind::WellClearLost { .. }
+                    )
+                })
+                .cloned()
+                .collect(),
+            report,
+            cost_us: cost_ns as f64 / 1e3,
+        })));
+    }
+}
+
+/// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
+/// regain with its length.
+fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
+    match c.change {
+        Change::Lost { t_s } => {
+            let episode = approaches.pair(own, c.source).and_then(|pair| {
+                let episodes = pair.well_clear.episodes.iter();
+                episodes.rev().find(|e| e.start_t_s == t_s)
+            });
+            EventKind::WellClearLost {
+                track: c.body.to_string(),
+                lost_t: t_s,
+                horizontal_m: episode.map_or(f64::NAN, |e| e.lost_horizontal_m),
+                vertical_m: episode.map_or(f64::NAN, |e| e.lost_vertical_m),
+            }
+        }
+        Change::Regained { t_s, duration_s } => EventKind::WellClearRegained {
+            track: c.body.to_string(),
+            regained_t: t_s,
+            duration_s,
+        },
+    }
+}
