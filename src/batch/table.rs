@@ -53,7 +53,17 @@ fn approaches(rows: &[RunRow]) -> ArrayRef {
 /// The results as one Arrow record batch (an empty batch with the full schema when there are
 /// no rows). Every batch has the same schema, whatever its rows hold.
 pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
-    let columns: Vec<(&str, ArrayRef)> = vec![
+    let mut columns = input_columns(rows);
+    columns.extend(result_columns(rows));
+    columns.extend(sensed_columns(rows));
+    crate::runs::table::record_batch(columns, nullable)
+}
+
+type Columns = Vec<(&'static str, ArrayRef)>;
+
+/// The row as the manifest gave it.
+fn input_columns(rows: &[RunRow]) -> Columns {
+    vec![
         ("index", counts(rows, |r| Some(r.index))),
         ("run_id", strings(rows, |r| Some(r.run_id.as_str()))),
         ("kind", strings(rows, |r| Some(r.kind.as_str()))),
@@ -87,6 +97,12 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
         ("pair", strings(rows, |r| r.inputs.pair.as_deref())),
         ("w", floats(rows, |r| r.inputs.w)),
         ("expect_nmac", bools(rows, |r| r.inputs.expect_nmac)),
+    ]
+}
+
+/// What the run found: contacts, approaches, well clear, ingest counts, costs.
+fn result_columns(rows: &[RunRow]) -> Columns {
+    vec![
         ("error", strings(rows, |r| r.error.as_deref())),
         ("ticks", counts(rows, |r| Some(r.ticks))),
         ("collisions", counts(rows, |r| Some(r.collisions))),
@@ -134,6 +150,12 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
             floats(rows, |r| Some(r.tick_cost_us_p99)),
         ),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),
+    ]
+}
+
+/// The DAA system's alerting on the sensed states (with `daa_conf`).
+fn sensed_columns(rows: &[RunRow]) -> Columns {
+    vec![
         ("sensors", strings(rows, |r| r.inputs.sensors.as_deref())),
         ("sensor_seed", counts(rows, |r| r.inputs.sensor_seed)),
         ("daa_conf", strings(rows, |r| r.inputs.daa_conf.as_deref())),
@@ -164,8 +186,7 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
             "reports_lost",
             counts(rows, |r| r.sensed.as_ref().map(|s| s.reports_lost)),
         ),
-    ];
-    crate::runs::table::record_batch(columns, nullable)
+    ]
 }
 
 /// When level `k + 1` was first raised on the sensed states.

@@ -78,40 +78,8 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
         field,
         message,
     };
-    let root: toml::Table = toml::from_str(text).map_err(|e| {
-        let message = e.to_string().trim().to_owned();
-        fail(None, None, message)
-    })?;
-    for key in root.keys() {
-        if ![
-            "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain", "city", "osm",
-            "sensor",
-        ]
-        .contains(&key.as_str())
-        {
-            return Err(fail(
-                None,
-                Some(key.clone()),
-                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city, osm, sensor)"
-                    .into(),
-            ));
-        }
-    }
-    let origin_value = root
-        .get("origin")
-        .ok_or_else(|| fail(None, Some("origin".into()), "missing [origin]".into()))?;
-    let origin: OriginSpec = OriginSpec::deserialize(origin_value.clone()).map_err(|e| {
-        let message = e.to_string().trim().to_owned();
-        fail(Some("[origin]".into()), field_of(&message), message)
-    })?;
-    let origin = Geodetic::new(origin.lat_deg, origin.lon_deg, origin.alt_m);
-    if !origin.is_valid() {
-        return Err(fail(
-            Some("[origin]".into()),
-            None,
-            format!("{origin:?} is not a valid position"),
-        ));
-    }
+    let root = read_sections(text, &fail)?;
+    let origin = read_origin(&root, &fail)?;
     let mut b = Builder {
         file: path,
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
@@ -171,4 +139,54 @@ pub fn parse(text: &str, path: &Path, name: &str, files: &dyn Files) -> Result<S
         osm,
         sensors,
     })
+}
+
+/// The file's TOML, every top-level key a known section.
+fn read_sections(
+    text: &str,
+    fail: &dyn Fn(Option<String>, Option<String>, String) -> SceneError,
+) -> Result<toml::Table, SceneError> {
+    let root: toml::Table = toml::from_str(text).map_err(|e| {
+        let message = e.to_string().trim().to_owned();
+        fail(None, None, message)
+    })?;
+    for key in root.keys() {
+        if ![
+            "origin", "threat", "vehicle", "obstacle", "dynamic", "terrain", "city", "osm",
+            "sensor",
+        ]
+        .contains(&key.as_str())
+        {
+            return Err(fail(
+                None,
+                Some(key.clone()),
+                "unknown section (known: origin, threat, vehicle, obstacle, dynamic, terrain, city, osm, sensor)"
+                    .into(),
+            ));
+        }
+    }
+    Ok(root)
+}
+
+/// `[origin]`: the scene's geodetic origin, a valid position.
+fn read_origin(
+    root: &toml::Table,
+    fail: &dyn Fn(Option<String>, Option<String>, String) -> SceneError,
+) -> Result<Geodetic, SceneError> {
+    let origin_value = root
+        .get("origin")
+        .ok_or_else(|| fail(None, Some("origin".into()), "missing [origin]".into()))?;
+    let origin: OriginSpec = OriginSpec::deserialize(origin_value.clone()).map_err(|e| {
+        let message = e.to_string().trim().to_owned();
+        fail(Some("[origin]".into()), field_of(&message), message)
+    })?;
+    let origin = Geodetic::new(origin.lat_deg, origin.lon_deg, origin.alt_m);
+    if !origin.is_valid() {
+        return Err(fail(
+            Some("[origin]".into()),
+            None,
+            format!("{origin:?} is not a valid position"),
+        ));
+    }
+    Ok(origin)
 }

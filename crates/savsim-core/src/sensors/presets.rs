@@ -31,6 +31,11 @@ fn kind(k: &str, name: &str) -> DeviceSpec {
 
 /// The spec of preset `name`.
 pub fn spec(name: &str) -> Option<DeviceSpec> {
+    range_device(name).or_else(|| surveillance_device(name))
+}
+
+/// The range devices: depth camera, lidar, single-beam rangefinders.
+fn range_device(name: &str) -> Option<DeviceSpec> {
     Some(match name {
         // Intel RealSense D435 at 848 x 480 and 30 Hz: 87 x 58 degrees, 0.2 to 10 m, depth
         // RMS z^2 0.08 / (424 px 0.05 m); 2% of pixels invalid; rays every degree across and
@@ -80,6 +85,13 @@ pub fn spec(name: &str) -> Option<DeviceSpec> {
             ..spec("tfmini")?
         }
         .named(name),
+        _ => return None,
+    })
+}
+
+/// The surveillance devices (ADS-B, radar, EO/IR) and the ownship's navigation.
+fn surveillance_device(name: &str) -> Option<DeviceSpec> {
+    Some(match name {
         // 1090 MHz extended squitter: position and velocity twice a second, NACp 8, NACv 2,
         // errors correlated over 300 s, vertical rate Laplace 2.02 ft/s, altitude with its
         // Annex 10 altimetry bias in 25 ft steps, Appendix Q reception, up to 0.4 s late.
