@@ -4,7 +4,7 @@ sample if flattened), each the format of a topic savsim reads (vehicle_global_po
 vehicle_attitude), with one subscription and one data message.
 
     python3 scripts/crafted_ulog.py OUT_DIR
-    /usr/bin/time -v savsim replay OUT_DIR/nested.ulg     # a clear error (exit 1), at once
+    /usr/bin/time -v savsim replay OUT_DIR/nested.ulg     # a clear error (exit 2), at once
 """
 import os
 import struct
