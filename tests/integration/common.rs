@@ -284,11 +284,23 @@ pub fn run_live(
     session: Session,
     record: Option<&Path>,
 ) -> savsim::app::live::LiveRun {
+    let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    run_live_until(runtime, links, duration, session, record, shutdown)
+}
+
+/// [`run_live`] until `shutdown` is raised, or `limit` passes.
+pub fn run_live_until(
+    runtime: &tokio::runtime::Runtime,
+    links: Vec<savsim::ingest::live::Link>,
+    limit: std::time::Duration,
+    session: Session,
+    record: Option<&Path>,
+    shutdown: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> savsim::app::live::LiveRun {
     let options = savsim::app::live::LiveOptions {
-        duration: Some(duration),
+        duration: Some(limit),
         ..Default::default()
     };
-    let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let run =
         savsim::app::live::run_links(runtime.handle(), links, &options, session, record, shutdown)
             .unwrap();

@@ -30,7 +30,7 @@ use savsim::scene::Scene;
 use savsim::session::Session;
 
 use crate::common::{frame_v2, root, runtime, udp_link};
-use crate::sitl::{arducopter, inside_own_network_namespace, Sitl};
+use crate::sitl::{sitl_test, Autopilot, Netns, Sitl, Turn};
 
 /// b1852's east face, scene E metres.
 const FACE_EAST_M: f64 = -57.0;
@@ -442,12 +442,9 @@ fn fly(bin: &PathBuf, with_feed: bool, speedup: f64) -> ((f64, f64, f64), u64, u
 
 #[test]
 fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let speedup: f64 = std::env::var("SAVSIM_FEED_SPEEDUP")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -490,12 +487,9 @@ pub(crate) fn airliner_through_the_origin() -> Scene {
 
 #[test]
 fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_avoids_a_scripted_airliner_sent_as_adsb",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let scene = airliner_through_the_origin();
     let action: u8 = std::env::var("SAVSIM_AVD_F_ACTION")
         .ok()
@@ -566,12 +560,9 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
 /// first feed frame and unhealthy within 1 s after savsim stops (ArduPilot's 500 ms timeout).
 #[test]
 fn arducopter_proximity_is_healthy_while_fed_and_not_after() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_proximity_is_healthy_while_fed_and_not_after",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
     let mut flight = Flight::start(&bin, "PRX1_TYPE 2\n", city, Some("proximity"), 1.0);
     // SYS_STATUS at 10 Hz on SERIAL1; wait for the first position (savsim feeds from then on).
@@ -713,12 +704,9 @@ fn echoes_against(heard: &Heard, sent: impl Fn(u32, u8) -> Vec<u16>) -> (usize, 
 /// sent for that sector.
 #[test]
 fn arducopter_echoes_every_sector_it_was_fed_within_a_centimetre() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_echoes_every_sector_it_was_fed_within_a_centimetre",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let (heard, feed_out) = hover_by_the_face(&bin, "PRX1_TYPE 2\nPRX_FILT 0\n", "proximity");
     let (sent, _) = sent_feed(&feed_out);
     let (checked, wrong) = echoes_against(&heard, |t_ms, orientation| {
@@ -750,12 +738,9 @@ fn arducopter_echoes_every_sector_it_was_fed_within_a_centimetre() {
 /// savsim's bins whose angle falls in each 45-degree sector (body FRD, clockwise from the nose).
 #[test]
 fn arducopter_reads_obstacle_distance_bins_into_its_sectors() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_reads_obstacle_distance_bins_into_its_sectors",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let (heard, feed_out) =
         hover_by_the_face(&bin, "PRX1_TYPE 2\nPRX_FILT 0\n", "obstacle-distance");
     let (_, sent) = sent_feed(&feed_out);
@@ -793,10 +778,9 @@ fn arducopter_reads_obstacle_distance_bins_into_its_sectors() {
 /// city's origin, and its own DISTANCE_SENSOR (downward) says the same.
 #[test]
 fn arducopter_rangefinder_agrees_with_its_altitude() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace("sitl_feed::arducopter_rangefinder_agrees_with_its_altitude") {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
     let params = "RNGFND1_TYPE 10\nRNGFND1_MIN 0.2\nRNGFND1_MAX 40\n";
     let mut flight = Flight::start(&bin, params, city, Some("rangefinder"), 1.0);

@@ -1,9 +1,10 @@
-//! Ground stations and routers against ArduCopter SITL (`SAVSIM_ARDUCOPTER`, as sitl.rs; the
-//! test says so and passes without it), inside a network namespace of its own:
+//! Ground stations and routers against ArduCopter SITL (`SAVSIM_ARDUCOPTER`; each test goes
+//! through `sitl::sitl_test`, which skips it with a line that says so, or fails it under
+//! `SAVSIM_REQUIRE_SITL`), inside a network namespace of its own:
 //!
 //! - through `--forward`: a pymavlink station reads a parameter, sets GUIDED and arms; real
-//!   MAVProxy (`pip install MAVProxy`; skipped with a message when absent) fetches every
-//!   parameter (MAVFTP, both ways through savsim); the pymavlink station sees exactly what savsim received from
+//!   MAVProxy (`pip install MAVProxy`; .ci/run installs it) fetches every parameter (MAVFTP,
+//!   both ways through savsim); the pymavlink station sees exactly what savsim received from
 //!   the vehicle, message for message.
 //! - behind a router: real MAVProxy in front of two ArduCopters, savsim on its one output with
 //!   the feed: refused with the error that says what to do; both vehicles mirrored until then.
@@ -27,7 +28,7 @@ use savsim::ingest::supervisor::RequestState;
 use savsim::session::Session;
 
 use crate::common::{python, python_code, root, runtime};
-use crate::sitl::{arducopter, inside_own_network_namespace, start_sitl, start_sitl_at, Sitl};
+use crate::sitl::{sitl_test, start_sitl, start_sitl_at, Autopilot, Need, Netns, Sitl, Turn};
 
 /// A child process killed (and reaped) when dropped.
 struct Killed(Child);
@@ -37,17 +38,6 @@ impl Drop for Killed {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
-}
-
-fn have_mavproxy() -> bool {
-    let ok = Command::new("mavproxy.py")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        eprintln!("skipped: MAVProxy is not installed (pip install MAVProxy; .ci/run does)");
-    }
-    ok
 }
 
 fn free_udp_port() -> u16 {
@@ -100,12 +90,10 @@ fn sitl_dir(root: &Path, name: &str) -> std::path::PathBuf {
 
 #[test]
 fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_forward::stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter",
-    ) {
+    let needs = [Need::Python("pymavlink"), Need::Program("mavproxy.py")];
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &needs) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let _sitl: Sitl = start_sitl(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "sitl"));
     let rt = runtime();
@@ -124,7 +112,7 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
     let mut stations = vec![udpout(station_port)];
 
     // MAVProxy: a second station, which fetches every parameter.
-    let mavproxy = have_mavproxy().then(|| {
+    let mavproxy = {
         let port = free_udp_port();
         stations.push(udpout(port));
         let mp_dir = sitl_dir(dir.path(), "mavproxy");
@@ -140,9 +128,8 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
                 .spawn()
                 .expect("start MAVProxy"),
         )
-    });
+    };
 
-    let mavproxy_ran = mavproxy.is_some();
     let record = dir.path().join("savsim.tlog");
     let options = LiveOptions {
         duration: Some(Duration::from_secs(45)),
@@ -207,18 +194,16 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
         "{recorded}"
     );
 
-    if mavproxy_ran {
-        // MAVProxy fetched every parameter (over MAVFTP, through savsim both ways: it writes
-        // them to mav.parm once it has them all).
-        let parm = find_file(&dir.path().join("mavproxy"), "mav.parm")
-            .map(|p| std::fs::read_to_string(p).unwrap_or_default())
-            .unwrap_or_default();
-        assert!(
-            parm.lines().count() > 500,
-            "MAVProxy's mav.parm: {} lines",
-            parm.lines().count()
-        );
-    }
+    // MAVProxy fetched every parameter (over MAVFTP, through savsim both ways: it writes
+    // them to mav.parm once it has them all).
+    let parm = find_file(&dir.path().join("mavproxy"), "mav.parm")
+        .map(|p| std::fs::read_to_string(p).unwrap_or_default())
+        .unwrap_or_default();
+    assert!(
+        parm.lines().count() > 500,
+        "MAVProxy's mav.parm: {} lines",
+        parm.lines().count()
+    );
 }
 
 /// The first file called `name` under `dir`.
@@ -238,15 +223,10 @@ fn find_file(dir: &Path, name: &str) -> Option<std::path::PathBuf> {
 
 #[test]
 fn the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters() {
-    let Some(bin) = arducopter() else { return };
-    if !have_mavproxy() {
+    let needs = [Need::Program("mavproxy.py")];
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &needs) else {
         return;
-    }
-    if !inside_own_network_namespace(
-        "sitl_forward::the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters",
-    ) {
-        return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let _a = start_sitl(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "a"));
     let _b = start_sitl(&bin, 1, 2, "tcp:0", &sitl_dir(dir.path(), "b"));
@@ -324,12 +304,10 @@ fn set_up_signing(passphrase: &str) -> bool {
 
 #[test]
 fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_forward::a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without",
-    ) {
+    let needs = [Need::Python("pymavlink")];
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &needs) else {
         return;
-    }
+    };
     const PASSPHRASE: &str = "savsim sitl signing";
     let dir = tempfile::tempdir().unwrap();
     // At 10x: the vehicle's clock runs ahead of the wall; its signing clock starts a minute

@@ -7,6 +7,7 @@ use std::process::Command;
 
 use crate::cli::savsim;
 use crate::common::assert_ran;
+use crate::sitl::{sitl_test, Autopilot, Netns};
 
 use savsim::study::manifest::StudyRow;
 use savsim::study::result::{Outcome, StudyResult};
@@ -274,7 +275,7 @@ fn summarize_reads_the_written_results_into_the_collision_risk_ratio() {
 /// nominal row hits its box, every mitigated row does not.
 #[test]
 fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
-    if crate::sitl::arducopter().is_none() {
+    if sitl_test(Autopilot::ArduCopter, Netns::Study, &[]).is_none() {
         return;
     }
     let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.into());
@@ -416,7 +417,7 @@ fn outcomes(dir: &Path) -> std::collections::BTreeMap<String, (String, Option<f6
 /// to the box within 0.5 m. Needs `SAVSIM_ARDUCOPTER`; about two minutes.
 #[test]
 fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
-    if crate::sitl::arducopter().is_none() {
+    if sitl_test(Autopilot::ArduCopter, Netns::Study, &[]).is_none() {
         return;
     }
     let speedup = std::env::var("SAVSIM_STUDY_SPEEDUP").unwrap_or_else(|_| "20".into());
@@ -457,8 +458,8 @@ fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
 /// OBSTACLE_DISTANCE feed it stops short. About a minute at speedup 4.
 #[test]
 fn px4_study_nominal_hits_the_wall_and_collision_prevention_stops_short() {
-    let Some(bin) = std::env::var_os("SAVSIM_PX4") else {
-        eprintln!("skipped: set SAVSIM_PX4 to PX4's px4_sitl_default bin/px4 (docs/study.md)");
+    // The turn is held while the study flies: PX4 instance 0 is every PX4 test's.
+    let Some(turn) = sitl_test(Autopilot::Px4, Netns::Study, &[]) else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -485,7 +486,7 @@ fn px4_study_nominal_hits_the_wall_and_collision_prevention_stops_short() {
     let out = dir.path().join("out");
     let run = savsim()
         .args(["study", "--speedup", "4", "--px4"])
-        .arg(bin)
+        .arg(&turn.bin)
         .arg("--out")
         .arg(&out)
         .arg(dir.path().join("m.csv"))
