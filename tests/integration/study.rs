@@ -4,9 +4,10 @@
 
 use std::path::Path;
 use std::process::Command;
+use std::time::{Duration, Instant};
 
 use crate::cli::savsim;
-use crate::common::assert_ran;
+use crate::common::{assert_ran, wait_until};
 use crate::sitl::{sitl_test, Autopilot, Netns};
 
 use savsim::study::manifest::StudyRow;
@@ -321,6 +322,14 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
     assert!(json["outcomes"]["mitigated"]["collision"].is_null());
 }
 
+/// Whether process `pid` runs (Linux's /proc: there, and not a zombie awaiting its parent).
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        stat.rsplit_once(") ")
+            .is_some_and(|(_, rest)| !rest.starts_with('Z'))
+    })
+}
+
 /// A stand-in for SITL, a shell script: `exit` ends at once, `hang` never opens its port.
 fn fake_sitl(dir: &Path, name: &str, body: &str) -> std::path::PathBuf {
     use std::os::unix::fs::PermissionsExt;
@@ -350,9 +359,14 @@ fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shar
         stdout.contains("ended by itself") && stdout.contains("PANIC: no eeprom"),
         "{stdout}"
     );
-    // A SITL that hangs; SIGTERM while the study waits for it.
-    let marker = format!("savsim-hang-{}", std::process::id());
-    let hangs = fake_sitl(dir.path(), &marker, "exec sleep 300");
+    // A SITL that hangs (it says its process id first); SIGTERM while the study waits for it.
+    // Only that process is checked: nothing else on the machine is the test's business.
+    let pid_file = dir.path().join("hang.pid");
+    let hangs = fake_sitl(
+        dir.path(),
+        "hangs",
+        &format!("echo $$ > '{}'\nexec sleep 300", pid_file.display()),
+    );
     let mut study = savsim()
         .args(["study", "--no-netns", "--arducopter"])
         .arg(&hangs)
@@ -363,23 +377,25 @@ fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shar
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_secs(2));
-    let sleeping = || {
-        let ps = Command::new("ps").args(["-eo", "args"]).output().unwrap();
-        String::from_utf8_lossy(&ps.stdout)
-            .lines()
-            .filter(|l| l.contains("sleep 300"))
-            .count()
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let pid = || {
+        std::fs::read_to_string(&pid_file)
+            .ok()
+            .and_then(|t| t.trim().parse::<u32>().ok())
     };
-    assert!(sleeping() >= 1, "the stand-in runs");
+    let started = wait_until(deadline, || pid().is_some_and(running));
+    assert!(started, "the stand-in never ran");
+    let pid = pid().unwrap();
     Command::new("kill")
         .args(["-TERM", &study.id().to_string()])
         .status()
         .unwrap();
     let status = study.wait().unwrap();
     assert!(!status.success());
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    assert_eq!(sleeping(), 0, "the stand-in SITL was left running");
+    // Killed with the study (its parent-death signal, or the study's own kill): gone within
+    // seconds, never left running.
+    let gone = wait_until(Instant::now() + Duration::from_secs(10), || !running(pid));
+    assert!(gone, "the stand-in SITL (process {pid}) was left running");
     let shards: Vec<_> = std::fs::read_dir(dir.path().join("b"))
         .unwrap()
         .filter_map(|e| e.ok())
