@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use crate::cli::savsim;
 use crate::common::{assert_ran, wait_until};
-use crate::sitl::{sitl_test, Autopilot, Netns};
+use crate::sitl::{sitl_test, Autopilot, Need, Netns};
 
 use savsim::study::manifest::StudyRow;
 use savsim::study::result::{Outcome, StudyResult};
@@ -404,33 +404,92 @@ fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shar
     assert!(shards.is_empty(), "a stopped study wrote its shard");
 }
 
-/// The closest approach to each box of every row of `dir`'s shard, by row id, and its outcome.
+/// The closest approach to each box of every row of `dir`'s shards (every
+/// `part-*.parquet`), by row id, and its outcome.
 fn outcomes(dir: &Path) -> std::collections::BTreeMap<String, (String, Option<f64>)> {
     use arrow_array::{Array, Float64Array, StringArray};
-    let batch = crate::batch::read(&dir.join("part-00000-of-00001.parquet"));
-    let text = |name: &str| {
-        batch
-            .column_by_name(name)
-            .unwrap()
-            .as_any()
-            .downcast_ref::<StringArray>()
-            .unwrap()
-            .clone()
-    };
-    let (ids, ended) = (text("row_id"), text("outcome"));
-    let closest = batch.column_by_name("closest_obstacle_m").unwrap();
-    let closest = closest.as_any().downcast_ref::<Float64Array>().unwrap();
-    (0..batch.num_rows())
-        .map(|i| {
-            let m = closest.is_valid(i).then(|| closest.value(i));
-            (ids.value(i).to_string(), (ended.value(i).to_string(), m))
+    let mut shards: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("part-") && n.ends_with(".parquet"))
         })
-        .collect()
+        .collect();
+    shards.sort();
+    let mut rows = std::collections::BTreeMap::new();
+    for shard in shards {
+        let batch = crate::batch::read(&shard);
+        let text = |name: &str| {
+            batch
+                .column_by_name(name)
+                .unwrap()
+                .as_any()
+                .downcast_ref::<StringArray>()
+                .unwrap()
+                .clone()
+        };
+        let (ids, ended) = (text("row_id"), text("outcome"));
+        let closest = batch.column_by_name("closest_obstacle_m").unwrap();
+        let closest = closest.as_any().downcast_ref::<Float64Array>().unwrap();
+        for i in 0..batch.num_rows() {
+            let m = closest.is_valid(i).then(|| closest.value(i));
+            let row = (ended.value(i).to_string(), m);
+            assert!(
+                rows.insert(ids.value(i).to_string(), row).is_none(),
+                "row {} twice in {}",
+                ids.value(i),
+                dir.display()
+            );
+        }
+    }
+    rows
+}
+
+/// The closest approach to a row's box may differ by this much between two runs of the row
+/// (docs/study.md: speed-independence), metres.
+const SAME_CLOSEST_M: f64 = 0.5;
+
+/// Whether two runs of the same rows ended the same: every row in both, the same outcome, the
+/// closest approach to its box within [`SAME_CLOSEST_M`]. Prints each row.
+fn assert_same_rows(
+    a: &std::collections::BTreeMap<String, (String, Option<f64>)>,
+    b: &std::collections::BTreeMap<String, (String, Option<f64>)>,
+    what: (&str, &str),
+) {
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "the same rows in {} and {}",
+        what.0,
+        what.1
+    );
+    for (id, (ended, closest)) in a {
+        let (other_ended, other_closest) = &b[id];
+        eprintln!(
+            "{id}: {ended} {closest:?} ({}) / {other_ended} {other_closest:?} ({})",
+            what.0, what.1
+        );
+        assert_eq!(ended, other_ended, "{id}");
+        assert_ne!(ended, "error", "{id}: the row was flown");
+        match (closest, other_closest) {
+            (Some(x), Some(y)) => assert!(
+                (x - y).abs() <= SAME_CLOSEST_M,
+                "{id}: {x} m ({}), {y} m ({})",
+                what.0,
+                what.1
+            ),
+            (None, None) => {}
+            _ => panic!("{id}: a closest approach in one run only"),
+        }
+    }
 }
 
 /// Speed-independence (docs/study.md): two obstacle-approach pairs at speedup 1 and at
 /// `SAVSIM_STUDY_SPEEDUP` (default 20): the same outcome in every row and the closest approach
-/// to the box within 0.5 m. Needs `SAVSIM_ARDUCOPTER`; about two minutes.
+/// to the box within [`SAME_CLOSEST_M`]. Needs `SAVSIM_ARDUCOPTER`.
 #[test]
 fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
     if sitl_test(Autopilot::ArduCopter, Netns::Study, &[]).is_none() {
@@ -456,17 +515,8 @@ fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
         assert_ran(&run);
         runs.push(outcomes(&out));
     }
-    for (id, (ended, closest)) in &runs[0] {
-        let (at_speed, closest_at_speed) = &runs[1][id];
-        eprintln!("{id}: {ended} {closest:?} / {at_speed} {closest_at_speed:?}");
-        assert_eq!(ended, at_speed, "{id}");
-        if let (Some(a), Some(b)) = (closest, closest_at_speed) {
-            assert!(
-                (a - b).abs() <= 0.5,
-                "{id}: {a} m at 1x, {b} m at {speedup}x"
-            );
-        }
-    }
+    let labels = ("1x".to_string(), format!("{speedup}x"));
+    assert_same_rows(&runs[0], &runs[1], (&labels.0, &labels.1));
 }
 
 /// PX4 SIH (`SAVSIM_PX4`): a 40 m wide wall 30 m south of home, flown at 5 m/s in Position
@@ -514,4 +564,58 @@ fn px4_study_nominal_hits_the_wall_and_collision_prevention_stops_short() {
     eprintln!("{rows:?}");
     assert_eq!(rows["nominal"].0, "collision");
     assert_eq!(rows["mitigated"].0, "pass");
+}
+
+/// examples/ray_study.py: two obstacle-approach pairs (four rows) run as Ray tasks, two shards
+/// on two workers, each task a `savsim study --shard K/2` in a network namespace of its own;
+/// its shards hold the rows `savsim study` writes for the same manifest, ended the same
+/// (outcome, closest approach within [`SAME_CLOSEST_M`]). Needs `SAVSIM_ARDUCOPTER` and Ray
+/// (`SAVSIM_REQUIRE_RAY`, as the Ray batch example's test).
+#[test]
+fn ray_study_example_gives_the_rows_savsim_study_gives() {
+    // Fails here under SAVSIM_REQUIRE_RAY when Ray is missing; the gate says the rest.
+    let _ = crate::common::have_python_module(
+        "ray",
+        "SAVSIM_REQUIRE_RAY",
+        "pip install ray; .ci/run does",
+    );
+    let needs = [Need::Python("ray")];
+    if sitl_test(Autopilot::ArduCopter, Netns::Study, &needs).is_none() {
+        return;
+    }
+    let speedup = std::env::var("SAVSIM_STUDY_SPEEDUP").unwrap_or_else(|_| "10".into());
+    let dir = tempfile::tempdir().unwrap();
+    let gen = savsim()
+        .args(["study", "gen", "--seed", "31", "--n", "2", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_ran(&gen);
+    let manifest = dir.path().join("study.csv");
+    let (by_ray, by_cli) = (dir.path().join("ray"), dir.path().join("cli"));
+    let ray = Command::new("python3")
+        .arg(crate::common::root().join("examples/ray_study.py"))
+        .arg(&manifest)
+        .arg(&by_ray)
+        .args(["--shards", "2", "--workers", "2", "--speedup", &speedup])
+        .arg("--savsim")
+        .arg(env!("CARGO_BIN_EXE_savsim"))
+        .output()
+        .unwrap();
+    eprintln!(
+        "{}{}",
+        String::from_utf8_lossy(&ray.stdout),
+        String::from_utf8_lossy(&ray.stderr)
+    );
+    assert_ran(&ray);
+    let cli = savsim()
+        .args(["study", "--jobs", "2", "--speedup", &speedup, "--out"])
+        .arg(&by_cli)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert_ran(&cli);
+    let (ray_rows, cli_rows) = (outcomes(&by_ray), outcomes(&by_cli));
+    assert_eq!(ray_rows.len(), 4, "{ray_rows:?}");
+    assert_same_rows(&ray_rows, &cli_rows, ("Ray", "savsim study"));
 }
