@@ -83,6 +83,25 @@ pub enum RowError {
     /// savsim's side (the scene, the session, the link).
     #[error("savsim: {0}")]
     Savsim(String),
+    /// The row's wall-clock limit passed before its plan or its time on the vehicle's clock
+    /// ended (SITL ran far below its speedup): what it flew is not judged.
+    #[error(
+        "the wall-clock limit ({limit_s:.0} s) passed at {flown_s:.1} s of the vehicle's clock \
+         of the row's {duration_s} s (SITL ran at about {achieved:.2}x, asked {speedup}x): \
+         not judged"
+    )]
+    WallLimit {
+        /// The limit, wall seconds.
+        limit_s: f64,
+        /// How far the vehicle's clock got, seconds.
+        flown_s: f64,
+        /// The row's duration, seconds of the vehicle's clock.
+        duration_s: f64,
+        /// The vehicle's clock over the wall clock while it flew.
+        achieved: f64,
+        /// The speedup asked.
+        speedup: f64,
+    },
 }
 
 fn input(column: &'static str, why: impl Into<String>) -> RowError {
@@ -377,6 +396,22 @@ fn fly_row(
         Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
         None => RowError::Pilot(e),
     })?;
+    // Stopped by the wall limit alone (no signal, no collision): the row flew only part of its
+    // time, and what it flew is not judged as if it were all of it.
+    let cut_short = flown.stopped
+        && !setup.stop.load(Ordering::Relaxed)
+        && !collided.is_raised()
+        && started.elapsed() > wall_limit;
+    if cut_short {
+        let flown_s = f64::from(flown.last_ms) / 1000.0;
+        return Err(RowError::WallLimit {
+            limit_s: wall_limit.as_secs_f64(),
+            flown_s,
+            duration_s: checked.duration_s,
+            achieved: flown_s / started.elapsed().as_secs_f64(),
+            speedup: checked.speedup,
+        });
+    }
     record(
         result,
         &dir,
