@@ -63,7 +63,8 @@ pub(crate) enum Need {
     Program(&'static str),
 }
 
-/// A SITL test's turn: its autopilot's binary, and for PX4 the lock held while it flies.
+/// A SITL test's turn: its autopilot's binary, and for a heavy test the lock held while it
+/// flies.
 pub(crate) struct Turn {
     pub(crate) bin: PathBuf,
     _px4: Option<std::sync::MutexGuard<'static, ()>>,
@@ -80,12 +81,14 @@ pub(crate) struct Turn {
 /// - [`Netns::Study`]: returns the binary (`savsim study` makes the namespace; the gate has
 ///   checked that one can be made).
 ///
-/// PX4 tests take turns (the returned [`Turn`] holds the lock): PX4 SITL's instance N keeps a
-/// lock and a server socket in /tmp (`px4_lock-N`, `px4-sock-N`), which a network namespace
-/// does not separate. The turn is taken before the namespace, where the tests share one
-/// process.
+/// Heavy tests take turns (the returned [`Turn`] holds the lock): the PX4 tests, because PX4
+/// SITL's instance N keeps a lock and a server socket in /tmp (`px4_lock-N`, `px4-sock-N`),
+/// which a network namespace does not separate; and the study tests, which fly several SITLs
+/// at once or PX4, because two of them on two cores starved a PX4 row to 0.3x of its speedup
+/// (its wall limit passed). Single ArduCopter tests run beside them. The turn is taken before
+/// the namespace, where the tests share one process.
 pub(crate) fn sitl_test(autopilot: Autopilot, netns: Netns, needs: &[Need]) -> Option<Turn> {
-    static PX4: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    static HEAVY: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let test = test_name();
     let variable = autopilot.variable();
     if std::env::var_os(INSIDE).is_some() {
@@ -119,8 +122,10 @@ pub(crate) fn sitl_test(autopilot: Autopilot, netns: Netns, needs: &[Need]) -> O
         );
     };
     say(&format!("SITL-RAN: {test}\n"));
-    let turn = (autopilot == Autopilot::Px4).then(|| {
-        PX4.lock()
+    let heavy = autopilot == Autopilot::Px4 || netns == Netns::Study;
+    let turn = heavy.then(|| {
+        HEAVY
+            .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     });
     if netns == Netns::Study {

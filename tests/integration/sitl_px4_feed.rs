@@ -44,8 +44,9 @@ use savsim::study::sitl::Start;
 
 /// b1852's east face, scene E metres; where the flight starts, scene N metres.
 const FACE_EAST_M: f64 = -57.0;
-/// PX4's speedup in these flights (PX4_SIM_SPEED_FACTOR).
-const SPEEDUP: f64 = 1.0;
+/// PX4's speedup in these flights (PX4_SIM_SPEED_FACTOR): every wait on the flight is on
+/// PX4's clock, or a deadline.
+const SPEEDUP: f64 = 4.0;
 const START_NORTH_M: f64 = -30.0;
 /// PX4's main modes (custom_mode's third byte): POSCTL, AUTO; AUTO's sub mode LAND (its
 /// fourth byte).
@@ -64,9 +65,6 @@ struct Heard {
     position: Option<(f64, f64, f64)>,
     time_boot_ms: u32,
     heading_cdeg: u16,
-    /// When the first position came: savsim's scripted tracks start at the first position it
-    /// received, which PX4 sends on both its links from the same moment.
-    first_position: Option<Instant>,
     /// Every position once the test starts recording (the stick forward; the traffic hover).
     track: Vec<(f64, f64, f64)>,
     /// PX4's OBSTACLE_DISTANCE (its fused map).
@@ -85,6 +83,8 @@ struct Px4Map {
     frame: u8,
     /// GLOBAL_POSITION_INT's heading at the time, cdeg.
     heading_cdeg: u16,
+    /// Whether it came while the test recorded (the flight at the face).
+    recorded: bool,
 }
 
 /// The pilot: a ground station on PX4's onboard link, a reader thread and a writer.
@@ -145,7 +145,6 @@ impl Pilot {
                         MavMessage::GLOBAL_POSITION_INT(p) => {
                             let at = east_north(p.lat, p.lon, p.relative_alt);
                             heard.position = Some(at);
-                            heard.first_position.get_or_insert_with(Instant::now);
                             heard.time_boot_ms = p.time_boot_ms;
                             heard.heading_cdeg = p.hdg;
                             if track.load(Ordering::Relaxed) {
@@ -161,6 +160,7 @@ impl Pilot {
                                 angle_offset: o.angle_offset,
                                 frame: o.frame as u8,
                                 heading_cdeg,
+                                recorded: track.load(Ordering::Relaxed),
                             });
                         }
                         MavMessage::STATUSTEXT(t) => {
@@ -405,7 +405,8 @@ fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
 }
 
 /// PX4's fused map agrees with savsim's bins on what collision prevention acts on, the
-/// nearest obstacle ahead: for each map frame, the nearest reading within 30 degrees of the
+/// nearest obstacle ahead, while the copter flies at the face: for each map frame then, the
+/// nearest reading within 30 degrees of the
 /// nose lies within what savsim sent in the 600 ms of PX4's clock before the map: between the
 /// least of its nearest readings within 35 degrees (less 1 cm) and the greatest within 25
 /// degrees (plus [`PX4_MAP_ABOVE_CM`]). PX4 1.15 keeps its map north-aligned and turns it by
@@ -433,7 +434,7 @@ fn map_against_sent(heard: &Heard, sent: &[ObstacleFrame]) -> (usize, Vec<String
             .unwrap_or(u16::MAX)
     }
     let (mut checked, mut wrong) = (0, Vec::new());
-    for map in &heard.obstacle {
+    for map in heard.obstacle.iter().filter(|m| m.recorded) {
         let heading_deg = if map.frame == BODY_FRD {
             0.0
         } else {
@@ -527,8 +528,9 @@ fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_witho
 }
 
 /// PX4's traffic avoidance on savsim's ADS-B: the quadrotor holds at 30 m over the city's
-/// origin with NAV_TRAFF_AVOID 3 (land); an A320 track waits 2.4 km east at the same height
-/// until +100 s of savsim's run, then flies west through the origin at 40 m/s. With
+/// origin with NAV_TRAFF_AVOID 3 (land, set before boot); an A320 track waits 2.4 km east at
+/// the same height until +100 s of PX4's clock (savsim runs on it), then flies west through the
+/// origin at 40 m/s. With
 /// `--feed adsb`, PX4 must take the airliner for a conflict (its defaults: 500 m across, 500 m
 /// up or down, 60 s ahead) and land; savsim's closest approach tells what that bought. PX4
 /// re-streams the traffic it receives: savsim must not read it back (`adsb_echoes`).
@@ -544,22 +546,18 @@ fn px4_lands_when_a_scripted_airliner_sent_as_adsb_closes() {
     flight.take_off();
     flight.pilot.recording.store(true, Ordering::Relaxed);
     let started = Instant::now();
-    // Until PX4 lands for the airliner, then until the airliner has passed (+190 s of the
-    // scripted track's clock, which starts at the first position: 30 s after it crossed the
-    // origin).
+    // Until PX4 lands for the airliner, then until the airliner has passed: +190 s of PX4's
+    // clock (savsim runs on it: the track's clock starts at PX4's boot), 30 s after it
+    // crossed the origin.
     let landing = flight.pilot.until(Duration::from_secs(150), 0, |_, h| {
         (h.custom_mode >> 16) & 0xff == AUTO && h.custom_mode >> 24 == AUTO_LAND
     });
     let landed_after = started.elapsed();
     if landing {
-        let passed = |h: &Heard| {
-            h.first_position
-                .is_some_and(|t| t.elapsed() > Duration::from_secs(190))
-        };
         let over = flight
             .pilot
-            .until(Duration::from_secs(150), 0, |_, h| passed(h));
-        assert!(over, "the airliner's track never reached +190 s");
+            .until(Duration::from_secs(150), 0, |_, h| h.time_boot_ms > 190_000);
+        assert!(over, "PX4's clock never reached +190 s");
     }
     let (heard, run, _) = flight.finish();
     let summary = run.session.summary("live", "sitl-px4");

@@ -276,9 +276,10 @@ fn summarize_reads_the_written_results_into_the_collision_risk_ratio() {
 /// nominal row hits its box, every mitigated row does not.
 #[test]
 fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
-    if sitl_test(Autopilot::ArduCopter, Netns::Study, &[]).is_none() {
+    // The turn is held while the studies fly (`sitl_test`: heavy tests take turns).
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
         return;
-    }
+    };
     let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.into());
     let dir = tempfile::tempdir().unwrap();
     let gen = savsim()
@@ -488,13 +489,15 @@ fn assert_same_rows(
 }
 
 /// Speed-independence (docs/study.md): two obstacle-approach pairs at speedup 1 and at
-/// `SAVSIM_STUDY_SPEEDUP` (default 20): the same outcome in every row and the closest approach
-/// to the box within [`SAME_CLOSEST_M`]. Needs `SAVSIM_ARDUCOPTER`.
+/// `SAVSIM_STUDY_SPEEDUP` (default 20), the four rows at once in each run: the same outcome in
+/// every row and the closest approach to the box within [`SAME_CLOSEST_M`]. Needs
+/// `SAVSIM_ARDUCOPTER`.
 #[test]
 fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
-    if sitl_test(Autopilot::ArduCopter, Netns::Study, &[]).is_none() {
+    // The turn is held while the studies fly (`sitl_test`: heavy tests take turns).
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
         return;
-    }
+    };
     let speedup = std::env::var("SAVSIM_STUDY_SPEEDUP").unwrap_or_else(|_| "20".into());
     let dir = tempfile::tempdir().unwrap();
     let gen = savsim()
@@ -507,7 +510,7 @@ fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
     for s in ["1", speedup.as_str()] {
         let out = dir.path().join(format!("out{s}"));
         let run = savsim()
-            .args(["study", "--jobs", "2", "--speedup", s, "--out"])
+            .args(["study", "--jobs", "4", "--speedup", s, "--out"])
             .arg(&out)
             .arg(dir.path().join("study.csv"))
             .output()
@@ -524,7 +527,7 @@ fn arducopter_study_rows_end_the_same_at_speedup_1_and_at_speed() {
 /// OBSTACLE_DISTANCE feed it stops short. About a minute at speedup 4.
 #[test]
 fn px4_study_nominal_hits_the_wall_and_collision_prevention_stops_short() {
-    // The turn is held while the study flies: PX4 instance 0 is every PX4 test's.
+    // The turn is held while the study flies (`sitl_test`: heavy tests take turns).
     let Some(turn) = sitl_test(Autopilot::Px4, Netns::Study, &[]) else {
         return;
     };
@@ -580,9 +583,9 @@ fn ray_study_example_gives_the_rows_savsim_study_gives() {
         "pip install ray; .ci/run does",
     );
     let needs = [Need::Python("ray")];
-    if sitl_test(Autopilot::ArduCopter, Netns::Study, &needs).is_none() {
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &needs) else {
         return;
-    }
+    };
     let speedup = std::env::var("SAVSIM_STUDY_SPEEDUP").unwrap_or_else(|_| "10".into());
     let dir = tempfile::tempdir().unwrap();
     let gen = savsim()
