@@ -63,11 +63,16 @@ pub(crate) enum Need {
     Program(&'static str),
 }
 
-/// A SITL test's turn: its autopilot's binary, and for a heavy test the lock held while it
-/// flies.
+/// A SITL test's turn: its autopilot's binary, and the turn held while it flies.
 pub(crate) struct Turn {
     pub(crate) bin: PathBuf,
-    _px4: Option<std::sync::MutexGuard<'static, ()>>,
+    _turn: Option<Held>,
+}
+
+/// A turn of [`sitl_test`]'s: shared by light tests, alone for a heavy one.
+enum Held {
+    Shared(#[allow(dead_code)] std::sync::RwLockReadGuard<'static, ()>),
+    Alone(#[allow(dead_code)] std::sync::RwLockWriteGuard<'static, ()>),
 }
 
 /// The one gate of every SITL test: the autopilot's binary (and what else the test needs),
@@ -81,21 +86,22 @@ pub(crate) struct Turn {
 /// - [`Netns::Study`]: returns the binary (`savsim study` makes the namespace; the gate has
 ///   checked that one can be made).
 ///
-/// Heavy tests take turns (the returned [`Turn`] holds the lock): the PX4 tests, because PX4
-/// SITL's instance N keeps a lock and a server socket in /tmp (`px4_lock-N`, `px4-sock-N`),
-/// which a network namespace does not separate; and the study tests, which fly several SITLs
-/// at once or PX4, because two of them on two cores starved a PX4 row to 0.3x of its speedup
-/// (its wall limit passed). Single ArduCopter tests run beside them. The turn is taken before
-/// the namespace, where the tests share one process.
+/// Heavy tests fly alone (the returned [`Turn`] holds the turn), light ones beside each other:
+/// the PX4 tests are heavy because PX4 SITL's instance N keeps a lock and a server socket in
+/// /tmp (`px4_lock-N`, `px4-sock-N`), which a network namespace does not separate; the study
+/// tests because they fly several SITLs at once, or PX4, at speedups whose results depend on
+/// savsim keeping up (on two cores, two studies at once starved a PX4 row to 0.3x of its
+/// speedup, and a row beside an ArduCopter test ended 1 m nearer its box). Single ArduCopter
+/// tests are light. The turn is taken before the namespace, where the tests share one process.
 pub(crate) fn sitl_test(autopilot: Autopilot, netns: Netns, needs: &[Need]) -> Option<Turn> {
-    static HEAVY: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    static TURNS: std::sync::RwLock<()> = std::sync::RwLock::new(());
     let test = test_name();
     let variable = autopilot.variable();
     if std::env::var_os(INSIDE).is_some() {
         let bin = std::env::var_os(variable).map(PathBuf::from);
         return Some(Turn {
             bin: bin.expect("the variable the test was started with"),
-            _px4: None,
+            _turn: None,
         });
     }
     let bin = match std::env::var_os(variable).map(PathBuf::from) {
@@ -123,13 +129,21 @@ pub(crate) fn sitl_test(autopilot: Autopilot, netns: Netns, needs: &[Need]) -> O
     };
     say(&format!("SITL-RAN: {test}\n"));
     let heavy = autopilot == Autopilot::Px4 || netns == Netns::Study;
-    let turn = heavy.then(|| {
-        HEAVY
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    let turn = Some(if heavy {
+        Held::Alone(
+            TURNS
+                .write()
+                .unwrap_or_else(std::sync::PoisonError::into_inner),
+        )
+    } else {
+        Held::Shared(
+            TURNS
+                .read()
+                .unwrap_or_else(std::sync::PoisonError::into_inner),
+        )
     });
     if netns == Netns::Study {
-        return Some(Turn { bin, _px4: turn });
+        return Some(Turn { bin, _turn: turn });
     }
     let exe = std::env::current_exe().unwrap();
     let status = Command::new("unshare")
