@@ -15,7 +15,7 @@
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -58,12 +58,13 @@ fn udpout(port: u16) -> String {
     format!("udpout:127.0.0.1:{port}")
 }
 
-/// savsim on `vehicles` links (then `stations`) for `duration`.
+/// savsim on `vehicles` links (then `stations`) until `shutdown` is raised or its duration
+/// passes.
 fn run(
     rt: &tokio::runtime::Runtime,
     vehicles: &[&str],
     stations: &[String],
-    options: LiveOptions,
+    (options, shutdown): (LiveOptions, Arc<AtomicBool>),
     session: Session,
     record: Option<&Path>,
 ) -> LiveRun {
@@ -78,7 +79,6 @@ fn run(
         links.push(link);
     }
     let options = LiveOptions { forward, ..options };
-    let shutdown = Arc::new(AtomicBool::new(false));
     run_links(rt.handle(), links, &options, session, record, shutdown).unwrap()
 }
 
@@ -98,10 +98,11 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
     let _sitl: Sitl = start_sitl(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "sitl"));
     let rt = runtime();
 
-    // The pymavlink station listens first and says where.
+    // The pymavlink station listens first and says where; it runs until told to stop (SIGTERM,
+    // once savsim has stopped), 300 s at most.
     let mut station = Command::new("python3")
         .arg(root().join("tests/python/station.py"))
-        .args(["--mode", "4", "--arm", "--force-arm", "--run-s", "50"])
+        .args(["--mode", "4", "--arm", "--force-arm", "--run-s", "300"])
         .stdout(Stdio::piped())
         .spawn()
         .expect("python3 runs");
@@ -130,9 +131,31 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
         )
     };
 
+    // savsim runs until the station has heard 300 positions through it and MAVProxy has
+    // written every parameter it fetched through it (mav.parm), 180 s at most; then the
+    // station is stopped, after savsim, so that it has seen all savsim forwarded.
+    let stop = Arc::new(AtomicBool::new(false));
+    let listener = std::thread::spawn({
+        let (stop, mp_dir) = (stop.clone(), dir.path().join("mavproxy"));
+        move || {
+            let mut text = String::new();
+            for line in out.lines().map_while(Result::ok) {
+                let positions: u64 = line
+                    .strip_prefix("POSITIONS ")
+                    .and_then(|n| n.parse().ok())
+                    .unwrap_or(0);
+                if positions >= 300 && find_file(&mp_dir, "mav.parm").is_some() {
+                    stop.store(true, Ordering::Relaxed);
+                }
+                text.push_str(&line);
+                text.push('\n');
+            }
+            text
+        }
+    });
     let record = dir.path().join("savsim.tlog");
     let options = LiveOptions {
-        duration: Some(Duration::from_secs(45)),
+        duration: Some(Duration::from_secs(180)),
         ..Default::default()
     };
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
@@ -140,14 +163,18 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
         &rt,
         &["tcpout:127.0.0.1:5760"],
         &stations,
-        options,
+        (options, stop.clone()),
         session,
         Some(&record),
     );
+    assert!(
+        stop.load(Ordering::Relaxed),
+        "in 180 s the station never heard 300 positions, or MAVProxy never had every parameter"
+    );
     drop(mavproxy);
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut out, &mut text).unwrap();
-    assert!(station.wait().unwrap().success());
+    let ended = crate::common::signal_and_wait(&mut station, "TERM");
+    assert!(ended.success(), "the station: {ended:?}");
+    let text = listener.join().unwrap();
     let seen: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
     eprintln!("station: {seen}\nforward: {:?}", live.report.forward);
     live.ended.unwrap();
@@ -266,7 +293,7 @@ fn the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters() {
         &rt,
         &[&format!("udpout:127.0.0.1:{out_port}")],
         &[],
-        options,
+        (options, Arc::default()),
         session,
         None,
     );
@@ -337,7 +364,14 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
         duration: Some(Duration::from_secs(8)),
         ..Default::default()
     };
-    let unsigned = run(&rt, &["tcpout:127.0.0.1:5762"], &[], options, session, None);
+    let unsigned = run(
+        &rt,
+        &["tcpout:127.0.0.1:5762"],
+        &[],
+        (options, Arc::default()),
+        session,
+        None,
+    );
     eprintln!("without the key: {:?}", unsigned.report.vehicles);
     assert_eq!(
         streams_accepted(&unsigned),
@@ -355,7 +389,14 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
         signing_require: true,
         ..Default::default()
     };
-    let signed = run(&rt, &["tcpout:127.0.0.1:5762"], &[], options, session, None);
+    let signed = run(
+        &rt,
+        &["tcpout:127.0.0.1:5762"],
+        &[],
+        (options, Arc::default()),
+        session,
+        None,
+    );
     let counts = signed.report.signing.unwrap();
     eprintln!("with the key: {:?} {counts:?}", signed.report.vehicles);
     assert_eq!(streams_accepted(&signed), 2, "{:?}", signed.report.vehicles);
