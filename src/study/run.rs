@@ -27,7 +27,9 @@ use crate::study::manifest::StudyRow;
 use crate::study::pilot::{arducopter_mode_name, mode, px4_mode_name, Heard, Pilot, PilotError};
 use crate::study::plan::{self, Leg, PlanError};
 use crate::study::result::{AutopilotDid, Outcome, StudyResult};
-use crate::study::sitl::{px4_gcs_port, px4_onboard_ports, ArduCopter, Px4, Sitl, Start};
+use crate::study::sitl::{
+    px4_autopilot, px4_gcs_port, px4_onboard_ports, ArduCopter, Px4, Sitl, Start,
+};
 use savsim_core::bounds::MAX_DURATION_S;
 
 /// A row's default length, seconds of the vehicle's clock.
@@ -42,13 +44,13 @@ pub const FEED_HZ: f64 = 50.0;
 /// The autopilot's identity: ArduCopter SITL's default SYSID_THISMAV 1 (whatever its
 /// instance); PX4 SITL sets MAV_SYS_ID to its instance + 1. Component 1, the autopilot.
 fn autopilot_id(px4: bool, instance: u16) -> SenderId {
-    SenderId {
-        system_id: if px4 {
-            (instance + 1).min(255) as u8
-        } else {
-            1
-        },
-        component_id: 1,
+    if px4 {
+        px4_autopilot(instance)
+    } else {
+        SenderId {
+            system_id: 1,
+            component_id: 1,
+        }
     }
 }
 
@@ -81,6 +83,25 @@ pub enum RowError {
     /// savsim's side (the scene, the session, the link).
     #[error("savsim: {0}")]
     Savsim(String),
+    /// The row's wall-clock limit passed before its plan or its time on the vehicle's clock
+    /// ended (SITL ran far below its speedup): what it flew is not judged.
+    #[error(
+        "the wall-clock limit ({limit_s:.0} s) passed at {flown_s:.1} s of the vehicle's clock \
+         of the row's {duration_s} s (SITL ran at about {achieved:.2}x, asked {speedup}x): \
+         not judged"
+    )]
+    WallLimit {
+        /// The limit, wall seconds.
+        limit_s: f64,
+        /// How far the vehicle's clock got, seconds.
+        flown_s: f64,
+        /// The row's duration, seconds of the vehicle's clock.
+        duration_s: f64,
+        /// The vehicle's clock over the wall clock while it flew.
+        achieved: f64,
+        /// The speedup asked.
+        speedup: f64,
+    },
 }
 
 fn input(column: &'static str, why: impl Into<String>) -> RowError {
@@ -353,6 +374,22 @@ fn fly_row(
         Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
         None => RowError::Pilot(e),
     })?;
+    // Stopped by the wall limit alone (no signal, no collision): the row flew only part of its
+    // time, and what it flew is not judged as if it were all of it.
+    let cut_short = flown.stopped
+        && !setup.stop.load(Ordering::Relaxed)
+        && !collided.is_raised()
+        && started.elapsed() > wall_limit;
+    if cut_short {
+        let flown_s = f64::from(flown.last_ms) / 1000.0;
+        return Err(RowError::WallLimit {
+            limit_s: wall_limit.as_secs_f64(),
+            flown_s,
+            duration_s: checked.duration_s,
+            achieved: flown_s / started.elapsed().as_secs_f64(),
+            speedup: checked.speedup,
+        });
+    }
     record(
         result,
         &dir,
@@ -420,26 +457,6 @@ impl Drop for SessionThread {
     }
 }
 
-/// Where PX4's startup script does not set SIH's home altitude (`Px4::home_alt_by_param`):
-/// boot PX4 once in the row's folder, set SIH_LOC_H0 over MAVLink (PX4 saves it in the
-/// folder's parameters.bson), stop it, so that the row's PX4 starts at the scene's height.
-fn prime_px4_home(px4: &Px4, start: &Start<'_>) -> Result<(), RowError> {
-    let first = px4
-        .start(start)
-        .map_err(|e| RowError::Sitl(format!("start {}: {e}", px4.binary.display())))?;
-    let (listens, sends) = px4_onboard_ports(start.instance);
-    let plane = LocalTangentPlane::new(start.home);
-    let id = autopilot_id(true, start.instance);
-    let set = Pilot::udp(sends, listens, id, plane).and_then(|mut pilot| {
-        pilot.set_param_before_flight("SIH_LOC_H0", start.home.alt_m, Duration::from_secs(1))
-    });
-    // PX4 saves a changed parameter within a second (its autosave).
-    std::thread::sleep(Duration::from_millis(1500));
-    let tail = first.log_tail(3);
-    drop(first);
-    set.map_err(|e| RowError::Sitl(format!("setting its home altitude: {e}; {tail}")))
-}
-
 /// The row's link for savsim's session and its SITL, started. ArduCopter: savsim listens on a
 /// port of its own and SITL's SERIAL0 sends to it. PX4: savsim sends to PX4's GCS link (PX4
 /// then answers to savsim's address).
@@ -455,14 +472,11 @@ fn start_autopilot(
         let px4 = setup.px4.as_ref().ok_or_else(|| {
             RowError::NoAutopilot("no PX4 SITL: give --px4 PATH or set SAVSIM_PX4".into())
         })?;
-        if px4.home_alt_by_param() {
-            prime_px4_home(px4, start)?;
-        }
+        let sitl = px4
+            .start_at_home(start)
+            .map_err(|e| RowError::Sitl(e.to_string()))?;
         let address = ConnectAddress::UdpOut(loopback(px4_gcs_port(start.instance)).into());
         let link = runtime.block_on(Link::open(&address)).map_err(savsim)?;
-        let sitl = px4
-            .start(start)
-            .map_err(|e| RowError::Sitl(format!("start {}: {e}", px4.binary.display())))?;
         return Ok((link, sitl));
     }
     let arducopter = setup.arducopter.as_ref().ok_or_else(|| {

@@ -11,8 +11,11 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant, SystemTime};
 
-use crate::geo::Geodetic;
+use crate::geo::{Geodetic, LocalTangentPlane};
+use crate::ingest::stats::SenderId;
+use crate::study::pilot::{Pilot, PilotError};
 
 /// SITL's SERIAL1 TCP port for instance `instance`.
 pub fn serial1_port(instance: u16) -> u16 {
@@ -147,6 +150,37 @@ pub struct Px4 {
     pub binary: PathBuf,
 }
 
+/// PX4 SITL instance `instance`'s autopilot: its startup script sets MAV_SYS_ID to the
+/// instance + 1; component 1.
+pub fn px4_autopilot(instance: u16) -> SenderId {
+    SenderId {
+        system_id: (instance + 1).min(255) as u8,
+        component_id: 1,
+    }
+}
+
+/// Why PX4 could not be started at its home.
+#[derive(Debug, thiserror::Error)]
+pub enum Px4StartError {
+    /// The process could not be started (or its folder made).
+    #[error("start {binary}: {source}")]
+    Start {
+        /// The `px4` binary.
+        binary: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// SIH's home altitude or a parameter could not be set over MAVLink before the flight.
+    #[error("setting its parameters before the flight: {why}; {tail}")]
+    Prime {
+        /// What the parameter exchange said.
+        why: PilotError,
+        /// The last lines of PX4's console.
+        tail: String,
+    },
+}
+
 /// PX4 instance `instance`'s GCS link port (where savsim's session sends).
 pub fn px4_gcs_port(instance: u16) -> u16 {
     18570 + instance
@@ -191,11 +225,77 @@ impl Px4 {
         !script.contains("SIH_LOC_H0")
     }
 
-    /// Start PX4 SIH (quadrotor, airframe 10040) for one row, home at `start.home`, at
-    /// `start.speedup` (PX4_SIM_SPEED_FACTOR), in the row's folder (`sitl.log` its console).
-    /// The row's parameters are set over MAVLink by the pilot (PX4 has no defaults file).
+    /// Start PX4 SIH at `start.home`, its altitude included, with `start.params` in force
+    /// from its boot: where its startup script leaves SIH's home altitude alone
+    /// ([`Px4::home_alt_by_param`]) or parameters are given, PX4 is first booted once in
+    /// `start.dir` to set SIH_LOC_H0 and each parameter over MAVLink (PX4 keeps them in the
+    /// folder's parameters.bson), then started again. Some parameters are read only at boot
+    /// (PX4 1.15's navigator reads NAV_TRAFF_AVOID once), so a value set in flight may never
+    /// act. The PX4 a study row or a test flies.
+    ///
+    /// Its onboard link's pilot port ([`px4_onboard_ports`]) must be free while it primes;
+    /// the GCS link of the first boot sends to 14550 like any PX4, so open a listener there
+    /// after this returns if a restart must not be seen.
+    pub fn start_at_home(&self, start: &Start<'_>) -> Result<Sitl, Px4StartError> {
+        let home_alt = self.home_alt_by_param();
+        if home_alt || !start.params.is_empty() {
+            self.prime(start, home_alt)?;
+        }
+        self.start(start).map_err(|source| self.start_error(source))
+    }
+
+    fn start_error(&self, source: std::io::Error) -> Px4StartError {
+        Px4StartError::Start {
+            binary: self.binary.display().to_string(),
+            source,
+        }
+    }
+
+    /// Boot PX4 once in `start.dir`, set SIH_LOC_H0 to `start.home`'s altitude (when
+    /// `home_alt`) and each of `start.params`, and stop it once PX4 has saved them (its
+    /// parameters.bson written after the last set, within 5 s of wall time).
+    fn prime(&self, start: &Start<'_>, home_alt: bool) -> Result<(), Px4StartError> {
+        let first = self.start(start).map_err(|e| self.start_error(e))?;
+        let saved = start.dir.join("parameters.bson");
+        let (listens, sends) = px4_onboard_ports(start.instance);
+        let plane = LocalTangentPlane::new(start.home);
+        let id = px4_autopilot(start.instance);
+        let home = home_alt.then_some(("SIH_LOC_H0", start.home.alt_m));
+        let params = home
+            .into_iter()
+            .chain(start.params.iter().map(|(n, v)| (n.as_str(), *v)));
+        let set = Pilot::udp(sends, listens, id, plane).and_then(|mut pilot| {
+            let mut last_set = SystemTime::now();
+            for (name, value) in params {
+                pilot.set_param_before_flight(name, value, Duration::from_secs(1))?;
+                last_set = SystemTime::now();
+            }
+            Ok(last_set)
+        });
+        if let Ok(last_set) = set {
+            let written_since = |at: SystemTime| {
+                std::fs::metadata(&saved)
+                    .and_then(|m| m.modified())
+                    .is_ok_and(|m| m >= at)
+            };
+            let deadline = Instant::now() + Duration::from_secs(5);
+            while !written_since(last_set) && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+        let tail = first.log_tail(3);
+        drop(first);
+        set.map(|_| ())
+            .map_err(|why| Px4StartError::Prime { why, tail })
+    }
+
+    /// Start PX4 SIH (quadrotor, airframe 10040) for one row, home at `start.home` (latitude
+    /// and longitude only: [`Px4::start_at_home`] sets the altitude too), at `start.speedup`
+    /// (PX4_SIM_SPEED_FACTOR), in the row's folder (`sitl.log` its console). The row's
+    /// parameters are set over MAVLink by the pilot (PX4 has no defaults file).
     pub fn start(&self, start: &Start<'_>) -> std::io::Result<Sitl> {
         std::fs::create_dir_all(start.dir)?;
+        let binary = runnable_px4(&self.binary, start.dir)?;
         let etc = self.etc().ok_or_else(|| {
             std::io::Error::other(format!(
                 "{}: no etc folder beside its bin folder",
@@ -210,7 +310,7 @@ impl Px4 {
                 format!("{deg:.7}")
             }
         };
-        let mut command = launcher(&self.binary);
+        let mut command = launcher(&binary);
         command
             .current_dir(start.dir)
             .args(["-d", "-i", &start.instance.to_string(), "-w"])
@@ -225,6 +325,72 @@ impl Px4 {
             .env("PX4_HOME_ALT", format!("{:.2}", start.home.alt_m));
         Sitl::spawn(command, start.dir, px4_onboard_ports(start.instance).1)
     }
+}
+
+/// The `px4` to run from `dir`: `binary` itself, or, when the `px4-NAME` command links beside
+/// it are plain files (a copy that did not keep symbolic links: each holds the text `px4`),
+/// `dir/px4-bin/px4`, a folder of links made again: `px4` to `binary`, each `px4-NAME` to
+/// `px4`, anything else (`px4-alias.sh`) to its file. PX4's startup script runs its commands
+/// as `px4-NAME` from the folder of the `px4` it was started as.
+fn runnable_px4(binary: &Path, dir: &Path) -> std::io::Result<PathBuf> {
+    let Some(bin) = binary.parent() else {
+        return Ok(binary.to_path_buf());
+    };
+    let flattened = |path: &Path| {
+        std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file() && m.len() <= 16)
+            && std::fs::read(path).is_ok_and(|text| text.trim_ascii() == b"px4")
+    };
+    let commands: Vec<PathBuf> = std::fs::read_dir(bin)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("px4-"))
+        })
+        .collect();
+    if !commands.iter().any(|p| flattened(p)) {
+        return Ok(binary.to_path_buf());
+    }
+    relink(binary, &commands, &dir.join("px4-bin"), flattened)
+}
+
+/// [`runnable_px4`]'s folder of links in `links`.
+#[cfg(unix)]
+fn relink(
+    binary: &Path,
+    commands: &[PathBuf],
+    links: &Path,
+    flattened: impl Fn(&Path) -> bool,
+) -> std::io::Result<PathBuf> {
+    use std::os::unix::fs::symlink;
+    if links.exists() {
+        std::fs::remove_dir_all(links)?;
+    }
+    std::fs::create_dir_all(links)?;
+    let px4 = links.join("px4");
+    symlink(std::path::absolute(binary)?, &px4)?;
+    for command in commands {
+        let Some(name) = command.file_name() else {
+            continue;
+        };
+        if flattened(command) {
+            symlink("px4", links.join(name))?;
+        } else {
+            symlink(std::path::absolute(command)?, links.join(name))?;
+        }
+    }
+    Ok(px4)
+}
+
+/// Without symbolic links, the binary as it is.
+#[cfg(not(unix))]
+fn relink(
+    binary: &Path,
+    _commands: &[PathBuf],
+    _links: &Path,
+    _flattened: impl Fn(&Path) -> bool,
+) -> std::io::Result<PathBuf> {
+    Ok(binary.to_path_buf())
 }
 
 /// A command running `binary`: under Linux through `setpriv --pdeathsig KILL` where that

@@ -284,11 +284,23 @@ pub fn run_live(
     session: Session,
     record: Option<&Path>,
 ) -> savsim::live::LiveRun {
+    let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    run_live_until(runtime, links, duration, session, record, shutdown)
+}
+
+/// [`run_live`] until `shutdown` is raised, or `limit` passes.
+pub fn run_live_until(
+    runtime: &tokio::runtime::Runtime,
+    links: Vec<savsim::ingest::live::Link>,
+    limit: std::time::Duration,
+    session: Session,
+    record: Option<&Path>,
+    shutdown: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> savsim::live::LiveRun {
     let options = savsim::live::LiveOptions {
-        duration: Some(duration),
+        duration: Some(limit),
         ..Default::default()
     };
-    let shutdown = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let run = savsim::live::run_links(runtime.handle(), links, &options, session, record, shutdown)
         .unwrap();
     if let Err(e) = &run.ended {
@@ -350,4 +362,58 @@ pub fn rangefinder_m(messages: &[MavMessage]) -> Option<f64> {
         }
         _ => None,
     })
+}
+
+/// Wait until `condition` holds, checking every 20 ms, or until `deadline` passes: whether it
+/// held. A test waits on what it needs, never for a guessed time.
+pub fn wait_until(deadline: std::time::Instant, mut condition: impl FnMut() -> bool) -> bool {
+    loop {
+        if condition() {
+            return true;
+        }
+        if std::time::Instant::now() >= deadline {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// The identity of [`until_processed`]'s marker: a companion computer (MAV_COMP_ID_ONBOARD...
+/// 191) of system 250, never an autopilot, so savsim never asks it for streams.
+pub const MARKER: savsim::ingest::stats::SenderId = savsim::ingest::stats::SenderId {
+    system_id: 250,
+    component_id: 191,
+};
+
+/// Wait until savsim's live run listening on UDP `savsim` has taken everything sent to it
+/// before this call: a heartbeat of [`MARKER`] from a socket of its own, resent every 200 ms,
+/// until savsim's ground-station heartbeat comes back to that socket. savsim sends to an
+/// address only once its session thread has taken a frame from it, and the datagrams sent to
+/// one socket are taken in the order they arrived. Whether it happened by `deadline`.
+pub fn until_processed(savsim: std::net::SocketAddr, deadline: std::time::Instant) -> bool {
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket
+        .set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let marker = heartbeat(
+        MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        MavAutopilot::MAV_AUTOPILOT_INVALID,
+    );
+    let mut buffer = [0u8; 2048];
+    let mut seq = 0u8;
+    while std::time::Instant::now() < deadline {
+        let frame = frame_v2(MARKER.system_id, MARKER.component_id, seq, &marker);
+        seq = seq.wrapping_add(1);
+        let _ = socket.send_to(&frame, savsim);
+        let Ok(n) = socket.recv(&mut buffer) else {
+            continue;
+        };
+        let mut reader = mavlink::MavlinkReader::new(&buffer[..n]);
+        while let Ok((_, message)) = reader.read_any_message::<MavMessage>() {
+            if matches!(message, MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS) {
+                return true;
+            }
+        }
+    }
+    false
 }

@@ -1,9 +1,12 @@
 //! Live faults and load on 127.0.0.1 (ports bound to 0): garbage, truncated, repeated and
 //! reordered datagrams, a vehicle that vanishes and returns rebooted, and a 10 s burst of
 //! 100k messages/s. Every valid frame sent must be accounted for: decoded, or missing from the
-//! sender's sequence and counted lost. Each test stops by itself.
+//! sender's sequence and counted lost. Each run stops once savsim has taken everything sent
+//! (`common::until_processed`), within a deadline.
 
 use std::net::{SocketAddr, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, GLOBAL_POSITION_INT_DATA};
@@ -28,17 +31,33 @@ fn position(system_id: u8, seq: u8, time_boot_ms: u32, n: i32) -> Vec<u8> {
 }
 
 /// Run savsim's live path on a UDP socket bound to 127.0.0.1:0 while `sender` (given the
-/// address) runs on its own thread; savsim stops `run_for` after starting.
+/// address) runs on its own thread; savsim stops once it has taken everything the sender sent
+/// (`common::until_processed`), within `limit`.
 fn live_with_sender<T: Send + 'static>(
-    run_for: Duration,
+    limit: Duration,
     sender: impl FnOnce(SocketAddr) -> T + Send + 'static,
 ) -> (Session, T) {
     let runtime = crate::common::runtime();
     let (link, local) = crate::common::udp_link(&runtime);
-    let sending = std::thread::spawn(move || sender(local));
+    let stop = Arc::new(AtomicBool::new(false));
+    let deadline = Instant::now() + limit;
+    let sending = std::thread::spawn({
+        let stop = stop.clone();
+        move || {
+            let sent = sender(local);
+            let taken = crate::common::until_processed(local, deadline);
+            stop.store(true, Ordering::Relaxed);
+            (sent, taken)
+        }
+    });
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let run = crate::common::run_live(&runtime, vec![link], run_for, session, None);
-    (run.session, sending.join().unwrap())
+    let run = crate::common::run_live_until(&runtime, vec![link], limit, session, None, stop);
+    let (sent, taken) = sending.join().unwrap();
+    assert!(
+        taken,
+        "savsim had not taken everything sent within {limit:?}"
+    );
+    (run.session, sent)
 }
 
 /// What the fault sender sent.
@@ -52,7 +71,7 @@ struct Sent {
 
 #[test]
 fn live_udp_survives_faults_and_accounts_for_every_frame() {
-    let (session, sent) = live_with_sender(Duration::from_millis(3500), |to| {
+    let (session, sent) = live_with_sender(Duration::from_secs(60), |to| {
         let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
         let mut sent = Sent::default();
         let send = |bytes: &[u8]| {
@@ -137,7 +156,7 @@ fn live_udp_holds_a_10_s_burst_of_100k_messages_per_second() {
     const SECONDS: u64 = 10;
     const FRAMES_PER_DATAGRAM: usize = 10;
     const DATAGRAMS_PER_MS: usize = 10;
-    let (session, (frames, elapsed)) = live_with_sender(Duration::from_secs(SECONDS + 3), |to| {
+    let (session, (frames, elapsed)) = live_with_sender(Duration::from_secs(SECONDS + 60), |to| {
         let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
         // Frames are made before the clock starts; sequence numbers run on.
         let frames: Vec<Vec<u8>> = (0..256u32)

@@ -3,13 +3,15 @@
 //! SET_MESSAGE_INTERVAL addressed to its own (sysid, compid) and loses its streams at a
 //! reboot; a PX4 streams at 50 Hz by default and falls back to it at a reboot. Several vehicles
 //! on one UDP link, a forwarded companion computer, tcpin and tcpout lifecycles, SIGINT, and
-//! `record`'s tlog read back by pymavlink. Every run stops by itself within a few seconds.
+//! `record`'s tlog read back by pymavlink. Every run stops once what the test waits for has
+//! happened (the vehicles finished and savsim took all they sent, a silence was logged, a
+//! link opened), within a deadline; no test sleeps for a guessed time.
 
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavMessage, MavResult, MavType, ATTITUDE_DATA, COMMAND_ACK_DATA,
@@ -25,7 +27,8 @@ use savsim::session::Session;
 use tokio::net::UdpSocket;
 
 use crate::common::{
-    frame_v2, have_pymavlink, heartbeat, python, root, run_live, runtime, signal_and_wait, udp_link,
+    frame_v2, have_pymavlink, heartbeat, python, root, run_live_until, runtime, signal_and_wait,
+    udp_link, until_processed, wait_until,
 };
 
 /// How the played autopilot behaves.
@@ -70,6 +73,8 @@ struct Heard {
     sent_positions: usize,
     positions_after_reboot: usize,
     last_position: Option<(i32, i32, i32)>,
+    /// Its run is over: it sends nothing more.
+    done: bool,
 }
 
 struct Encoder {
@@ -227,10 +232,10 @@ async fn vehicle(wire: Wire, b: Behaviour, heard: Arc<Mutex<Heard>>) {
 }
 
 /// Start one UDP vehicle per behaviour, each on its own socket (its own source port), all
-/// sending to one savsim udpin link; run savsim for `run_for`.
+/// sending to one savsim udpin link; run savsim until every vehicle has finished and savsim has
+/// taken all they sent (`common::until_processed`), within [`LIMIT`].
 fn vehicles_on_one_udp_link(
     behaviours: &[Behaviour],
-    run_for: Duration,
     record: Option<&std::path::Path>,
 ) -> (LiveRun, Vec<Heard>) {
     let runtime = runtime();
@@ -240,17 +245,78 @@ fn vehicles_on_one_udp_link(
         .map(|b| {
             let h = Arc::new(Mutex::new(Heard::default()));
             let socket = runtime.block_on(UdpSocket::bind("127.0.0.1:0")).unwrap();
-            runtime.spawn(vehicle(Wire::Udp(socket, savsim), *b, h.clone()));
+            runtime.spawn(vehicle_then_done(Wire::Udp(socket, savsim), *b, h.clone()));
             h
         })
         .collect();
+    let stop = Arc::new(AtomicBool::new(false));
+    let watcher = std::thread::spawn({
+        let (heard, stop) = (heard.clone(), stop.clone());
+        move || {
+            let deadline = Instant::now() + LIMIT;
+            let done = wait_until(deadline, || heard.iter().all(|h| h.lock().unwrap().done))
+                && until_processed(savsim, deadline);
+            stop.store(true, Ordering::Relaxed);
+            done
+        }
+    });
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let run = run_live(&runtime, vec![link], run_for, session, record);
+    let run = run_live_until(&runtime, vec![link], LIMIT, session, record, stop);
+    assert!(
+        watcher.join().unwrap(),
+        "the vehicles did not finish, or savsim did not take what they sent, within {LIMIT:?}"
+    );
     let heard = heard
         .iter()
         .map(|h| std::mem::take(&mut *h.lock().unwrap()))
         .collect();
     (run, heard)
+}
+
+/// [`vehicle`], then `done` raised in what it heard.
+async fn vehicle_then_done(wire: Wire, b: Behaviour, heard: Arc<Mutex<Heard>>) {
+    vehicle(wire, b, heard.clone()).await;
+    heard.lock().unwrap().done = true;
+}
+
+/// The longest any run of these tests may take, whatever the machine's load.
+const LIMIT: Duration = Duration::from_secs(60);
+
+/// The system of the autopilot heartbeat [`until_taken_over_tcp`] sends.
+const TCP_MARKER: u8 = 250;
+
+/// Wait until savsim has taken everything sent before on this TCP connection: an autopilot
+/// heartbeat of system [`TCP_MARKER`], resent every 200 ms, until savsim asks that autopilot
+/// for a stream (its SET_MESSAGE_INTERVAL comes only once its session thread has taken the
+/// heartbeat, and a connection's bytes are taken in order). Whether it happened by `deadline`.
+async fn until_taken_over_tcp(stream: &mut tokio::net::TcpStream, deadline: Instant) -> bool {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut enc = Encoder {
+        sysid: TCP_MARKER,
+        seq: 0,
+    };
+    let marker = heartbeat(
+        MavType::MAV_TYPE_QUADROTOR,
+        MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+    );
+    let mut buf = vec![0u8; 4096];
+    while Instant::now() < deadline {
+        if stream.write_all(&enc.encode(1, &marker)).await.is_err() {
+            return false;
+        }
+        let read = tokio::time::timeout(Duration::from_millis(200), stream.read(&mut buf)).await;
+        let Ok(Ok(len)) = read else { continue };
+        if len == 0 {
+            return false;
+        }
+        let mut reader = mavlink::MavlinkReader::new(&buf[..len]);
+        while let Ok((_, message)) = reader.read_any_message::<MavMessage>() {
+            if matches!(message, MavMessage::COMMAND_LONG(c) if c.target_system == TCP_MARKER) {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 fn sender(sysid: u8) -> SenderId {
@@ -262,11 +328,7 @@ fn sender(sysid: u8) -> SenderId {
 
 #[test]
 fn live_udp_mirrors_the_vehicle_and_requests_rates() {
-    let (run, heard) = vehicles_on_one_udp_link(
-        &[Behaviour::ardupilot(7)],
-        Duration::from_millis(3000),
-        None,
-    );
+    let (run, heard) = vehicles_on_one_udp_link(&[Behaviour::ardupilot(7)], None);
     let (session, heard) = (&run.session, &heard[0]);
     // Every position sent was received and decoded (loopback loses nothing at 20 Hz).
     let stats = &session.stats();
@@ -306,7 +368,7 @@ fn live_udp_mirrors_the_vehicle_and_requests_rates() {
 #[test]
 fn two_vehicles_on_one_udpin_link_are_each_asked_at_their_own_address() {
     let behaviours = [Behaviour::ardupilot(1), Behaviour::ardupilot(2)];
-    let (run, heard) = vehicles_on_one_udp_link(&behaviours, Duration::from_millis(3000), None);
+    let (run, heard) = vehicles_on_one_udp_link(&behaviours, None);
     for (b, h) in behaviours.iter().zip(&heard) {
         // An ArduPilot streams only once asked at its own (sysid, compid): both were.
         assert!(h.gcs_heartbeats >= 2, "{b:?} {h:?}");
@@ -327,7 +389,7 @@ fn a_rebooted_ardupilot_is_asked_again_and_its_sequence_restarts() {
         run_for: Duration::from_millis(5000),
         ..Behaviour::ardupilot(3)
     };
-    let (run, heard) = vehicles_on_one_udp_link(&[b], Duration::from_millis(5500), None);
+    let (run, heard) = vehicles_on_one_udp_link(&[b], None);
     let h = &heard[0];
     // Streams came back after the reboot because savsim asked again.
     assert!(h.positions_after_reboot > 10, "{h:?}");
@@ -351,7 +413,7 @@ fn a_px4_reboot_restores_the_asked_rate() {
         run_for: Duration::from_millis(4000),
         ..Behaviour::ardupilot(4)
     };
-    let (run, heard) = vehicles_on_one_udp_link(&[b], Duration::from_millis(4500), None);
+    let (run, heard) = vehicles_on_one_udp_link(&[b], None);
     let v = &run.report.vehicles[0];
     assert_eq!(v.reboots, 1, "{v:?}");
     // Asked twice per message: at the start and after the reboot; never REQUEST_DATA_STREAM.
@@ -371,16 +433,17 @@ fn a_forwarded_companion_is_never_asked_and_counted_apart() {
         forward_companion: true,
         ..Behaviour::ardupilot(5)
     };
-    let (run, heard) = vehicles_on_one_udp_link(&[b], Duration::from_millis(3000), None);
+    let (run, heard) = vehicles_on_one_udp_link(&[b], None);
     let h = &heard[0];
     assert_eq!(h.misaddressed, 0, "{h:?}");
     assert_eq!(run.report.vehicles.len(), 1);
     // The companion's frames share the vehicle's sequence (one router), so as a sender of its
-    // own it shows gaps: those are counted apart from the vehicle's link quality.
+    // own it shows gaps: those are counted apart from the vehicle's link quality (with the
+    // test's own marker, `common::MARKER`, another sender that is no autopilot).
     let summary = run.session.stats().to_summary();
     assert_eq!(summary.sequence.senders, 1);
     assert_eq!(summary.sequence.lost, 0);
-    assert_eq!(summary.forwarded_sequence.senders, 1);
+    assert_eq!(summary.forwarded_sequence.senders, 2);
     assert!(
         summary.forwarded_sequence.lost > 0,
         "{:?}",
@@ -392,11 +455,7 @@ fn a_forwarded_companion_is_never_asked_and_counted_apart() {
 fn recording_is_a_tlog_pymavlink_reads_with_the_same_counts() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("rec.tlog");
-    let (run, _) = vehicles_on_one_udp_link(
-        &[Behaviour::ardupilot(7)],
-        Duration::from_millis(2500),
-        Some(&path),
-    );
+    let (run, _) = vehicles_on_one_udp_link(&[Behaviour::ardupilot(7)], Some(&path));
     let ours = run.session.stats().messages_by_name();
     // savsim reads its own recording back identically.
     let again = crate::common::replay_into_session(&path, None);
@@ -422,38 +481,49 @@ fn live_tcp_reassembles_frames_across_reads() {
         .unwrap();
     let addr = listener.local_addr().unwrap();
     let sent = 300usize;
-    runtime.spawn(async move {
-        use tokio::io::AsyncWriteExt;
-        let (mut stream, _) = listener.accept().await.unwrap();
-        let mut enc = Encoder { sysid: 7, seq: 0 };
-        let mut bytes = Vec::new();
-        for n in 0..sent as i32 {
-            bytes.extend(enc.encode(
-                1,
-                &MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-                    time_boot_ms: 1000 + n as u32,
-                    lat: -353_632_610 + n,
-                    lon: 1_491_652_300,
-                    alt: 600_000,
-                    relative_alt: 0,
-                    vx: 0,
-                    vy: 0,
-                    vz: 0,
-                    hdg: 0,
-                }),
-            ));
-            bytes.extend_from_slice(&[0x00, 0x42]); // line noise between frames
-        }
-        for piece in bytes.chunks(37) {
-            stream.write_all(piece).await.unwrap();
-            tokio::time::sleep(Duration::from_micros(200)).await;
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = runtime.spawn({
+        let stop = stop.clone();
+        async move {
+            use tokio::io::AsyncWriteExt;
+            let (mut stream, _) = listener.accept().await.unwrap();
+            let mut enc = Encoder { sysid: 7, seq: 0 };
+            let mut bytes = Vec::new();
+            for n in 0..sent as i32 {
+                bytes.extend(enc.encode(
+                    1,
+                    &MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                        time_boot_ms: 1000 + n as u32,
+                        lat: -353_632_610 + n,
+                        lon: 1_491_652_300,
+                        alt: 600_000,
+                        relative_alt: 0,
+                        vx: 0,
+                        vy: 0,
+                        vz: 0,
+                        hdg: 0,
+                    }),
+                ));
+                bytes.extend_from_slice(&[0x00, 0x42]); // line noise between frames
+            }
+            for piece in bytes.chunks(37) {
+                stream.write_all(piece).await.unwrap();
+                tokio::time::sleep(Duration::from_micros(200)).await;
+            }
+            let taken = until_taken_over_tcp(&mut stream, Instant::now() + LIMIT).await;
+            stop.store(true, Ordering::Relaxed);
+            taken
         }
     });
     let link = runtime
         .block_on(Link::open(&ConnectAddress::TcpOut(addr.into())))
         .unwrap();
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let run = run_live(&runtime, vec![link], Duration::from_secs(2), session, None);
+    let run = run_live_until(&runtime, vec![link], LIMIT, session, None, stop);
+    assert!(
+        runtime.block_on(server).unwrap(),
+        "savsim did not take what was sent within {LIMIT:?}"
+    );
     let stats = &run.session.stats();
     assert_eq!(stats.count_of(33) as usize, sent);
     assert_eq!(stats.garbage_bytes as usize, 2 * sent);
@@ -479,25 +549,34 @@ fn tcpout_waits_for_its_server_and_reconnects_beside_a_udp_link() {
     let (udp, savsim_udp) = udp_link(&runtime);
     let tcp_heard = Arc::new(Mutex::new(Heard::default()));
     let server_heard = tcp_heard.clone();
-    runtime.spawn(async move {
-        tokio::time::sleep(Duration::from_millis(300)).await;
-        let listener = tokio::net::TcpListener::bind(("127.0.0.1", port))
-            .await
-            .unwrap();
-        for round in 0..2 {
-            let (stream, _) = listener.accept().await.unwrap();
-            let b = Behaviour {
-                run_for: Duration::from_millis(800),
-                ..Behaviour::ardupilot(10 + round)
-            };
-            // The vehicle closes the connection when its time is up.
-            vehicle(Wire::Tcp(stream), b, server_heard.clone()).await;
+    let deadline = Instant::now() + LIMIT;
+    // Two rounds of a vehicle, then a third connection on which savsim shows it has taken both.
+    let tcp_taken: Arc<Mutex<Option<bool>>> = Arc::default();
+    runtime.spawn({
+        let tcp_taken = tcp_taken.clone();
+        async move {
             tokio::time::sleep(Duration::from_millis(300)).await;
+            let listener = tokio::net::TcpListener::bind(("127.0.0.1", port))
+                .await
+                .unwrap();
+            for round in 0..2 {
+                let (stream, _) = listener.accept().await.unwrap();
+                let b = Behaviour {
+                    run_for: Duration::from_millis(800),
+                    ..Behaviour::ardupilot(10 + round)
+                };
+                // The vehicle closes the connection when its time is up.
+                vehicle(Wire::Tcp(stream), b, server_heard.clone()).await;
+                tokio::time::sleep(Duration::from_millis(300)).await;
+            }
+            let (mut stream, _) = listener.accept().await.unwrap();
+            let taken = until_taken_over_tcp(&mut stream, deadline).await;
+            *tcp_taken.lock().unwrap() = Some(taken);
         }
     });
     let udp_heard = Arc::new(Mutex::new(Heard::default()));
     let socket = runtime.block_on(UdpSocket::bind("127.0.0.1:0")).unwrap();
-    runtime.spawn(vehicle(
+    runtime.spawn(vehicle_then_done(
         Wire::Udp(socket, savsim_udp),
         Behaviour {
             run_for: Duration::from_millis(3500),
@@ -505,16 +584,28 @@ fn tcpout_waits_for_its_server_and_reconnects_beside_a_udp_link() {
         },
         udp_heard.clone(),
     ));
+    let stop = Arc::new(AtomicBool::new(false));
+    let watcher = std::thread::spawn({
+        let (tcp_taken, udp_heard, stop) = (tcp_taken.clone(), udp_heard.clone(), stop.clone());
+        move || {
+            let both = wait_until(deadline, || {
+                tcp_taken.lock().unwrap().is_some() && udp_heard.lock().unwrap().done
+            });
+            let taken = both
+                && *tcp_taken.lock().unwrap() == Some(true)
+                && until_processed(savsim_udp, deadline);
+            stop.store(true, Ordering::Relaxed);
+            taken
+        }
+    });
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let run = run_live(
-        &runtime,
-        vec![tcp, udp],
-        Duration::from_secs(4),
-        session,
-        None,
+    let run = run_live_until(&runtime, vec![tcp, udp], LIMIT, session, None, stop);
+    assert!(
+        watcher.join().unwrap(),
+        "the vehicles did not finish, or savsim did not take what they sent, within {LIMIT:?}"
     );
-    // Two rounds served; savsim may have connected once more before the server went away.
-    assert!(run.report.connects >= 2, "{:?}", run.report);
+    // Two rounds served and the third connection; savsim may have connected once more.
+    assert!(run.report.connects >= 3, "{:?}", run.report);
     assert!(run.report.closes >= 2, "{:?}", run.report);
     let seen = &run.session.world().seen;
     for sysid in [10, 11, 20] {
@@ -528,38 +619,96 @@ fn tcpout_waits_for_its_server_and_reconnects_beside_a_udp_link() {
     assert_eq!(stats.count_of(33) as usize, sent);
 }
 
+/// A log writer that raises `seen` when what it is given contains `text`.
+#[derive(Clone)]
+struct LogWatch {
+    text: &'static str,
+    seen: Arc<AtomicBool>,
+}
+
+impl std::io::Write for LogWatch {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if String::from_utf8_lossy(buf).contains(self.text) {
+            self.seen.store(true, Ordering::Relaxed);
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
 /// tcpin waits for a connection; its silence is logged and counted once; a shutdown during the
-/// wait ends the run with its report.
+/// wait (raised once the silence was logged: the run's chores log on the caller's thread) ends
+/// the run promptly with its report.
 #[test]
 fn tcpin_interrupted_while_waiting_ends_cleanly() {
     let runtime = runtime();
     let address = ConnectAddress::TcpIn("127.0.0.1:0".parse::<SocketAddr>().unwrap().into());
     let link = runtime.block_on(Link::open(&address)).unwrap();
     let shutdown = Arc::new(AtomicBool::new(false));
-    let flag = shutdown.clone();
-    std::thread::spawn(move || {
-        std::thread::sleep(Duration::from_millis(5600));
-        flag.store(true, Ordering::Relaxed);
+    let watch = LogWatch {
+        text: "nothing received for",
+        seen: Arc::new(AtomicBool::new(false)),
+    };
+    let raised = std::thread::spawn({
+        let (flag, seen) = (shutdown.clone(), watch.seen.clone());
+        move || {
+            let logged = wait_until(Instant::now() + LIMIT, || seen.load(Ordering::Relaxed));
+            flag.store(true, Ordering::Relaxed);
+            logged.then(Instant::now)
+        }
     });
-    let started = std::time::Instant::now();
     let options = savsim::live::LiveOptions {
-        duration: Some(Duration::from_secs(30)),
+        duration: Some(LIMIT),
         ..Default::default()
     };
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
-    let run = savsim::live::run_links(
-        runtime.handle(),
-        vec![link],
-        &options,
-        session,
-        None,
-        shutdown,
-    )
+    let log = tracing_subscriber::fmt()
+        .with_writer(move || watch.clone())
+        .with_max_level(tracing::Level::WARN)
+        .finish();
+    let run = tracing::subscriber::with_default(log, || {
+        savsim::live::run_links(
+            runtime.handle(),
+            vec![link],
+            &options,
+            session,
+            None,
+            shutdown,
+        )
+    })
     .unwrap();
+    let ended = Instant::now();
+    let raised = raised.join().unwrap().expect("the silence was logged");
     assert!(run.ended.is_ok());
     assert!(run.session.interrupted());
     assert_eq!(run.report.silences, 1);
-    assert!(started.elapsed() < Duration::from_secs(8));
+    // Promptly: the run polls its flag every 20 ms and drains for at most STOP_DRAIN (1 s).
+    assert!(
+        ended.duration_since(raised) < Duration::from_secs(3),
+        "{:?} after the shutdown",
+        ended.duration_since(raised)
+    );
+}
+
+/// Whether process `pid` catches SIGINT (savsim's handler is installed) and holds a socket
+/// (its link is open): `savsim live` is waiting on its link. Reads Linux's /proc.
+fn waits_on_its_link(pid: u32) -> bool {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    let catches_int = status
+        .lines()
+        .find_map(|l| l.strip_prefix("SigCgt:"))
+        .and_then(|mask| u64::from_str_radix(mask.trim(), 16).ok())
+        .is_some_and(|mask| mask & (1 << (2 - 1)) != 0);
+    let holds_a_socket = std::fs::read_dir(format!("/proc/{pid}/fd")).is_ok_and(|fds| {
+        fds.flatten().any(|fd| {
+            std::fs::read_link(fd.path())
+                .is_ok_and(|target| target.to_string_lossy().starts_with("socket:"))
+        })
+    });
+    catches_int && holds_a_socket
 }
 
 /// SIGINT during `savsim live` leaves a complete summary and events file, whether it waits on
@@ -588,7 +737,8 @@ fn sigint_during_live_writes_the_summary() {
             .stdout(std::process::Stdio::null())
             .spawn()
             .unwrap();
-        std::thread::sleep(Duration::from_millis(1500));
+        let waiting = wait_until(Instant::now() + LIMIT, || waits_on_its_link(child.id()));
+        assert!(waiting, "{connect}: savsim never opened its link");
         let status = signal_and_wait(&mut child, "INT");
         assert!(status.success(), "{connect}: {status:?}");
         let s: serde_json::Value =

@@ -4,18 +4,25 @@
 //!   source.
 //! - `daa_sum`: DAIDALUS's sensor uncertainty mitigation in `savsim daa` (H1_SUM's levels;
 //!   parity with DaidalusAlerting with `SAVSIM_DAIDALUS`).
-//! - `common`: helpers (paths, pymavlink availability, synthetic flights).
+//! - `common`: helpers (paths, pymavlink availability, synthetic flights, `wait_until` and
+//!   `until_processed`: waits on a condition with a deadline, never a guessed sleep).
 //! - `geo`: geodesy against PROJ's values (tests/fixtures/geo_reference.json).
 //! - `ingest`: framing, decoding, bad input, and tlogs written by pymavlink.
 //! - `shared_fixtures`: the real tlogs of ../shared/fixtures against pymavlink's counts.
 //! - `live`: a UDP link to a vehicle played by a tokio task using the mavlink crate; recording.
-//! - `sitl`: two ArduCopter SITLs on one UDP link, one rebooted (needs `SAVSIM_ARDUCOPTER`;
-//!   runs in a network namespace of its own).
+//! - `sitl`: `sitl_test`, the gate every SITL test goes through (the autopilot's binary from
+//!   `SAVSIM_ARDUCOPTER` / `SAVSIM_PX4`, a network namespace; `SKIP: <test>: <why> [SITL]`, or
+//!   a failure under `SAVSIM_REQUIRE_SITL`; `SITL-RAN: <test>` when it flies); two ArduCopter
+//!   SITLs on one UDP link, one rebooted.
 //! - `sitl_feed`: ArduCopter SITL fed by savsim's proximity feed stops before a wall of the
 //!   bundled city, and flies into it without the feed; ArduPilot's own autotests for these
 //!   inputs mirrored (proximity health and echo, OBSTACLE_DISTANCE, rangefinder); ADS-B
 //!   avoidance of a scripted airliner (needs `SAVSIM_ARDUCOPTER`).
-//! - `sitl_px4`: two PX4 SIH quadrotors on one UDP link, one restarted (needs `SAVSIM_PX4`).
+//! - `sitl_forward`: ground stations through `--forward` (pymavlink, MAVProxy), savsim behind
+//!   MAVProxy refused the feed, MAVLink 2 signing, all against ArduCopter SITL (needs
+//!   `SAVSIM_ARDUCOPTER`).
+//! - `sitl_px4`: two PX4 SIH quadrotors on one UDP link, one restarted once it has flown (needs
+//!   `SAVSIM_PX4`; PX4 started by savsim's own launcher, `savsim::study::sitl::Px4`).
 //! - `sitl_px4_feed`: PX4's collision prevention keeps its distance from a wall with savsim's
 //!   OBSTACLE_DISTANCE feed, and PX4's obstacle map is savsim's bins (needs `SAVSIM_PX4`).
 //! - `forward`: `--forward`: a pymavlink ground station through savsim to a vehicle played by
@@ -67,8 +74,9 @@
 //! - `flight_logs`: PX4 ULog and ArduPilot DataFlash logs of ../shared/fixtures/realdata
 //!   against pyulog's and pymavlink's readings of them; bad logs.
 //! - `study`: `savsim study`: the generator's boxes across their paths, bad rows, the results
-//!   table's risk ratios; obstacle-approach pairs on ArduCopter SITL (needs
-//!   `SAVSIM_ARDUCOPTER`).
+//!   table's risk ratios; obstacle-approach pairs on ArduCopter SITL, the same rows at two
+//!   speedups, and examples/ray_study.py's shards against `savsim study`'s (needs
+//!   `SAVSIM_ARDUCOPTER`; Ray); PX4 rows (needs `SAVSIM_PX4`).
 //! - `osm`: OpenStreetMap buildings in scenes against pyosmium's counts of every realdata OSM
 //!   file; holes, heights, bad files.
 //! - `bench`: the bench's flight set against the reference; `savsim bench`'s report, JSON, chart.

@@ -23,13 +23,202 @@ use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 const INSIDE: &str = "SAVSIM_SITL_INSIDE_NETNS";
+/// Set (to anything) in CI: a SITL test that cannot run fails instead of skipping.
+const REQUIRE: &str = "SAVSIM_REQUIRE_SITL";
 
-pub(crate) fn arducopter() -> Option<PathBuf> {
-    let path = std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from);
-    if path.is_none() {
-        eprintln!("skipped: set SAVSIM_ARDUCOPTER to an ArduCopter SITL binary (docs/live.md)");
+/// The autopilot a SITL test flies, and the variable that names its binary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Autopilot {
+    /// ArduCopter SITL (`SAVSIM_ARDUCOPTER`; `SAVSIM_ARDUCOPTER_DEFAULTS` its defaults file).
+    ArduCopter,
+    /// PX4 SITL with SIH (`SAVSIM_PX4`: `build/px4_sitl_default/bin/px4`).
+    Px4,
+}
+
+impl Autopilot {
+    fn variable(self) -> &'static str {
+        match self {
+            Autopilot::ArduCopter => "SAVSIM_ARDUCOPTER",
+            Autopilot::Px4 => "SAVSIM_PX4",
+        }
     }
-    path
+}
+
+/// Where a SITL test's autopilots run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Netns {
+    /// The test runs itself again inside a network namespace of its own (`unshare -n`,
+    /// loopback up) and everything it starts talks over 127.0.0.1 there.
+    Own,
+    /// The test runs `savsim study`, which makes a namespace of its own for its SITLs.
+    Study,
+}
+
+/// What else a SITL test needs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Need {
+    /// A Python module (`python3 -c "import NAME"`).
+    Python(&'static str),
+    /// A program on the PATH that answers `NAME --version`.
+    Program(&'static str),
+}
+
+/// A SITL test's turn: its autopilot's binary, and the turn held while it flies.
+pub(crate) struct Turn {
+    pub(crate) bin: PathBuf,
+    _turn: Option<Held>,
+}
+
+/// A turn of [`sitl_test`]'s: shared by light tests, alone for a heavy one.
+enum Held {
+    Shared(#[allow(dead_code)] std::sync::RwLockReadGuard<'static, ()>),
+    Alone(#[allow(dead_code)] std::sync::RwLockWriteGuard<'static, ()>),
+}
+
+/// The one gate of every SITL test: the autopilot's binary (and what else the test needs),
+/// once the test may fly it. When something is missing it writes `SKIP: <test>: <why> [SITL]`
+/// to stderr and returns None, or, with `SAVSIM_REQUIRE_SITL` set (CI), panics. When it can
+/// run it writes `SITL-RAN: <test>` (both past the test harness's capture, so that CI's log
+/// has them) and then:
+///
+/// - [`Netns::Own`]: runs the test again inside a network namespace of its own, waits for it
+///   and returns None (the caller returns at once); inside, returns the binary.
+/// - [`Netns::Study`]: returns the binary (`savsim study` makes the namespace; the gate has
+///   checked that one can be made).
+///
+/// Heavy tests fly alone (the returned [`Turn`] holds the turn), light ones beside each other:
+/// the PX4 tests are heavy because PX4 SITL's instance N keeps a lock and a server socket in
+/// /tmp (`px4_lock-N`, `px4-sock-N`), which a network namespace does not separate; the study
+/// tests because they fly several SITLs at once, or PX4, at speedups whose results depend on
+/// savsim keeping up (on two cores, two studies at once starved a PX4 row to 0.3x of its
+/// speedup, and a row beside an ArduCopter test ended 1 m nearer its box). Single ArduCopter
+/// tests are light. The turn is taken before the namespace, where the tests share one process.
+pub(crate) fn sitl_test(autopilot: Autopilot, netns: Netns, needs: &[Need]) -> Option<Turn> {
+    static TURNS: std::sync::RwLock<()> = std::sync::RwLock::new(());
+    let test = test_name();
+    let variable = autopilot.variable();
+    if std::env::var_os(INSIDE).is_some() {
+        let bin = std::env::var_os(variable).map(PathBuf::from);
+        return Some(Turn {
+            bin: bin.expect("the variable the test was started with"),
+            _turn: None,
+        });
+    }
+    let bin = match std::env::var_os(variable).map(PathBuf::from) {
+        None => {
+            return skip(
+                &test,
+                &format!("set {variable} to its SITL binary (docs/live.md)"),
+            )
+        }
+        Some(b) if !b.is_file() => {
+            return skip(&test, &format!("{variable}={}: no such file", b.display()))
+        }
+        Some(b) => b,
+    };
+    for need in needs {
+        if let Some(why) = missing(*need) {
+            return skip(&test, &why);
+        }
+    }
+    let Some(unshare) = unshare_flags() else {
+        return skip(
+            &test,
+            "no network namespace can be made here (`unshare -n`, `unshare -rn`)",
+        );
+    };
+    say(&format!("SITL-RAN: {test}\n"));
+    let heavy = autopilot == Autopilot::Px4 || netns == Netns::Study;
+    let turn = Some(if heavy {
+        Held::Alone(
+            TURNS
+                .write()
+                .unwrap_or_else(std::sync::PoisonError::into_inner),
+        )
+    } else {
+        Held::Shared(
+            TURNS
+                .read()
+                .unwrap_or_else(std::sync::PoisonError::into_inner),
+        )
+    });
+    if netns == Netns::Study {
+        return Some(Turn { bin, _turn: turn });
+    }
+    let exe = std::env::current_exe().unwrap();
+    let status = Command::new("unshare")
+        .args([
+            unshare,
+            "sh",
+            "-c",
+            "ip link set lo up && exec \"$0\" \"$@\"",
+        ])
+        .arg(exe)
+        .args([
+            test.as_str(),
+            "--exact",
+            "--nocapture",
+            "--test-threads",
+            "1",
+        ])
+        .env(INSIDE, "1")
+        .status()
+        .expect("unshare runs");
+    assert!(
+        status.success(),
+        "the test inside the namespace failed: {status:?}"
+    );
+    None
+}
+
+/// The running test's name (the harness names each test's thread after it).
+fn test_name() -> String {
+    std::thread::current()
+        .name()
+        .filter(|n| *n != "main")
+        .expect("a test thread, named after its test")
+        .to_owned()
+}
+
+/// Say that `test` cannot run and why, or fail if SITL is required here.
+fn skip(test: &str, why: &str) -> Option<Turn> {
+    assert!(
+        std::env::var_os(REQUIRE).is_none(),
+        "{test}: {why} ({REQUIRE} is set: SITL tests must run here)"
+    );
+    say(&format!("SKIP: {test}: {why} [SITL]\n"));
+    None
+}
+
+/// Write `line` to stderr in one write, past the test harness's capture of `eprintln!`.
+fn say(line: &str) {
+    let _ = std::io::Write::write_all(&mut std::io::stderr().lock(), line.as_bytes());
+}
+
+/// Why `need` is not met here, if it is not.
+fn missing(need: Need) -> Option<String> {
+    let runs = |c: &mut Command| c.output().is_ok_and(|o| o.status.success());
+    match need {
+        Need::Python(module) => {
+            (!runs(Command::new("python3").args(["-c", &format!("import {module}")])))
+                .then(|| format!("Python's {module} is not importable (.ci/run installs it)"))
+        }
+        Need::Program(name) => (!runs(Command::new(name).arg("--version")))
+            .then(|| format!("{name} is not on the PATH (.ci/run installs it)")),
+    }
+}
+
+/// The flags of `unshare` that make a network namespace here: `-n` (as root), else `-rn` (a
+/// user namespace too), as `savsim study` tries them.
+fn unshare_flags() -> Option<&'static str> {
+    ["-n", "-rn"].into_iter().find(|flags| {
+        Command::new("unshare")
+            .args([*flags, "true"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    })
 }
 
 /// A SITL process, killed when dropped.
@@ -74,27 +263,6 @@ pub(crate) fn start_sitl_at(
         command.arg("--defaults").arg(defaults);
     }
     Sitl(command.spawn().expect("start ArduCopter SITL"))
-}
-
-/// Whether this is `test` running inside a network namespace of its own with only a loopback
-/// interface. If it is not, runs `test` again there (`unshare -n`), waits for it and returns
-/// false: the caller returns at once.
-pub(crate) fn inside_own_network_namespace(test: &str) -> bool {
-    if std::env::var_os(INSIDE).is_some() {
-        return true;
-    }
-    let exe = std::env::current_exe().unwrap();
-    let status = Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
-        .arg(exe)
-        .args([test, "--exact", "--nocapture"])
-        .env(INSIDE, "1")
-        .status();
-    match status {
-        Ok(s) => assert!(s.success(), "the test inside the namespace failed: {s:?}"),
-        Err(e) => eprintln!("skipped: `unshare -n` is not available here ({e})"),
-    }
-    false
 }
 
 /// COMMAND_LONG `command` with params `p` for vehicle 1/1.
@@ -167,10 +335,9 @@ pub(crate) fn two_vehicles_to_the_end(
 
 #[test]
 fn two_arducopters_on_one_udp_link_one_rebooted() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace("sitl::two_arducopters_on_one_udp_link_one_rebooted") {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let runtime = crate::common::runtime();
     let (link, savsim) = crate::common::udp_link(&runtime);

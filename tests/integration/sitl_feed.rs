@@ -30,10 +30,13 @@ use savsim::scene::Scene;
 use savsim::session::Session;
 
 use crate::common::{frame_v2, root, runtime, udp_link};
-use crate::sitl::{arducopter, inside_own_network_namespace, Sitl};
+use crate::sitl::{sitl_test, Autopilot, Netns, Sitl, Turn};
 
 /// b1852's east face, scene E metres.
 const FACE_EAST_M: f64 = -57.0;
+/// ArduCopter's speedup in these flights (all but the proximity-health test, which times
+/// ArduPilot's 500 ms timeout on the wall clock): every wait is on the vehicle's clock.
+const SPEEDUP: f64 = 5.0;
 /// The city's origin (CMAC), where every SITL test's home is.
 pub(crate) const ORIGIN_LAT_DEG: f64 = -35.363261;
 pub(crate) const ORIGIN_LON_DEG: f64 = 149.165230;
@@ -227,7 +230,9 @@ pub(crate) fn east_north(lat_e7: i32, lon_e7: i32, relative_alt_mm: i32) -> (f64
 }
 
 /// savsim live over `scene` on `link` (on `rt`), with `feed` (if any) recorded to `feed_out`,
-/// on a thread of its own until `limit` passes or `stop` is set.
+/// on a thread of its own until `limit` passes or `stop` is set. On the vehicle's clock (one
+/// vehicle: `Session::use_vehicle_clock`): scripted traffic moves from the vehicle's boot on
+/// its clock, at any speedup, as in `savsim study`.
 pub(crate) fn start_savsim(
     rt: tokio::runtime::Runtime,
     link: Link,
@@ -239,6 +244,7 @@ pub(crate) fn start_savsim(
 ) -> std::thread::JoinHandle<LiveRun> {
     let mut session =
         Session::new(Some(Arc::new(scene)), CollisionConfig::default(), None).unwrap();
+    session.use_vehicle_clock();
     if let Some(list) = feed {
         session
             .start_feed(FeedConfig {
@@ -312,7 +318,9 @@ impl Flight {
                 .expect("start ArduCopter SITL"),
         );
         let shutdown = Arc::new(AtomicBool::new(false));
-        let limit = Duration::from_secs_f64(300.0 / speedup + 30.0);
+        // The longest flight is 250 s of the vehicle's clock; a loaded machine may run SITL
+        // at well below its speedup.
+        let limit = Duration::from_secs_f64(600.0 / speedup + 120.0);
         let feed_out = dir.path().join("feed.tlog");
         let savsim = start_savsim(rt, link, scene, feed, limit, &feed_out, shutdown.clone());
         Flight {
@@ -326,9 +334,29 @@ impl Flight {
         }
     }
 
-    /// Wall-clock time for `s` seconds of the vehicle's clock, with 5 s to spare.
+    /// The wall-clock deadline for `s` seconds of the vehicle's clock: twice its time at the
+    /// speedup and 30 s more (a loaded machine runs SITL below its speedup). A deadline, never
+    /// a duration: every wait ends on a condition.
     fn wall(&self, s: f64) -> Duration {
-        Duration::from_secs_f64(s / self.speedup + 5.0)
+        Duration::from_secs_f64(2.0 * s / self.speedup + 30.0)
+    }
+
+    /// Hover for `s` seconds of the vehicle's clock (heartbeats; `ask` at each step of the
+    /// first second of wall time).
+    fn hover_for(&mut self, s: f64, mut ask: impl FnMut(&mut Gcs)) {
+        let from_ms = self.gcs.heard().time_boot_ms;
+        let started = Instant::now();
+        let limit = self.wall(s);
+        let done = self.gcs.until(limit, |g| {
+            if started.elapsed() < Duration::from_secs(1) {
+                ask(g);
+            }
+            g.heard().time_boot_ms.wrapping_sub(from_ms) >= (s * 1000.0) as u32
+        });
+        assert!(
+            done,
+            "{s} s of the vehicle's clock did not pass in {limit:?}"
+        );
     }
 
     /// GUIDED, armed (ArduPilot refuses until its GPS is good and, with a proximity sensor
@@ -442,16 +470,13 @@ fn fly(bin: &PathBuf, with_feed: bool, speedup: f64) -> ((f64, f64, f64), u64, u
 
 #[test]
 fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let speedup: f64 = std::env::var("SAVSIM_FEED_SPEEDUP")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(1.0);
+        .unwrap_or(SPEEDUP);
     let (end, collisions, near_misses) = fly(&bin, true, speedup);
     assert!(
         end.0 - FACE_EAST_M >= 1.0,
@@ -474,10 +499,10 @@ fn arducopter_stops_before_the_wall_with_the_feed_and_hits_it_without() {
 /// (mode AVOID_ADSB) and keeps them at least 50 m apart (savsim's closest approach).
 /// `SAVSIM_AVD_F_ACTION=2` (climb or descend) runs the same flight with ArduPilot's vertical
 /// action, which in the ArduPilot tried steers towards the threat's altitude
-/// (docs/closed-loop.md): separation is then printed, not asserted. Speedup 1 only: a scripted
-/// track runs on the receive clock, which a vehicle clock at a speedup is held to.
+/// (docs/closed-loop.md): separation is then printed, not asserted. savsim runs on the
+/// vehicle's clock, so the track moves at ArduCopter's speedup.
 /// Open air at the city's origin; an A320 track waits 2.4 km east at 30 m until +100 s of
-/// savsim's run, then flies west through the origin at 40 m/s (overhead at +160 s).
+/// the flight's clock, then flies west through the origin at 40 m/s (overhead at +160 s).
 pub(crate) fn airliner_through_the_origin() -> Scene {
     crate::common::scene_at(
         savsim::geo::Geodetic::new(ORIGIN_LAT_DEG, ORIGIN_LON_DEG, 584.0),
@@ -490,33 +515,26 @@ pub(crate) fn airliner_through_the_origin() -> Scene {
 
 #[test]
 fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_avoids_a_scripted_airliner_sent_as_adsb",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let scene = airliner_through_the_origin();
     let action: u8 = std::env::var("SAVSIM_AVD_F_ACTION")
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(3);
     let params = format!("ADSB_TYPE 1\nAVD_ENABLE 1\nAVD_F_ACTION {action}\n");
-    let mut flight = Flight::start(&bin, &params, scene, Some("adsb,collision"), 1.0);
+    let mut flight = Flight::start(&bin, &params, scene, Some("adsb,collision"), SPEEDUP);
     flight.take_off_to(30.0, 0.0, 0.0);
-    // Hover until ArduPilot acts or the airliner has passed (+200 s of the flight).
-    let hover = flight.wall(140.0);
-    let acted = flight.gcs.until(hover, |g| {
-        let h = g.heard();
-        h.modes.contains(&19) && !h.collisions.is_empty()
-    });
-    // Then until the airliner has passed (+190 s of the flight, about 30 s after its closest
-    // approach): what the action did shows in savsim's closest approach.
-    if acted {
-        let passed = flight.wall(60.0);
-        flight.gcs.until(passed, |_| false);
-    }
+    // Hover until the airliner has passed: +190 s of the vehicle's clock (the track's clock,
+    // from its boot), 30 s after its closest approach; what ArduPilot did shows in savsim's
+    // closest approach.
+    let passed = flight
+        .gcs
+        .until(flight.wall(190.0), |g| g.heard().time_boot_ms > 190_000);
+    assert!(passed, "the vehicle's clock never reached +190 s");
     let heard = flight.gcs.heard();
+    let acted = heard.modes.contains(&19) && !heard.collisions.is_empty();
     let run = flight.finish();
     let summary = run.session.summary("live", "sitl");
     // Once a second of the copter's clock: where it was, its mode, the threat it reported.
@@ -566,12 +584,9 @@ fn arducopter_avoids_a_scripted_airliner_sent_as_adsb() {
 /// first feed frame and unhealthy within 1 s after savsim stops (ArduPilot's 500 ms timeout).
 #[test]
 fn arducopter_proximity_is_healthy_while_fed_and_not_after() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_proximity_is_healthy_while_fed_and_not_after",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
     let mut flight = Flight::start(&bin, "PRX1_TYPE 2\n", city, Some("proximity"), 1.0);
     // SYS_STATUS at 10 Hz on SERIAL1; wait for the first position (savsim feeds from then on).
@@ -664,19 +679,14 @@ pub(crate) fn sent_feed(bytes: &[u8]) -> (Vec<SensorReading>, Vec<ObstacleFrame>
 /// and savsim's recording of what it sent.
 fn hover_by_the_face(bin: &PathBuf, params: &str, feed: &str) -> (Heard, Vec<u8>) {
     let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
-    let mut flight = Flight::start(bin, params, city, Some(feed), 1.0);
+    let mut flight = Flight::start(bin, params, city, Some(feed), SPEEDUP);
     flight.take_off_to(30.0, -30.0, -45.0);
     // Its DISTANCE_SENSOR at 10 Hz on SERIAL1; 15 s of hovering.
-    let hover = flight.wall(15.0);
-    let from = Instant::now();
-    flight.gcs.until(hover, |g| {
-        if from.elapsed() < Duration::from_secs(1) {
-            g.command(
-                MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-                [132.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            );
-        }
-        false
+    flight.hover_for(15.0, |g| {
+        g.command(
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+            [132.0, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        );
     });
     let heard = flight.gcs.heard();
     let path = flight.feed_out.clone();
@@ -713,12 +723,9 @@ fn echoes_against(heard: &Heard, sent: impl Fn(u32, u8) -> Vec<u16>) -> (usize, 
 /// sent for that sector.
 #[test]
 fn arducopter_echoes_every_sector_it_was_fed_within_a_centimetre() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_echoes_every_sector_it_was_fed_within_a_centimetre",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let (heard, feed_out) = hover_by_the_face(&bin, "PRX1_TYPE 2\nPRX_FILT 0\n", "proximity");
     let (sent, _) = sent_feed(&feed_out);
     let (checked, wrong) = echoes_against(&heard, |t_ms, orientation| {
@@ -750,12 +757,9 @@ fn arducopter_echoes_every_sector_it_was_fed_within_a_centimetre() {
 /// savsim's bins whose angle falls in each 45-degree sector (body FRD, clockwise from the nose).
 #[test]
 fn arducopter_reads_obstacle_distance_bins_into_its_sectors() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_feed::arducopter_reads_obstacle_distance_bins_into_its_sectors",
-    ) {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let (heard, feed_out) =
         hover_by_the_face(&bin, "PRX1_TYPE 2\nPRX_FILT 0\n", "obstacle-distance");
     let (_, sent) = sent_feed(&feed_out);
@@ -793,26 +797,20 @@ fn arducopter_reads_obstacle_distance_bins_into_its_sectors() {
 /// city's origin, and its own DISTANCE_SENSOR (downward) says the same.
 #[test]
 fn arducopter_rangefinder_agrees_with_its_altitude() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace("sitl_feed::arducopter_rangefinder_agrees_with_its_altitude") {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &[]) else {
         return;
-    }
+    };
     let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
     let params = "RNGFND1_TYPE 10\nRNGFND1_MIN 0.2\nRNGFND1_MAX 40\n";
-    let mut flight = Flight::start(&bin, params, city, Some("rangefinder"), 1.0);
+    let mut flight = Flight::start(&bin, params, city, Some("rangefinder"), SPEEDUP);
     flight.take_off_to(10.0, 0.0, 0.0);
-    let hover = flight.wall(8.0);
-    let from = Instant::now();
-    flight.gcs.until(hover, |g| {
-        if from.elapsed() < Duration::from_secs(1) {
-            for id in [173.0, 132.0] {
-                g.command(
-                    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-                    [id, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-                );
-            }
+    flight.hover_for(8.0, |g| {
+        for id in [173.0, 132.0] {
+            g.command(
+                MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                [id, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            );
         }
-        false
     });
     let heard = flight.gcs.heard();
     drop(flight);

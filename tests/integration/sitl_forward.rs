@@ -1,9 +1,10 @@
-//! Ground stations and routers against ArduCopter SITL (`SAVSIM_ARDUCOPTER`, as sitl.rs; the
-//! test says so and passes without it), inside a network namespace of its own:
+//! Ground stations and routers against ArduCopter SITL (`SAVSIM_ARDUCOPTER`; each test goes
+//! through `sitl::sitl_test`, which skips it with a line that says so, or fails it under
+//! `SAVSIM_REQUIRE_SITL`), inside a network namespace of its own:
 //!
 //! - through `--forward`: a pymavlink station reads a parameter, sets GUIDED and arms; real
-//!   MAVProxy (`pip install MAVProxy`; skipped with a message when absent) fetches every
-//!   parameter (MAVFTP, both ways through savsim); the pymavlink station sees exactly what savsim received from
+//!   MAVProxy (`pip install MAVProxy`; .ci/run installs it) fetches every parameter (MAVFTP,
+//!   both ways through savsim); the pymavlink station sees exactly what savsim received from
 //!   the vehicle, message for message.
 //! - behind a router: real MAVProxy in front of two ArduCopters, savsim on its one output with
 //!   the feed: refused with the error that says what to do; both vehicles mirrored until then.
@@ -14,7 +15,7 @@
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -27,7 +28,7 @@ use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
 use crate::common::{python, python_code, root, runtime};
-use crate::sitl::{arducopter, inside_own_network_namespace, start_sitl, start_sitl_at, Sitl};
+use crate::sitl::{sitl_test, start_sitl, start_sitl_at, Autopilot, Need, Netns, Sitl, Turn};
 
 /// A child process killed (and reaped) when dropped.
 struct Killed(Child);
@@ -37,17 +38,6 @@ impl Drop for Killed {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
-}
-
-fn have_mavproxy() -> bool {
-    let ok = Command::new("mavproxy.py")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        eprintln!("skipped: MAVProxy is not installed (pip install MAVProxy; .ci/run does)");
-    }
-    ok
 }
 
 fn free_udp_port() -> u16 {
@@ -68,12 +58,13 @@ fn udpout(port: u16) -> String {
     format!("udpout:127.0.0.1:{port}")
 }
 
-/// savsim on `vehicles` links (then `stations`) for `duration`.
+/// savsim on `vehicles` links (then `stations`) until `shutdown` is raised or its duration
+/// passes.
 fn run(
     rt: &tokio::runtime::Runtime,
     vehicles: &[&str],
     stations: &[String],
-    options: LiveOptions,
+    (options, shutdown): (LiveOptions, Arc<AtomicBool>),
     session: Session,
     record: Option<&Path>,
 ) -> LiveRun {
@@ -88,7 +79,6 @@ fn run(
         links.push(link);
     }
     let options = LiveOptions { forward, ..options };
-    let shutdown = Arc::new(AtomicBool::new(false));
     run_links(rt.handle(), links, &options, session, record, shutdown).unwrap()
 }
 
@@ -100,20 +90,19 @@ fn sitl_dir(root: &Path, name: &str) -> std::path::PathBuf {
 
 #[test]
 fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_forward::stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter",
-    ) {
+    let needs = [Need::Python("pymavlink"), Need::Program("mavproxy.py")];
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &needs) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let _sitl: Sitl = start_sitl(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "sitl"));
     let rt = runtime();
 
-    // The pymavlink station listens first and says where.
+    // The pymavlink station listens first and says where; it runs until told to stop (SIGTERM,
+    // once savsim has stopped), 300 s at most.
     let mut station = Command::new("python3")
         .arg(root().join("tests/python/station.py"))
-        .args(["--mode", "4", "--arm", "--force-arm", "--run-s", "50"])
+        .args(["--mode", "4", "--arm", "--force-arm", "--run-s", "300"])
         .stdout(Stdio::piped())
         .spawn()
         .expect("python3 runs");
@@ -124,7 +113,7 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
     let mut stations = vec![udpout(station_port)];
 
     // MAVProxy: a second station, which fetches every parameter.
-    let mavproxy = have_mavproxy().then(|| {
+    let mavproxy = {
         let port = free_udp_port();
         stations.push(udpout(port));
         let mp_dir = sitl_dir(dir.path(), "mavproxy");
@@ -140,12 +129,33 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
                 .spawn()
                 .expect("start MAVProxy"),
         )
-    });
+    };
 
-    let mavproxy_ran = mavproxy.is_some();
+    // savsim runs until the station has heard 300 positions through it and MAVProxy has
+    // written every parameter it fetched through it (mav.parm), 180 s at most; then the
+    // station is stopped, after savsim, so that it has seen all savsim forwarded.
+    let stop = Arc::new(AtomicBool::new(false));
+    let listener = std::thread::spawn({
+        let (stop, mp_dir) = (stop.clone(), dir.path().join("mavproxy"));
+        move || {
+            let mut text = String::new();
+            for line in out.lines().map_while(Result::ok) {
+                let positions: u64 = line
+                    .strip_prefix("POSITIONS ")
+                    .and_then(|n| n.parse().ok())
+                    .unwrap_or(0);
+                if positions >= 300 && find_file(&mp_dir, "mav.parm").is_some() {
+                    stop.store(true, Ordering::Relaxed);
+                }
+                text.push_str(&line);
+                text.push('\n');
+            }
+            text
+        }
+    });
     let record = dir.path().join("savsim.tlog");
     let options = LiveOptions {
-        duration: Some(Duration::from_secs(45)),
+        duration: Some(Duration::from_secs(180)),
         ..Default::default()
     };
     let session = Session::new(None, CollisionConfig::default(), None).unwrap();
@@ -153,14 +163,18 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
         &rt,
         &["tcpout:127.0.0.1:5760"],
         &stations,
-        options,
+        (options, stop.clone()),
         session,
         Some(&record),
     );
+    assert!(
+        stop.load(Ordering::Relaxed),
+        "in 180 s the station never heard 300 positions, or MAVProxy never had every parameter"
+    );
     drop(mavproxy);
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut out, &mut text).unwrap();
-    assert!(station.wait().unwrap().success());
+    let ended = crate::common::signal_and_wait(&mut station, "TERM");
+    assert!(ended.success(), "the station: {ended:?}");
+    let text = listener.join().unwrap();
     let seen: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
     eprintln!("station: {seen}\nforward: {:?}", live.report.forward);
     live.ended.unwrap();
@@ -207,18 +221,16 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
         "{recorded}"
     );
 
-    if mavproxy_ran {
-        // MAVProxy fetched every parameter (over MAVFTP, through savsim both ways: it writes
-        // them to mav.parm once it has them all).
-        let parm = find_file(&dir.path().join("mavproxy"), "mav.parm")
-            .map(|p| std::fs::read_to_string(p).unwrap_or_default())
-            .unwrap_or_default();
-        assert!(
-            parm.lines().count() > 500,
-            "MAVProxy's mav.parm: {} lines",
-            parm.lines().count()
-        );
-    }
+    // MAVProxy fetched every parameter (over MAVFTP, through savsim both ways: it writes
+    // them to mav.parm once it has them all).
+    let parm = find_file(&dir.path().join("mavproxy"), "mav.parm")
+        .map(|p| std::fs::read_to_string(p).unwrap_or_default())
+        .unwrap_or_default();
+    assert!(
+        parm.lines().count() > 500,
+        "MAVProxy's mav.parm: {} lines",
+        parm.lines().count()
+    );
 }
 
 /// The first file called `name` under `dir`.
@@ -238,15 +250,10 @@ fn find_file(dir: &Path, name: &str) -> Option<std::path::PathBuf> {
 
 #[test]
 fn the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters() {
-    let Some(bin) = arducopter() else { return };
-    if !have_mavproxy() {
+    let needs = [Need::Program("mavproxy.py")];
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &needs) else {
         return;
-    }
-    if !inside_own_network_namespace(
-        "sitl_forward::the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters",
-    ) {
-        return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let _a = start_sitl(&bin, 0, 1, "tcp:0", &sitl_dir(dir.path(), "a"));
     let _b = start_sitl(&bin, 1, 2, "tcp:0", &sitl_dir(dir.path(), "b"));
@@ -286,7 +293,7 @@ fn the_feed_is_refused_behind_mavproxy_in_front_of_two_arducopters() {
         &rt,
         &[&format!("udpout:127.0.0.1:{out_port}")],
         &[],
-        options,
+        (options, Arc::default()),
         session,
         None,
     );
@@ -324,12 +331,10 @@ fn set_up_signing(passphrase: &str) -> bool {
 
 #[test]
 fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
-    let Some(bin) = arducopter() else { return };
-    if !inside_own_network_namespace(
-        "sitl_forward::a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without",
-    ) {
+    let needs = [Need::Python("pymavlink")];
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::ArduCopter, Netns::Own, &needs) else {
         return;
-    }
+    };
     const PASSPHRASE: &str = "savsim sitl signing";
     let dir = tempfile::tempdir().unwrap();
     // At 10x: the vehicle's clock runs ahead of the wall; its signing clock starts a minute
@@ -359,7 +364,14 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
         duration: Some(Duration::from_secs(8)),
         ..Default::default()
     };
-    let unsigned = run(&rt, &["tcpout:127.0.0.1:5762"], &[], options, session, None);
+    let unsigned = run(
+        &rt,
+        &["tcpout:127.0.0.1:5762"],
+        &[],
+        (options, Arc::default()),
+        session,
+        None,
+    );
     eprintln!("without the key: {:?}", unsigned.report.vehicles);
     assert_eq!(
         streams_accepted(&unsigned),
@@ -377,7 +389,14 @@ fn a_signing_arducopter_answers_savsim_with_the_key_and_ignores_it_without() {
         signing_require: true,
         ..Default::default()
     };
-    let signed = run(&rt, &["tcpout:127.0.0.1:5762"], &[], options, session, None);
+    let signed = run(
+        &rt,
+        &["tcpout:127.0.0.1:5762"],
+        &[],
+        (options, Arc::default()),
+        session,
+        None,
+    );
     let counts = signed.report.signing.unwrap();
     eprintln!("with the key: {:?} {counts:?}", signed.report.vehicles);
     assert_eq!(streams_accepted(&signed), 2, "{:?}", signed.report.vehicles);

@@ -16,7 +16,7 @@
 //!
 //! Traffic: with `--feed adsb` and NAV_TRAFF_AVOID 3, PX4 lands for a scripted airliner on a
 //! collision course, and the ADS-B it relays back is not read as traffic. The PX4 tests take
-//! turns (`sitl_px4::px4_inside_own_namespace`).
+//! turns (`sitl::sitl_test`).
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -25,23 +25,28 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavType,
-    COMMAND_INT_DATA, MANUAL_CONTROL_DATA, PARAM_SET_DATA,
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavType, COMMAND_INT_DATA,
+    MANUAL_CONTROL_DATA,
 };
 use savsim::ingest::address::ConnectAddress;
 use savsim::ingest::live::Link;
 use savsim::live::LiveRun;
 use savsim::scene::Scene;
+use savsim::study::sitl::Sitl;
 
 use crate::common::{frame_v2, heartbeat, root, runtime};
-use crate::sitl::Sitl;
+use crate::sitl::{sitl_test, Autopilot, Netns, Turn};
 use crate::sitl_feed::{
     airliner_through_the_origin, east_north, sent_feed, start_savsim, ObstacleFrame,
 };
-use crate::sitl_px4::{near_origin_deg, px4_inside_own_namespace, start_px4};
+use crate::sitl_px4::{near_origin_deg, px4_start, start_px4};
+use savsim::study::sitl::Start;
 
 /// b1852's east face, scene E metres; where the flight starts, scene N metres.
 const FACE_EAST_M: f64 = -57.0;
+/// PX4's speedup in these flights (PX4_SIM_SPEED_FACTOR): every wait on the flight is on
+/// PX4's clock, or a deadline.
+const SPEEDUP: f64 = 4.0;
 const START_NORTH_M: f64 = -30.0;
 /// PX4's main modes (custom_mode's third byte): POSCTL, AUTO; AUTO's sub mode LAND (its
 /// fourth byte).
@@ -62,16 +67,24 @@ struct Heard {
     heading_cdeg: u16,
     /// Every position once the test starts recording (the stick forward; the traffic hover).
     track: Vec<(f64, f64, f64)>,
-    /// PX4's OBSTACLE_DISTANCE (its fused map): its clock (ms), distances, angle_offset.
-    obstacle: Vec<(u32, [u16; 72], f32)>,
+    /// PX4's OBSTACLE_DISTANCE (its fused map).
+    obstacle: Vec<Px4Map>,
     texts: Vec<String>,
 }
 
-/// A PX4 parameter's value.
-#[derive(Clone, Copy)]
-enum Param {
-    Real(f32),
-    Int(i32),
+/// One OBSTACLE_DISTANCE of PX4's (its fused map), with the vehicle's heading when it came.
+#[derive(Debug, Clone)]
+struct Px4Map {
+    /// PX4's clock, ms.
+    t_ms: u32,
+    distances: [u16; 72],
+    angle_offset: f32,
+    /// MAV_FRAME: 12 body FRD (bins from the nose), 1 local NED (bins from north).
+    frame: u8,
+    /// GLOBAL_POSITION_INT's heading at the time, cdeg.
+    heading_cdeg: u16,
+    /// Whether it came while the test recorded (the flight at the face).
+    recorded: bool,
 }
 
 /// The pilot: a ground station on PX4's onboard link, a reader thread and a writer.
@@ -140,7 +153,15 @@ impl Pilot {
                         }
                         MavMessage::OBSTACLE_DISTANCE(o) => {
                             let ms = (o.time_usec / 1000) as u32;
-                            heard.obstacle.push((ms, o.distances, o.angle_offset));
+                            let heading_cdeg = heard.heading_cdeg;
+                            heard.obstacle.push(Px4Map {
+                                t_ms: ms,
+                                distances: o.distances,
+                                angle_offset: o.angle_offset,
+                                frame: o.frame as u8,
+                                heading_cdeg,
+                                recorded: track.load(Ordering::Relaxed),
+                            });
                         }
                         MavMessage::STATUSTEXT(t) => {
                             let text = t.text.to_str().unwrap_or("?").to_owned();
@@ -170,21 +191,6 @@ impl Pilot {
 
     fn command(&mut self, command: MavCmd, p: [f32; 7]) {
         self.send(&crate::sitl::command_long(command, p));
-    }
-
-    fn param(&mut self, name: &str, value: Param) {
-        // PX4 encodes parameters bytewise: an integer's bits travel in the float field.
-        let (param_value, param_type) = match value {
-            Param::Real(v) => (v, MavParamType::MAV_PARAM_TYPE_REAL32),
-            Param::Int(v) => (f32::from_bits(v as u32), MavParamType::MAV_PARAM_TYPE_INT32),
-        };
-        self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-            param_value,
-            target_system: 1,
-            target_component: 1,
-            param_id: name.into(),
-            param_type,
-        }));
     }
 
     fn heard(&self) -> Heard {
@@ -233,17 +239,34 @@ struct Flight {
     savsim: std::thread::JoinHandle<LiveRun>,
     /// savsim's `--feed-out`: every frame the feed sent.
     feed_out: PathBuf,
-    /// When savsim's run began (a scripted track's clock).
-    began: Instant,
     _px4: Sitl,
     _dir: tempfile::TempDir,
 }
 
 impl Flight {
-    /// savsim over `scene` with `feed` (if any), then PX4 with home `north_m` north of the
-    /// city's origin.
-    fn start(bin: &Path, scene: Scene, feed: Option<&str>, north_m: f64) -> Flight {
+    /// PX4 with home `north_m` north of the city's origin and `params` (and MIS_TAKEOFF_ALT
+    /// 30) from its boot, then savsim over `scene` with `feed` (if any).
+    fn start(
+        bin: &Path,
+        scene: Scene,
+        feed: Option<&str>,
+        north_m: f64,
+        params: &[(&str, f64)],
+    ) -> Flight {
         let dir = tempfile::tempdir().unwrap();
+        // PX4 first (booted once to set its home altitude and parameters), then savsim:
+        // savsim sees one start.
+        let px4_dir = dir.path().join("px4");
+        let params: Vec<(String, f64)> = params
+            .iter()
+            .chain(&[("MIS_TAKEOFF_ALT", 30.0)])
+            .map(|(n, v)| (n.to_string(), *v))
+            .collect();
+        let start = Start {
+            params: &params,
+            ..px4_start(0, &px4_dir, (north_m, 0.0), SPEEDUP)
+        };
+        let px4 = start_px4(bin, &start);
         let rt = runtime();
         let gcs: SocketAddr = "127.0.0.1:14550".parse().unwrap();
         let link = rt
@@ -251,24 +274,21 @@ impl Flight {
             .unwrap();
         let feed_out = dir.path().join("feed.tlog");
         let shutdown = Arc::new(AtomicBool::new(false));
-        let began = Instant::now();
         let limit = Duration::from_secs(300);
         let savsim = start_savsim(rt, link, scene, feed, limit, &feed_out, shutdown.clone());
-        let px4 = start_px4(bin, 0, &dir.path().join("px4"), north_m, 0.0);
         Flight {
             pilot: Pilot::connect(),
             shutdown,
             savsim,
             feed_out,
-            began,
             _px4: px4,
             _dir: dir,
         }
     }
 
-    /// Positions and PX4's obstacle map at 10 Hz on the pilot's link, `params`, then armed and
-    /// taken off to 30 m (MIS_TAKEOFF_ALT; PX4 holds there).
-    fn take_off(&mut self, params: &[(&str, Param)]) {
+    /// Positions and PX4's obstacle map at 10 Hz on the pilot's link, then armed and taken off
+    /// to 30 m (MIS_TAKEOFF_ALT, set before boot; PX4 holds there).
+    fn take_off(&mut self) {
         let pilot = &mut self.pilot;
         let mut asked = Instant::now() - Duration::from_secs(10);
         let armed = pilot.until(Duration::from_secs(90), 0, |p, h| {
@@ -282,12 +302,6 @@ impl Flight {
                         MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
                         [id, 100_000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
                     );
-                }
-                for &(name, value) in params
-                    .iter()
-                    .chain(&[("MIS_TAKEOFF_ALT", Param::Real(30.0))])
-                {
-                    p.param(name, value);
                 }
                 p.command(
                     MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
@@ -328,10 +342,13 @@ impl Flight {
 fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
     let city = savsim::scene::load(&root().join("scenes/city.toml")).unwrap();
     let feed = with_feed.then_some("obstacle-distance");
-    let mut flight = Flight::start(bin, city, feed, START_NORTH_M);
     // Collision prevention on with the feed; off without (on, with no data, PX4 will not move).
+    // Position mode's smoothed velocity (MPC_POS_MODE 3): PX4 1.15's collision prevention acts
+    // on it, not on its default acceleration-based mode (4).
     let cp_dist = if with_feed { 5.0 } else { -1.0 };
-    flight.take_off(&[("CP_DIST", Param::Real(cp_dist))]);
+    let params = [("CP_DIST", cp_dist), ("MPC_POS_MODE", 3.0)];
+    let mut flight = Flight::start(bin, city, feed, START_NORTH_M, &params);
+    flight.take_off();
     let pilot = &mut flight.pilot;
     // Hold there, nose west (DO_REPOSITION's yaw, radians from north).
     let (lat_deg, lon_deg) = near_origin_deg(START_NORTH_M, 0.0);
@@ -387,36 +404,71 @@ fn fly(bin: &Path, with_feed: bool) -> (Heard, LiveRun, Vec<ObstacleFrame>) {
     flight.finish()
 }
 
-/// PX4's fused map is savsim's bins where both are in range: each map frame, turned by the
-/// difference of the two `angle_offset`s (both multiples of 5 degrees: one bin to one bin),
-/// against the frames savsim sent in the 600 ms of PX4's clock before it. Returns how many
-/// map frames were checked and those no sent frame matches within 1 cm.
+/// PX4's fused map agrees with savsim's bins on what collision prevention acts on, the
+/// nearest obstacle ahead, while the copter flies at the face: for each map frame then, the
+/// nearest reading within 30 degrees of the
+/// nose lies within what savsim sent in the 600 ms of PX4's clock before the map: between the
+/// least of its nearest readings within 35 degrees (less 1 cm) and the greatest within 25
+/// degrees (plus [`PX4_MAP_ABOVE_CM`]). PX4 1.15 keeps its map north-aligned and turns it by
+/// its yaw to whole 5-degree bins, and its nearest reading ahead read 0-8 cm more than the
+/// newest savsim had sent (flying at the face and backing away alike), where a later PX4's
+/// map was savsim's frame bin for bin (docs/closed-loop.md). Directions: savsim's bin `j` is
+/// `angle_offset + 5 j` degrees clockwise from the nose, as is a body-frame map's
+/// (MAV_FRAME_BODY_FRD); a map in PX4's local frame (bins from north) is turned by the
+/// vehicle's heading. Returns how many map frames were checked and those that disagree.
+/// How much more than savsim's readings PX4 1.15's map may read, cm ([`map_against_sent`]).
+const PX4_MAP_ABOVE_CM: u16 = 10;
+
 fn map_against_sent(heard: &Heard, sent: &[ObstacleFrame]) -> (usize, Vec<String>) {
+    const BODY_FRD: u8 = 12;
+    /// The nearest of `distances` (bin `j` at `offset_deg + 5 j` from the nose) within
+    /// `half_deg` of the nose.
+    fn nearest_ahead(distances: &[u16; 72], offset_deg: f32, half_deg: f32) -> u16 {
+        (0..72)
+            .filter(|&j| {
+                let deg = (offset_deg + 5.0 * j as f32 + 180.0).rem_euclid(360.0) - 180.0;
+                deg.abs() <= half_deg + 0.01
+            })
+            .map(|j| distances[j])
+            .min()
+            .unwrap_or(u16::MAX)
+    }
     let (mut checked, mut wrong) = (0, Vec::new());
-    for (t_ms, map, map_offset) in &heard.obstacle {
-        if map.iter().all(|&d| d == u16::MAX) {
+    for map in heard.obstacle.iter().filter(|m| m.recorded) {
+        let heading_deg = if map.frame == BODY_FRD {
+            0.0
+        } else {
+            f32::from(map.heading_cdeg) / 100.0
+        };
+        let px4 = nearest_ahead(&map.distances, map.angle_offset - heading_deg, 30.0);
+        if px4 == u16::MAX {
             continue;
         }
         let candidates: Vec<&ObstacleFrame> = sent
             .iter()
-            .filter(|s| s.0 <= *t_ms && s.0 + 600 >= *t_ms)
+            .filter(|s| s.0 <= map.t_ms && s.0 + 600 >= map.t_ms)
             .collect();
         if candidates.is_empty() {
             continue;
         }
         checked += 1;
-        let matches = |s: &&ObstacleFrame| {
-            let shift = ((map_offset - s.4) / 5.0).round() as i64;
-            (0..72).all(|i| {
-                let j = (i as i64 + shift).rem_euclid(72) as usize;
-                map[i] == u16::MAX || map[i].abs_diff(s.1[j]) <= 1
+        let bounds: Vec<(u16, u16)> = candidates
+            .iter()
+            .map(|s| {
+                (
+                    nearest_ahead(&s.1, s.4, 35.0),
+                    nearest_ahead(&s.1, s.4, 25.0),
+                )
             })
-        };
-        if !candidates.iter().any(matches) {
-            let nearest = map.iter().min().copied().unwrap_or(u16::MAX);
+            .collect();
+        let low = bounds.iter().map(|b| b.0).min().unwrap_or(u16::MAX);
+        let high = bounds.iter().map(|b| b.1).max().unwrap_or(0);
+        let agrees = low.saturating_sub(1) <= px4 && px4 <= high.saturating_add(PX4_MAP_ABOVE_CM);
+        if !agrees {
             wrong.push(format!(
-                "map at {t_ms} ms (nearest {nearest} cm) matches none of {} sent frames",
-                candidates.len()
+                "map at {} ms (frame {}, heading {} cdeg): nearest ahead {px4} cm, savsim's \
+                 (within 35 and 25 degrees) {bounds:?}",
+                map.t_ms, map.frame, map.heading_cdeg,
             ));
         }
     }
@@ -425,8 +477,7 @@ fn map_against_sent(heard: &Heard, sent: &[ObstacleFrame]) -> (usize, Vec<String
 
 #[test]
 fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_without() {
-    let test = "sitl_px4_feed::px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_without";
-    let Some((bin, _serial)) = px4_inside_own_namespace(test) else {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::Px4, Netns::Own, &[]) else {
         return;
     };
     let (heard, run, sent) = fly(&bin, true);
@@ -477,32 +528,36 @@ fn px4_keeps_its_distance_from_the_face_with_obstacle_distance_and_hits_it_witho
 }
 
 /// PX4's traffic avoidance on savsim's ADS-B: the quadrotor holds at 30 m over the city's
-/// origin with NAV_TRAFF_AVOID 3 (land); an A320 track waits 2.4 km east at the same height
-/// until +100 s of savsim's run, then flies west through the origin at 40 m/s. With
+/// origin with NAV_TRAFF_AVOID 3 (land, set before boot); an A320 track waits 2.4 km east at
+/// the same height until +100 s of PX4's clock (savsim runs on it), then flies west through the
+/// origin at 40 m/s. With
 /// `--feed adsb`, PX4 must take the airliner for a conflict (its defaults: 500 m across, 500 m
 /// up or down, 60 s ahead) and land; savsim's closest approach tells what that bought. PX4
 /// re-streams the traffic it receives: savsim must not read it back (`adsb_echoes`).
 #[test]
 fn px4_lands_when_a_scripted_airliner_sent_as_adsb_closes() {
-    let test = "sitl_px4_feed::px4_lands_when_a_scripted_airliner_sent_as_adsb_closes";
-    let Some((bin, _serial)) = px4_inside_own_namespace(test) else {
+    let Some(Turn { bin, .. }) = sitl_test(Autopilot::Px4, Netns::Own, &[]) else {
         return;
     };
-    let mut flight = Flight::start(&bin, airliner_through_the_origin(), Some("adsb"), 0.0);
-    flight.take_off(&[("NAV_TRAFF_AVOID", Param::Int(3))]);
+    let scene = airliner_through_the_origin();
+    // Set before boot: PX4 1.15's navigator reads NAV_TRAFF_AVOID once, at its start.
+    let params = [("NAV_TRAFF_AVOID", 3.0)];
+    let mut flight = Flight::start(&bin, scene, Some("adsb"), 0.0, &params);
+    flight.take_off();
     flight.pilot.recording.store(true, Ordering::Relaxed);
     let started = Instant::now();
-    // Until PX4 lands for the airliner, then until the airliner has passed (+190 s of
-    // savsim's run, 30 s after it crossed the origin).
+    // Until PX4 lands for the airliner, then until the airliner has passed: +190 s of PX4's
+    // clock (savsim runs on it: the track's clock starts at PX4's boot), 30 s after it
+    // crossed the origin.
     let landing = flight.pilot.until(Duration::from_secs(150), 0, |_, h| {
         (h.custom_mode >> 16) & 0xff == AUTO && h.custom_mode >> 24 == AUTO_LAND
     });
     let landed_after = started.elapsed();
     if landing {
-        let began = flight.began;
-        flight.pilot.until(Duration::from_secs(120), 0, |_, _| {
-            began.elapsed() > Duration::from_secs(190)
-        });
+        let over = flight
+            .pilot
+            .until(Duration::from_secs(150), 0, |_, h| h.time_boot_ms > 190_000);
+        assert!(over, "PX4's clock never reached +190 s");
     }
     let (heard, run, _) = flight.finish();
     let summary = run.session.summary("live", "sitl-px4");

@@ -7,7 +7,7 @@ use std::process::Command;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
-use crate::common::{root, signal_and_wait};
+use crate::common::{root, signal_and_wait, wait_until};
 
 /// Paths every replay over the bundled city must log (docs/rerun.md).
 const PATHS: [&str; 20] = [
@@ -187,6 +187,31 @@ fn a_far_scene_is_logged_near_zero() {
     assert_eq!(savsim::viz::viz_offset(&near).length(), 0.0);
 }
 
+/// How far process `pid` has read the file at `path` (its offset over its length), from
+/// Linux's /proc; None while it has no such file open.
+fn read_fraction(pid: u32, path: &std::path::Path) -> Option<f64> {
+    let length = std::fs::metadata(path).ok()?.len() as f64;
+    let wanted = std::fs::canonicalize(path).ok()?;
+    let fds = std::fs::read_dir(format!("/proc/{pid}/fd")).ok()?;
+    fds.flatten().find_map(|fd| {
+        if std::fs::read_link(fd.path()).ok()? != wanted {
+            return None;
+        }
+        let info = std::fs::read_to_string(format!(
+            "/proc/{pid}/fdinfo/{}",
+            fd.file_name().to_string_lossy()
+        ))
+        .ok()?;
+        let pos: f64 = info
+            .lines()
+            .find_map(|l| l.strip_prefix("pos:"))?
+            .trim()
+            .parse()
+            .ok()?;
+        Some(pos / length)
+    })
+}
+
 /// SIGTERM during a paced replay with a recording: the run stops cleanly, and the events,
 /// summary and .rrd it leaves are complete and readable (rerun's own verifier).
 #[test]
@@ -216,24 +241,16 @@ fn sigterm_during_replay_leaves_complete_files() {
         .stdout(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    // Once the recording or the events are being written (the scene is loaded and ticks run;
-    // the flight lasts 21 s at this speed), stop it.
-    let started = std::time::Instant::now();
-    let written = |p: &std::path::Path| std::fs::metadata(p).map_or(0, |m| m.len()) > 0;
-    while !(written(&events) || written(&rrd)) {
-        assert!(started.elapsed().as_secs() < 120, "no events after 120 s");
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "savsim ended before the signal"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
-    // Two more seconds of ticks (20 s of flight at this speed), then the signal.
-    std::thread::sleep(std::time::Duration::from_secs(2));
-    assert!(
-        child.try_wait().unwrap().is_none(),
-        "savsim ended before the signal"
-    );
+    // Once savsim has read half of the flight (its ticks began after the first fixes, within
+    // its first tenth; the flight lasts 21 s at this speed, paced), stop it.
+    let flight = root().join("scenes/flights/copter_square_10ms.tlog");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let pid = child.id();
+    let mut running = || child.try_wait().unwrap().is_none();
+    let halfway = wait_until(deadline, || {
+        read_fraction(pid, &flight).is_some_and(|f| f >= 0.5) || !running()
+    });
+    assert!(halfway && running(), "savsim ended before the signal");
     let status = signal_and_wait(&mut child, "TERM");
     assert!(status.success(), "{status:?}");
     let s: serde_json::Value =

@@ -10,7 +10,9 @@ checked in the vehicle's heartbeat), and arming (MAV_CMD_COMPONENT_ARM_DISARM, f
 receives per sender and type; with --signing-passphrase it signs what it sends.
 
 Prints one JSON object at the end: counts {"sysid/compid": {"TYPE": n}}, param (its value),
-mode_set, armed, acks {command: result}.
+mode_set, armed, acks {command: result}. Until then, once a second, `POSITIONS n`: the
+GLOBAL_POSITION_INT heard from the target so far. SIGTERM ends the run early: it reads what is
+still arriving for --drain-s more, then prints its JSON and exits 0.
 
 usage: station.py [--connect URL] --target 1 --param SYSID_THISMAV --mode 4 --run-s 6
 """
@@ -18,6 +20,7 @@ import argparse
 import hashlib
 import json
 import os
+import signal
 import sys
 import time
 from collections import defaultdict
@@ -37,7 +40,10 @@ def main():
     ap.add_argument("--run-s", type=float, default=6.0)
     ap.add_argument("--until-done", action="store_true", help="stop once everything was answered")
     ap.add_argument("--signing-passphrase", default=None)
+    ap.add_argument("--drain-s", type=float, default=1.0, help="read on this long after SIGTERM")
     args = ap.parse_args()
+    stop = {"at": None}
+    signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("at", stop["at"] or time.time()))
 
     conn = mavutil.mavlink_connection(args.connect, source_system=255, source_component=190,
                                       dialect="ardupilotmega")
@@ -59,8 +65,15 @@ def main():
     next_hb = 0.0
     next_ask = 0.0
     start = time.time()
+    next_progress = 0.0
     while time.time() - start < args.run_s:
         now = time.time()
+        if stop["at"] is not None and now - stop["at"] >= args.drain_s:
+            break
+        if now >= next_progress:
+            next_progress = now + 1.0
+            heard_target = counts.get(f"{args.target}/1", {})
+            print(f"POSITIONS {heard_target.get('GLOBAL_POSITION_INT', 0)}", flush=True)
         if now >= next_hb:
             next_hb = now + 1.0
             mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
