@@ -135,10 +135,10 @@ impl Companion {
 
     /// Heartbeats until vehicle 1 has sent GLOBAL_POSITION_INT over `span_ms` of one boot's
     /// clock (a stamp earlier than the one before starts a new boot), or until [`WAIT_LIMIT`]
-    /// passes: whether it did.
-    fn positions_for(&mut self, span_ms: u32) -> bool {
+    /// passes: what it heard when it did not.
+    fn positions_for(&mut self, span_ms: u32) -> Result<(), String> {
         let started = Instant::now();
-        let (mut first_ms, mut last_ms) = (None::<u32>, 0u32);
+        let (mut first_ms, mut last_ms, mut heard) = (None::<u32>, 0u32, 0u64);
         let mut buffer = [0u8; 2048];
         while started.elapsed() < WAIT_LIMIT {
             self.heartbeat();
@@ -153,17 +153,20 @@ impl Companion {
                 if (h.system_id, h.component_id) != (1, 1) {
                     continue;
                 }
+                heard += 1;
                 if p.time_boot_ms < last_ms {
                     first_ms = None;
                 }
                 last_ms = p.time_boot_ms;
                 let first = *first_ms.get_or_insert(last_ms);
                 if last_ms - first >= span_ms {
-                    return true;
+                    return Ok(());
                 }
             }
         }
-        false
+        Err(format!(
+            "in {WAIT_LIMIT:?}: {heard} positions, this boot's from {first_ms:?} to {last_ms} ms"
+        ))
     }
 }
 
@@ -181,9 +184,9 @@ fn restart_once_heard(
 ) -> Result<Sitl, String> {
     let mut companion = Companion::bind();
     let outcome = (|| {
-        if !companion.positions_for(HEARD_FOR_MS) {
-            return Err("no positions from vehicle 1 before its restart".to_string());
-        }
+        companion
+            .positions_for(HEARD_FOR_MS)
+            .map_err(|e| format!("vehicle 1 before its restart: {e}"))?;
         companion.send(&reboot_shutdown(2.0));
         let asked = Instant::now();
         while vehicle.exited().is_none() {
@@ -197,9 +200,16 @@ fn restart_once_heard(
         vehicle = px4
             .start(start)
             .map_err(|e| format!("PX4 did not start again: {e}"))?;
-        if !companion.positions_for(HEARD_AGAIN_FOR_MS) {
-            return Err("no positions from vehicle 1 after its restart".to_string());
-        }
+        companion.positions_for(HEARD_AGAIN_FOR_MS).map_err(|e| {
+            format!(
+                "vehicle 1 after its restart: {e}; it {}; its console: {}",
+                match vehicle.exited() {
+                    Some(status) => format!("ended ({status})"),
+                    None => "runs".to_string(),
+                },
+                vehicle.log_tail(15)
+            )
+        })?;
         Ok(())
     })();
     stop.store(true, Ordering::Relaxed);
