@@ -393,7 +393,8 @@ fn a_sitl_that_ends_is_the_rows_error_and_a_signal_leaves_no_process_and_no_shar
         .status()
         .unwrap();
     let status = study.wait().unwrap();
-    assert!(!status.success());
+    // A run stopped by a signal is a runtime failure (exit 1), never bad usage (2).
+    assert_eq!(status.code(), Some(1), "{status:?}");
     // Killed with the study (its parent-death signal, or the study's own kill): gone within
     // seconds, never left running.
     let gone = wait_until(Instant::now() + Duration::from_secs(10), || !running(pid));
