@@ -143,9 +143,9 @@ impl SensedDaa {
                 let at = (k, dt_s);
                 let t = &truth.target;
                 let report = match &device.model {
-                    Model::Adsb(m) => m.report(state, &mut self.draws, key, at, own, t),
-                    Model::Radar(m) => m.report(state, &mut self.draws, key, at, own, t),
-                    Model::EoIr(m) => m.report(state, &mut self.draws, key, at, own, t),
+                    Model::Adsb(m) => m.report(state, &self.draws, key, at, own, t),
+                    Model::Radar(m) => m.report(state, &self.draws, key, at, own, t),
+                    Model::EoIr(m) => m.report(state, &self.draws, key, at, own, t),
                     Model::Range(_) => None,
                 };
                 match report {
@@ -185,14 +185,7 @@ impl SensedDaa {
             altitude_m: own.position_enu_m.z,
         };
         let key = mix(self.seed, 2);
-        match m.report(
-            &mut self.own_state,
-            &mut self.draws,
-            key,
-            (k, dt_s),
-            own,
-            &me,
-        ) {
+        match m.report(&mut self.own_state, &self.draws, key, (k, dt_s), own, &me) {
             Some(r) => (r.position_enu_m, r.velocity_enu_mps, uncertainty(&r)),
             None => (
                 own.position_enu_m,

@@ -262,7 +262,7 @@ impl Devices {
         self.readings.resize(beams.len(), BeamReading::NoData);
         model.read(
             &mut state.range,
-            &mut self.draws,
+            &self.draws,
             key,
             (k, 1.0 / device.rate_hz),
             &self.truths,
@@ -335,11 +335,9 @@ impl Devices {
             let range_m = (target.position_enu_m - own.position_enu_m).length();
             let t_state = state.targets.entry(target.key).or_default();
             let report = match &device.model {
-                Model::Adsb(m) => m.report(t_state, &mut self.draws, key, (k, dt_s), &own, &target),
-                Model::Radar(m) => {
-                    m.report(t_state, &mut self.draws, key, (k, dt_s), &own, &target)
-                }
-                Model::EoIr(m) => m.report(t_state, &mut self.draws, key, (k, dt_s), &own, &target),
+                Model::Adsb(m) => m.report(t_state, &self.draws, key, (k, dt_s), &own, &target),
+                Model::Radar(m) => m.report(t_state, &self.draws, key, (k, dt_s), &own, &target),
+                Model::EoIr(m) => m.report(t_state, &self.draws, key, (k, dt_s), &own, &target),
                 Model::Range(_) => None,
             };
             let told = v.told.entry(target.key).or_default();

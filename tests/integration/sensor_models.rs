@@ -46,7 +46,7 @@ fn device(spec: &str) -> savsim::sensors::device::Device {
 fn a_stereo_cameras_depth_error_is_normal_with_the_z_squared_sigma() {
     let d = device("preset = \"realsense-d435\"\nquantum_m = 0.0\ninvalid_ray = 0.0");
     let Model::Range(m) = d.model else { panic!() };
-    let mut draws = Draws::new(42);
+    let draws = Draws::new(42);
     let mut state = RangeState::default();
     let z = 4.0;
     // z^2 subpixel / (focal baseline), written here.
@@ -54,14 +54,7 @@ fn a_stereo_cameras_depth_error_is_normal_with_the_z_squared_sigma() {
     let mut out = [BeamReading::NoData];
     let samples: Vec<f64> = (0..N as u64)
         .map(|k| {
-            assert!(m.read(
-                &mut state,
-                &mut draws,
-                7,
-                (k, 1.0 / 30.0),
-                &[Some(z)],
-                &mut out
-            ));
+            assert!(m.read(&mut state, &draws, 7, (k, 1.0 / 30.0), &[Some(z)], &mut out));
             match out[0] {
                 BeamReading::Range(r) => (r - z) / sigma,
                 other => panic!("{other:?}"),
@@ -91,7 +84,7 @@ fn adsb_vertical_rate_errors_are_laplace_and_positions_gauss_markov() {
     let mut seed = 0u64;
     while vertical.len() < N {
         seed += 1;
-        let mut draws = Draws::new(seed);
+        let draws = Draws::new(seed);
         let target = Target {
             key: 1,
             position_enu_m: DVec3::new(1000.0, 0.0, 100.0),
@@ -99,7 +92,7 @@ fn adsb_vertical_rate_errors_are_laplace_and_positions_gauss_markov() {
             altitude_m: 100.0,
         };
         let mut state = TargetState::default();
-        if let Some(r) = m.report(&mut state, &mut draws, 3, (0, 0.5), &own, &target) {
+        if let Some(r) = m.report(&mut state, &draws, 3, (0, 0.5), &own, &target) {
             vertical.push(r.velocity_enu_mps.z);
             north.push(r.position_enu_m.y / m.position.sigma);
         }
@@ -130,10 +123,10 @@ fn a_gauss_markov_errors_autocorrelation_at_one_time_constant_is_one_over_e() {
     };
     let dt = 0.1;
     let lag = 10;
-    let mut draws = Draws::new(9);
+    let draws = Draws::new(9);
     let mut state = MarkovState::default();
     let e: Vec<f64> = (0..1_000_000u64)
-        .map(|k| gm.at(&mut state, &mut draws, 5, k, dt))
+        .map(|k| gm.at(&mut state, &draws, 5, k, dt))
         .collect();
     let n = e.len() as f64;
     let mean = e.iter().sum::<f64>() / n;
@@ -171,7 +164,7 @@ fn adsb_reception_is_appendix_qs_by_range() {
         (15.0, 1.0 - 0.05f64.powf(1.0 / 7.0)),
         (25.0, 0.0),
     ] {
-        let mut draws = Draws::new(11);
+        let draws = Draws::new(11);
         let mut state = TargetState::default();
         let target = Target {
             key: 2,
@@ -181,7 +174,7 @@ fn adsb_reception_is_appendix_qs_by_range() {
         };
         let got: Vec<bool> = (0..N as u64)
             .map(|k| {
-                m.report(&mut state, &mut draws, 1, (k, 1.0), &own, &target)
+                m.report(&mut state, &draws, 1, (k, 1.0), &own, &target)
                     .is_some()
             })
             .collect();
@@ -225,7 +218,7 @@ fn fields_of_regard_end_exactly_where_stated() {
     };
     let eoir = device("preset = \"eoir-appq\"\nfield_of_regard_deg = [60.0, 20.0]");
     let Model::EoIr(e) = eoir.model else { panic!() };
-    let mut draws = Draws::new(1);
+    let draws = Draws::new(1);
     for (az, el, seen) in [
         (109.99, 0.0, true),
         (110.01, 0.0, false),
@@ -236,7 +229,7 @@ fn fields_of_regard_end_exactly_where_stated() {
         (0.0, -15.01, false),
     ] {
         let mut s = TargetState::default();
-        let got = r.report(&mut s, &mut draws, 1, (0, 1.0), &own, &at(az, el));
+        let got = r.report(&mut s, &draws, 1, (0, 1.0), &own, &at(az, el));
         assert_eq!(got.is_some(), seen, "radar at {az}, {el}");
     }
     for (az, el, seen) in [
@@ -246,7 +239,7 @@ fn fields_of_regard_end_exactly_where_stated() {
         (0.0, 20.01, false),
     ] {
         let mut s = TargetState::default();
-        let got = e.report(&mut s, &mut draws, 1, (0, 0.1), &own, &at(az, el));
+        let got = e.report(&mut s, &draws, 1, (0, 0.1), &own, &at(az, el));
         assert_eq!(got.is_some(), seen, "EO/IR at {az}, {el}");
     }
     // A depth camera's outermost rays are at half its field exactly.
@@ -280,27 +273,27 @@ fn errors_are_a_function_of_the_seed_and_the_instant_alone() {
     };
     // One run asks every instant, another every third: the reports at the shared instants
     // carry the same errors (the truth, here the same, may differ in a closed loop).
-    let (mut a, mut b) = (Draws::new(77), Draws::new(77));
+    let (a, b) = (Draws::new(77), Draws::new(77));
     let (mut sa, mut sb) = (TargetState::default(), TargetState::default());
     for k in 0..300u64 {
-        let ra = m.report(&mut sa, &mut a, 5, (k, 0.5), &own, &target(900.0));
+        let ra = m.report(&mut sa, &a, 5, (k, 0.5), &own, &target(900.0));
         if k % 3 == 0 {
-            let rb = m.report(&mut sb, &mut b, 5, (k, 0.5), &own, &target(900.0));
+            let rb = m.report(&mut sb, &b, 5, (k, 0.5), &own, &target(900.0));
             assert_eq!(ra, rb, "instant {k}");
         }
     }
     // Another seed, other errors.
-    let mut c = Draws::new(78);
+    let c = Draws::new(78);
     let mut sc = TargetState::default();
     let differs = (0..50u64).any(|k| {
         m.report(
             &mut TargetState::default(),
-            &mut Draws::new(77),
+            &Draws::new(77),
             5,
             (k, 0.5),
             &own,
             &target(900.0),
-        ) != m.report(&mut sc, &mut c, 5, (k, 0.5), &own, &target(900.0))
+        ) != m.report(&mut sc, &c, 5, (k, 0.5), &own, &target(900.0))
     });
     assert!(differs);
 }

@@ -52,17 +52,17 @@ impl GaussMarkov {
     /// use savsim_core::sensors::errors::{GaussMarkov, MarkovState};
     /// let gm = GaussMarkov { sigma: 2.0, tau_s: 5.0 };
     /// let (mut a, mut b) = (MarkovState::default(), MarkovState::default());
-    /// let mut draws = Draws::new(1);
-    /// let every: Vec<f64> = (0..50).map(|k| gm.at(&mut a, &mut draws, 9, k, 0.1)).collect();
+    /// let draws = Draws::new(1);
+    /// let every: Vec<f64> = (0..50).map(|k| gm.at(&mut a, &draws, 9, k, 0.1)).collect();
     /// // Asked only every seventh instant, the same values there.
     /// for k in (0..50).step_by(7) {
-    ///     assert_eq!(gm.at(&mut b, &mut draws, 9, k, 0.1), every[k as usize]);
+    ///     assert_eq!(gm.at(&mut b, &draws, 9, k, 0.1), every[k as usize]);
     /// }
     /// ```
     pub fn at(
         &self,
         state: &mut MarkovState,
-        draws: &mut Draws,
+        draws: &Draws,
         stream: u64,
         k: u64,
         dt_s: f64,
@@ -90,7 +90,7 @@ impl GaussMarkov {
 
 /// A bias drawn once per run, uniform in `[-half, half]` (DEGAS's per-encounter bias; the
 /// field it calls a standard deviation is this half-width).
-pub fn uniform_bias(draws: &mut Draws, stream: u64, half: f64) -> f64 {
+pub fn uniform_bias(draws: &Draws, stream: u64, half: f64) -> f64 {
     if half == 0.0 {
         0.0
     } else {

@@ -113,7 +113,7 @@ impl RangeModel {
     pub fn read(
         &self,
         state: &mut RangeState,
-        draws: &mut Draws,
+        draws: &Draws,
         key: u64,
         (k, dt_s): (u64, f64),
         truths: &[Option<f64>],
@@ -173,7 +173,7 @@ impl RangeModel {
 
     /// Whether instant `k` falls in a burst of lost readings, stepping the burst channel
     /// through every instant since the last asked (from instant 0 the first time).
-    fn lost(&self, state: &mut RangeState, draws: &mut Draws, key: u64, k: u64) -> bool {
+    fn lost(&self, state: &mut RangeState, draws: &Draws, key: u64, k: u64) -> bool {
         let Some(burst) = self.burst else {
             return false;
         };

@@ -104,7 +104,7 @@ const ANNEX10: [(f64, f64, f64, f64); 6] = [
 
 /// An intruder's altimetry bias (metres): Laplace of a scale drawn by the altitude layer
 /// (ICAO Annex 10; lambda1 with the layer's chance, else lambda2), once per run.
-fn annex10_bias_m(draws: &mut Draws, key: u64, target: u64, altitude_m: f64) -> f64 {
+fn annex10_bias_m(draws: &Draws, key: u64, target: u64, altitude_m: f64) -> f64 {
     let feet = altitude_m / 0.3048;
     let (_, l1, l2, p1) = ANNEX10
         .iter()
@@ -135,7 +135,7 @@ impl AdsbModel {
     pub fn report(
         &self,
         state: &mut TargetState,
-        draws: &mut Draws,
+        draws: &Draws,
         key: u64,
         (k, dt_s): (u64, f64),
         own: &Own,
@@ -234,7 +234,7 @@ impl RadarModel {
     pub fn report(
         &self,
         state: &mut TargetState,
-        draws: &mut Draws,
+        draws: &Draws,
         key: u64,
         (k, dt_s): (u64, f64),
         own: &Own,
@@ -256,7 +256,7 @@ impl RadarModel {
         let range_m = range
             + uniform_bias(draws, s(Channel::RangeBias), self.range_bias_m)
             + self.range_sigma_m * draws.normal(s(Channel::Range), k);
-        let angle = |draws: &mut Draws, value: f64, noise: Channel, bias: Channel| {
+        let angle = |draws: &Draws, value: f64, noise: Channel, bias: Channel| {
             value
                 + uniform_bias(draws, s(bias), self.angle_bias_deg.to_radians())
                 + self.angle_sigma_deg.to_radians() * draws.normal(s(noise), k)
@@ -288,7 +288,7 @@ impl EoIrModel {
     pub fn report(
         &self,
         state: &mut TargetState,
-        draws: &mut Draws,
+        draws: &Draws,
         key: u64,
         (k, dt_s): (u64, f64),
         own: &Own,
