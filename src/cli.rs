@@ -120,7 +120,8 @@ pub struct StudyArgs {
     /// PX4 SITL binary, `px4` of px4_sitl_default, flown with SIH (default: SAVSIM_PX4).
     #[arg(long)]
     pub px4: Option<PathBuf>,
-    /// Keep each row's SITL folder (eeprom, logs, console) under OUT/work (default: removed
+    /// Keep each row's SITL folder (eeprom, logs, console, savsim's summary and, for a row
+    /// with a feed, every frame the feed sent as `feed.tlog`) under OUT/work (default: removed
     /// after a row that flew).
     #[arg(long)]
     pub keep_work: bool,

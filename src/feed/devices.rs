@@ -298,7 +298,10 @@ impl Devices {
     }
 
     /// Device `i` surveys the aircraft around the vehicle at instant `k`: each report that gets
-    /// through is queued to arrive its latency (and jitter) later.
+    /// through is queued to arrive its latency (and jitter) later. The truth is taken at the
+    /// instant: the vehicle's and each aircraft's states at this sample, carried back to the
+    /// instant along their velocities (a sample falls up to one of the vehicle's position
+    /// intervals after the instant, and not at the same point at every speedup).
     fn survey(
         &mut self,
         i: usize,
@@ -311,8 +314,9 @@ impl Devices {
         let device = &self.devices[i];
         let dt_s = 1.0 / device.rate_hz;
         let current = f.input.current;
+        let back_s = f64::from(current.time_boot_ms) / 1000.0 - k as f64 * dt_s;
         let own = Own {
-            position_enu_m: current.position_enu_m,
+            position_enu_m: current.position_enu_m - current.velocity_enu_mps * back_s,
             velocity_enu_mps: current.velocity_enu_mps,
             enu_from_frd: current.attitude.enu_from_frd,
         };
@@ -326,11 +330,12 @@ impl Devices {
             if !reports_it {
                 continue;
             }
+            let velocity_enu_mps = body_velocity(body);
             let target = Target {
                 key: u64::from(a.icao_address),
-                position_enu_m: body.current.position_enu_m,
-                velocity_enu_mps: body_velocity(body),
-                altitude_m: a.position.alt_m,
+                position_enu_m: body.current.position_enu_m - velocity_enu_mps * back_s,
+                velocity_enu_mps,
+                altitude_m: a.position.alt_m - velocity_enu_mps.z * back_s,
             };
             let range_m = (target.position_enu_m - own.position_enu_m).length();
             let t_state = state.targets.entry(target.key).or_default();

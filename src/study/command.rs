@@ -91,7 +91,7 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let work = std::fs::canonicalize(out)
         .map_err(|e| Error::file(out, e))?
         .join("work");
-    let setup = Setup::new(
+    let mut setup = Setup::new(
         &rows[range.clone()],
         (
             arducopter(args.arducopter.as_deref()),
@@ -101,6 +101,7 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
         work,
         shutdown.clone(),
     );
+    setup.record_feed = args.keep_work;
     let results = fly_shard(&rows[range.clone()], range.start, args, &setup);
     if shutdown.load(Ordering::Relaxed) {
         return Err(Error::Runtime(

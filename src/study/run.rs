@@ -123,6 +123,9 @@ pub struct Setup {
     pub work: PathBuf,
     /// Raised by a signal: every row stops and its SITL with it.
     pub stop: Arc<AtomicBool>,
+    /// Record every frame the feed sends a row's vehicle to `feed.tlog` in the row's folder
+    /// (`--keep-work` keeps it). Default false.
+    pub record_feed: bool,
     scenes: SceneCache,
 }
 
@@ -141,6 +144,7 @@ impl Setup {
             speedup,
             work,
             stop,
+            record_feed: false,
             scenes: SceneCache::load(rows.iter().filter_map(|r| r.scene.as_deref())),
         }
     }
@@ -339,6 +343,7 @@ fn fly_row(
         duration: Some(wall_limit),
         rate_hz: FEED_HZ,
         collided: Some(collided.clone()),
+        feed_out: (setup.record_feed && checked.feed.is_some()).then(|| dir.join("feed.tlog")),
         ..LiveOptions::default()
     };
     let live = SessionThread::spawn(runtime, link, options, session)?;

@@ -639,3 +639,127 @@ fn ray_study_example_gives_the_rows_savsim_study_gives() {
     assert_eq!(ray_rows.len(), 4, "{ray_rows:?}");
     assert_same_rows(&ray_rows, &cli_rows, ("Ray", "savsim study"));
 }
+
+/// The ADSB_VEHICLE messages of a tlog savsim wrote (`feed.tlog`: each record an 8-byte time
+/// stamp and one whole frame), in order.
+fn adsb_reports(tlog: &Path) -> Vec<mavlink::dialects::ardupilotmega::ADSB_VEHICLE_DATA> {
+    use mavlink::dialects::ardupilotmega::MavMessage;
+    let bytes = std::fs::read(tlog).unwrap();
+    let (mut out, mut at) = (Vec::new(), 0usize);
+    while at + 8 < bytes.len() {
+        at += 8;
+        // MAVLink 2: 10 header bytes, the payload, 2 CRC bytes, 13 more when signed.
+        let len = match bytes[at] {
+            0xFD => 12 + usize::from(bytes[at + 1]) + if bytes[at + 2] & 1 == 1 { 13 } else { 0 },
+            0xFE => 8 + usize::from(bytes[at + 1]),
+            other => panic!("{}: no frame at byte {at} ({other:#x})", tlog.display()),
+        };
+        let frame = &bytes[at..at + len];
+        let mut reader = mavlink::MavlinkReader::new(frame);
+        if let Ok((_, MavMessage::ADSB_VEHICLE(a))) = reader.read_any_message::<MavMessage>() {
+            out.push(a);
+        }
+        at += len;
+    }
+    out
+}
+
+/// Sensors' errors are a function of the seed and the vehicle's clock (docs/sensors.md): one
+/// encounter row with modelled ADS-B (`adsb-1090es:nacp=7`: NACp 7's errors and Appendix Q's
+/// reception), 60 s of the vehicle's clock, flown at speedup 1 and at 10 at once, each in its
+/// own network namespace: the vehicle was told the same ADS-B reports, bit for bit, lost and
+/// received alike, up to the row's end (the intruder is scripted on the vehicle's clock, so its
+/// truth is the same at both speeds; savsim's `feed.tlog` of each row, `--keep-work`).
+#[test]
+fn arducopter_is_told_the_same_adsb_reports_at_speedup_1_and_10() {
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let gen = savsim()
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "1",
+            "--seed",
+            "11",
+        ])
+        .args(["--sensors", "adsb-1090es:nacp=7", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(gen.status.success(), "{gen:?}");
+    // The mitigated row alone, 60 s long.
+    let mut manifest = csv::Reader::from_path(dir.path().join("study.csv")).unwrap();
+    let header = manifest.headers().unwrap().clone();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (variant, duration) = (column("variant"), column("duration_s"));
+    let row: Vec<String> = manifest
+        .records()
+        .map(|r| r.unwrap())
+        .find(|r| r[variant].starts_with("mitigated"))
+        .unwrap()
+        .iter()
+        .enumerate()
+        .map(|(i, v)| if i == duration { "60".into() } else { v.into() })
+        .collect();
+    let one = dir.path().join("one.csv");
+    let mut writer = csv::Writer::from_path(&one).unwrap();
+    writer.write_record(&header).unwrap();
+    writer.write_record(&row).unwrap();
+    writer.flush().unwrap();
+    let fly = |speedup: &str| {
+        let out = dir.path().join(format!("s{speedup}"));
+        let child = savsim()
+            .args([
+                "study",
+                "--jobs",
+                "1",
+                "--keep-work",
+                "--speedup",
+                speedup,
+                "--out",
+            ])
+            .arg(&out)
+            .arg(&one)
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        (out, child)
+    };
+    let (mut slow, mut fast) = (fly("1"), fly("10"));
+    assert!(slow.1.wait().unwrap().success());
+    assert!(fast.1.wait().unwrap().success());
+    let told = |out: &Path| {
+        let work = std::fs::read_dir(out.join("work"))
+            .unwrap()
+            .flatten()
+            .next()
+            .unwrap();
+        adsb_reports(&work.path().join("feed.tlog"))
+    };
+    // The reports as they arrived (`tslc` 0); a track is sent again, older, at the feed's
+    // frames until the next, and the frames fall where the vehicle's positions fall.
+    let fresh = |out: &Path| -> Vec<_> { told(out).into_iter().filter(|a| a.tslc == 0).collect() };
+    let (at_1, at_10) = (fresh(&slow.0), fresh(&fast.0));
+    eprintln!("{} reports at 1x, {} at 10x", at_1.len(), at_10.len());
+    assert!(at_1.len() >= 20, "{} reports in 60 s", at_1.len());
+    let first_difference = at_1.iter().zip(&at_10).position(|(a, b)| a != b);
+    assert_eq!(
+        first_difference,
+        None,
+        "{:?}",
+        first_difference.map(|i| (&at_1[i], &at_10[i]))
+    );
+    // The row ends at 60 s of the vehicle's clock, at the first position past it: the last
+    // report may fall before one run's end and after the other's.
+    assert!(
+        at_1.len().abs_diff(at_10.len()) <= 1,
+        "{} and {}",
+        at_1.len(),
+        at_10.len()
+    );
+}
