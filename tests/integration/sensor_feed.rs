@@ -192,3 +192,23 @@ fn bad_sensor_lists_are_clear_errors() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("sigma_m"));
 }
+
+/// Every device file shipped in scenes/sensors/ is a valid `--sensors` list.
+#[test]
+fn the_shipped_sensor_files_load() {
+    let dir = crate::common::root().join("scenes/sensors");
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 7, "{files:?}");
+    for file in files {
+        let path = file.to_str().unwrap();
+        if let Err(e) = sensors_for(Some(path), None) {
+            panic!("{path}: {e}");
+        }
+    }
+}
