@@ -239,7 +239,7 @@ struct Flight {
     savsim: std::thread::JoinHandle<LiveRun>,
     /// savsim's `--feed-out`: every frame the feed sent.
     feed_out: PathBuf,
-    _px4: Sitl,
+    px4: Sitl,
     _dir: tempfile::TempDir,
 }
 
@@ -281,7 +281,7 @@ impl Flight {
             shutdown,
             savsim,
             feed_out,
-            _px4: px4,
+            px4,
             _dir: dir,
         }
     }
@@ -310,7 +310,12 @@ impl Flight {
             }
             false
         });
-        assert!(armed, "PX4 never armed: {:?}", pilot.heard().texts);
+        assert!(
+            armed,
+            "PX4 never armed: {:?}; its console: {}",
+            pilot.heard().texts,
+            self.px4.log_tail(30)
+        );
         let nan = f32::NAN;
         let mut asked = Instant::now() - Duration::from_secs(10);
         let up = pilot.until(Duration::from_secs(60), 0, |p, h| {
