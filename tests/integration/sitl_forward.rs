@@ -131,20 +131,21 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
         )
     };
 
-    // savsim runs until the station has heard 300 positions through it and MAVProxy has
-    // written every parameter it fetched through it (mav.parm), 180 s at most; then the
-    // station is stopped, after savsim, so that it has seen all savsim forwarded.
+    // savsim runs until the station has heard 300 positions through it and has read the
+    // parameter, seen GUIDED and seen the copter armed, and MAVProxy has written every
+    // parameter it fetched through it (mav.parm), 180 s at most; then the station is
+    // stopped, after savsim, so that it has seen all savsim forwarded.
     let stop = Arc::new(AtomicBool::new(false));
     let listener = std::thread::spawn({
         let (stop, mp_dir) = (stop.clone(), dir.path().join("mavproxy"));
         move || {
             let mut text = String::new();
             for line in out.lines().map_while(Result::ok) {
-                let positions: u64 = line
-                    .strip_prefix("POSITIONS ")
-                    .and_then(|n| n.parse().ok())
-                    .unwrap_or(0);
-                if positions >= 300 && find_file(&mp_dir, "mav.parm").is_some() {
+                let progress = line.strip_prefix("POSITIONS ").unwrap_or_default();
+                let mut words = progress.split_whitespace();
+                let positions: u64 = words.next().and_then(|n| n.parse().ok()).unwrap_or(0);
+                let done = words.next() == Some("DONE");
+                if positions >= 300 && done && find_file(&mp_dir, "mav.parm").is_some() {
                     stop.store(true, Ordering::Relaxed);
                 }
                 text.push_str(&line);
@@ -169,7 +170,8 @@ fn stations_through_forward_arm_set_mode_and_read_parameters_of_arducopter() {
     );
     assert!(
         stop.load(Ordering::Relaxed),
-        "in 180 s the station never heard 300 positions, or MAVProxy never had every parameter"
+        "in 180 s the station never heard 300 positions or saw its commands take, or MAVProxy \
+         never had every parameter"
     );
     drop(mavproxy);
     let ended = crate::common::signal_and_wait(&mut station, "TERM");

@@ -11,7 +11,8 @@ receives per sender and type; with --signing-passphrase it signs what it sends.
 
 Prints one JSON object at the end: counts {"sysid/compid": {"TYPE": n}}, param (its value),
 mode_set, armed, acks {command: result}. Until then, once a second, `POSITIONS n`: the
-GLOBAL_POSITION_INT heard from the target so far. SIGTERM ends the run early: it reads what is
+GLOBAL_POSITION_INT heard from the target so far, followed by `DONE` once the parameter was
+read, the mode seen and the vehicle seen armed (those asked for). SIGTERM ends the run early: it reads what is
 still arriving for --drain-s more, then prints its JSON and exits 0.
 
 usage: station.py [--connect URL] --target 1 --param SYSID_THISMAV --mode 4 --run-s 6
@@ -70,10 +71,12 @@ def main():
         now = time.time()
         if stop["at"] is not None and now - stop["at"] >= args.drain_s:
             break
+        done = param_value is not None and (args.mode is None or mode_seen) and (not args.arm or armed_seen)
         if now >= next_progress:
             next_progress = now + 1.0
             heard_target = counts.get(f"{args.target}/1", {})
-            print(f"POSITIONS {heard_target.get('GLOBAL_POSITION_INT', 0)}", flush=True)
+            positions = heard_target.get('GLOBAL_POSITION_INT', 0)
+            print(f"POSITIONS {positions}{' DONE' if done else ''}", flush=True)
         if now >= next_hb:
             next_hb = now + 1.0
             mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
@@ -88,7 +91,6 @@ def main():
             elif args.arm and not armed_seen:
                 mav.command_long_send(args.target, 1, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
                                       1, 21196 if args.force_arm else 0, 0, 0, 0, 0, 0)
-        done = param_value is not None and (args.mode is None or mode_seen) and (not args.arm or armed_seen)
         if args.until_done and done:
             break
         m = conn.recv_match(blocking=True, timeout=0.05)
