@@ -13,7 +13,7 @@
 //! companion shuts vehicle 1 down (PX4 SITL has no reboot: MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
 //! with param1 = 2 ends the process) and starts it again, which is what a ground station sees
 //! of a reboot; savsim's run ends once the new boot has streamed positions for 30 s. At
-//! speedup 4; each wait ends at 120 s of wall time.
+//! speedup 2; each wait ends at 120 s of wall time.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::Path;
@@ -75,7 +75,7 @@ pub(crate) fn start_px4(bin: &Path, start: &Start<'_>) -> Sitl {
 }
 
 /// PX4's speedup in this test (PX4_SIM_SPEED_FACTOR).
-const SPEEDUP: f64 = 4.0;
+const SPEEDUP: f64 = 2.0;
 /// Positions over this much of the first boot's clock: savsim has flown with it, ms.
 const HEARD_FOR_MS: u32 = 10_000;
 /// Positions over this much of the new boot's clock: savsim, which asks for its streams again
