@@ -94,19 +94,24 @@ struct Companion {
     beat: Instant,
 }
 
+/// A socket on UDP 14540, where PX4's onboard link sends (the last test's companion or pilot
+/// may still be letting go: tried for 5 s), reads waiting at most `read_timeout`.
+pub(crate) fn onboard_partner(read_timeout: Duration) -> UdpSocket {
+    let started = Instant::now();
+    let socket = loop {
+        match UdpSocket::bind("127.0.0.1:14540") {
+            Ok(s) => break s,
+            Err(e) if started.elapsed() > Duration::from_secs(5) => panic!("UDP 14540: {e}"),
+            Err(_) => std::thread::sleep(Duration::from_millis(100)),
+        }
+    };
+    socket.set_read_timeout(Some(read_timeout)).unwrap();
+    socket
+}
+
 impl Companion {
     fn bind() -> Companion {
-        let started = Instant::now();
-        let socket = loop {
-            match UdpSocket::bind("127.0.0.1:14540") {
-                Ok(s) => break s,
-                Err(e) if started.elapsed() > Duration::from_secs(5) => panic!("UDP 14540: {e}"),
-                Err(_) => std::thread::sleep(Duration::from_millis(100)),
-            }
-        };
-        socket
-            .set_read_timeout(Some(Duration::from_millis(100)))
-            .unwrap();
+        let socket = onboard_partner(Duration::from_millis(100));
         Companion {
             socket,
             sequence: 0,

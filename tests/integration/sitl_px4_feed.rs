@@ -39,7 +39,7 @@ use crate::sitl::{sitl_test, Autopilot, Netns, Turn};
 use crate::sitl_feed::{
     airliner_through_the_origin, east_north, sent_feed, start_savsim, ObstacleFrame,
 };
-use crate::sitl_px4::{near_origin_deg, px4_start, start_px4};
+use crate::sitl_px4::{near_origin_deg, onboard_partner, px4_start, start_px4};
 use savsim::study::sitl::Start;
 
 /// b1852's east face, scene E metres; where the flight starts, scene N metres.
@@ -100,18 +100,7 @@ struct Pilot {
 
 impl Pilot {
     fn connect() -> Pilot {
-        // PX4's onboard link sends to 14540 (the last flight's pilot may still be letting go).
-        let started = Instant::now();
-        let socket = loop {
-            match UdpSocket::bind("127.0.0.1:14540") {
-                Ok(s) => break s,
-                Err(e) if started.elapsed() > Duration::from_secs(5) => panic!("UDP 14540: {e}"),
-                Err(_) => std::thread::sleep(Duration::from_millis(100)),
-            }
-        };
-        socket
-            .set_read_timeout(Some(Duration::from_millis(200)))
-            .unwrap();
+        let socket = onboard_partner(Duration::from_millis(200));
         let heard = Arc::new(Mutex::new(Heard::default()));
         let recording = Arc::new(AtomicBool::new(false));
         let (reader, into, track) = (

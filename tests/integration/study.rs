@@ -640,26 +640,18 @@ fn ray_study_example_gives_the_rows_savsim_study_gives() {
     assert_same_rows(&ray_rows, &cli_rows, ("Ray", "savsim study"));
 }
 
-/// The ADSB_VEHICLE messages of a tlog savsim wrote (`feed.tlog`: each record an 8-byte time
-/// stamp and one whole frame), in order.
+/// The ADSB_VEHICLE messages of a tlog savsim wrote (`feed.tlog`), in order.
 fn adsb_reports(tlog: &Path) -> Vec<mavlink::dialects::ardupilotmega::ADSB_VEHICLE_DATA> {
     use mavlink::dialects::ardupilotmega::MavMessage;
-    let bytes = std::fs::read(tlog).unwrap();
-    let (mut out, mut at) = (Vec::new(), 0usize);
-    while at + 8 < bytes.len() {
-        at += 8;
-        // MAVLink 2: 10 header bytes, the payload, 2 CRC bytes, 13 more when signed.
-        let len = match bytes[at] {
-            0xFD => 12 + usize::from(bytes[at + 1]) + if bytes[at + 2] & 1 == 1 { 13 } else { 0 },
-            0xFE => 8 + usize::from(bytes[at + 1]),
-            other => panic!("{}: no frame at byte {at} ({other:#x})", tlog.display()),
-        };
-        let frame = &bytes[at..at + len];
-        let mut reader = mavlink::MavlinkReader::new(frame);
-        if let Ok((_, MavMessage::ADSB_VEHICLE(a))) = reader.read_any_message::<MavMessage>() {
+    let file = std::fs::File::open(tlog).unwrap();
+    let mut reader = savsim::ingest::tlog::TlogReader::new(file);
+    let mut stats = savsim::ingest::stats::IngestStats::default();
+    let mut out = Vec::new();
+    while let Some(record) = reader.next_record(&mut stats).unwrap() {
+        let mut frame = mavlink::MavlinkReader::new(record.frame.bytes);
+        if let Ok((_, MavMessage::ADSB_VEHICLE(a))) = frame.read_any_message::<MavMessage>() {
             out.push(a);
         }
-        at += len;
     }
     out
 }
