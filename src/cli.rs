@@ -129,6 +129,11 @@ pub struct StudyArgs {
     /// ports on every interface).
     #[arg(long)]
     pub no_netns: bool,
+    /// Save rows as rerun recordings in OUT/rows/: `failed` (rows not `pass` in a mitigated
+    /// variant, `pass` in the nominal one, or errors: every row is recorded while it flies and
+    /// the others dropped), `all`, or row ids separated by commas.
+    #[arg(long)]
+    pub rerun_rows: Option<crate::runs::recordings::RowChoice>,
 }
 
 /// What `savsim study gen` writes.
@@ -155,6 +160,19 @@ pub enum StudyCommand {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+    },
+    /// One self-contained HTML page of a results directory: outcome counts and risk ratios
+    /// as charts, histograms of the closest approaches, the rows with links to their
+    /// recordings, and how the results were made (docs/study.md).
+    Report {
+        /// The results directory (its *.parquet shard files).
+        dir: PathBuf,
+        /// Where the page goes (default DIR/report.html).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The variant the others are compared with.
+        #[arg(long, default_value = "nominal")]
+        nominal: String,
     },
     /// Write pairs of rows, each as `nominal` (avoidance off) and `mitigated` (on):
     /// `approaches` (a box of random size, offset and yaw across a straight path flown at a
@@ -288,6 +306,19 @@ pub enum BatchCommand {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+    },
+    /// One self-contained HTML page of a results directory: outcome counts and risk ratios
+    /// as charts, histograms of the closest approaches, the rows with links to their
+    /// recordings, and how the results were made (docs/batch.md).
+    Report {
+        /// The results directory (its *.parquet shard files).
+        dir: PathBuf,
+        /// Where the page goes (default DIR/report.html).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The variant the others are compared with.
+        #[arg(long, default_value = "nominal")]
+        nominal: String,
     },
 }
 

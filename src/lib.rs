@@ -11,6 +11,7 @@ pub mod app;
 pub mod batch;
 pub mod bench;
 pub mod bundled;
+pub mod chart_font;
 pub mod cli;
 pub mod costs;
 pub mod daa_csv;

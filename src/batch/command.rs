@@ -68,6 +68,17 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             crate::batch::summarize::read_dir(dir)?.print(nominal, *json);
             Ok(())
         }
+        Some(BatchCommand::Report { dir, out, nominal }) => {
+            let summary = crate::batch::summarize::read_dir(dir)?;
+            let options = crate::runs::report::Options {
+                command: "batch",
+                nominal,
+                failing_rows_only: true,
+            };
+            let path = crate::runs::report::write(dir, &summary, out.as_deref(), options)?;
+            println!("{}", path.display());
+            Ok(())
+        }
         None => run_shard(args),
     }
 }

@@ -9,8 +9,8 @@ use arrow_array::{Array, BooleanArray, Float64Array, RecordBatch, StringArray, U
 
 use crate::daa::ratios::Outcome;
 use crate::error::Result;
-use crate::runs::summary::Summary;
-use crate::runs::table::{column, for_each_batch, text_or};
+use crate::runs::summary::{RowView, Summary};
+use crate::runs::table::{column, float_at, for_each_batch, optional, text_or};
 
 /// Read every `*.parquet` in `dir`.
 pub fn read_dir(dir: &Path) -> Result<Summary> {
@@ -31,28 +31,47 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
     let w = column::<Float64Array>(batch, "w", path)?;
     let (nmac, lowc) = (bools("nmac")?, bools("lowc")?);
     let collisions = column::<UInt64Array>(batch, "collisions", path)?;
+    let number = |name: &str| optional::<Float64Array>(batch, name);
+    let (cpa, near_miss, wall) = (
+        number("cpa_m"),
+        number("closest_near_miss_m"),
+        number("wall_s"),
+    );
+    let index = column::<UInt64Array>(batch, "index", path)?;
     for i in 0..batch.num_rows() {
-        let variant = text_or(variant, i, "nominal");
-        if error.is_valid(i) {
-            all.add(&variant, "error", None);
+        let mut row = RowView {
+            index: index.value(i),
+            id: run_id.value(i).to_string(),
+            variant: text_or(variant, i, "nominal"),
+            pair: text_or(pair, i, run_id.value(i)),
+            ended: "error".into(),
+            cpa_m: float_at(cpa, i),
+            closest_obstacle_m: float_at(near_miss, i),
+            wall_s: float_at(wall, i),
+            error: error.is_valid(i).then(|| error.value(i).to_string()),
+            ..RowView::default()
+        };
+        if row.error.is_some() {
+            all.add(row, None);
             continue;
         }
         let outcome = Outcome {
-            pair: text_or(pair, i, run_id.value(i)),
-            variant: variant.clone(),
+            pair: row.pair.clone(),
+            variant: row.variant.clone(),
             weight: if w.is_valid(i) { w.value(i) } else { 1.0 },
             nmac: nmac.value(i),
             lowc: lowc.value(i),
             collision: collisions.value(i) > 0,
         };
-        let ended = if outcome.collision {
+        row.ended = if outcome.collision {
             "collision"
         } else if outcome.nmac {
             "nmac"
         } else {
             "pass"
-        };
-        all.add(&variant, ended, Some(outcome));
+        }
+        .into();
+        all.add(row, Some(outcome));
     }
     Ok(())
 }

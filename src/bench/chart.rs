@@ -3,25 +3,12 @@
 //! assets/fonts/DejaVu-LICENSE.txt), so it needs no system fonts.
 
 use std::path::Path;
-use std::sync::Once;
 
 use plotters::prelude::*;
-use plotters::style::{register_font, FontStyle};
 
 use super::BenchReport;
+use crate::chart_font::font;
 use crate::error::{Error, Result};
-
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSansMono.ttf");
-
-fn font() -> Result<()> {
-    static REGISTER: Once = Once::new();
-    let mut failed = false;
-    REGISTER.call_once(|| failed = register_font("sans-serif", FontStyle::Normal, FONT).is_err());
-    if failed {
-        return Err(Error::Usage("the bundled chart font does not load".into()));
-    }
-    Ok(())
-}
 
 /// Colour of a mode's points.
 fn colour(mode: &str) -> RGBColor {

@@ -8,9 +8,34 @@
 //! - [`table`]: rows as Arrow columns, a shard's Parquet file (written atomically, with
 //!   metadata), and reading a directory of shards back.
 //! - [`summary`]: outcome counts, rates and risk ratios per variant, as text and JSON.
+//! - [`report`]: the same as one self-contained HTML page with charts and the rows.
+//! - [`recordings`]: which rows are kept as rerun recordings (`--rerun-rows`).
 
 pub mod manifest;
+pub mod recordings;
+pub mod report;
 pub mod scenes;
 pub mod shard;
 pub mod summary;
 pub mod table;
+
+/// Row `index`'s name for its files and folders: its index, then its id's letters, digits,
+/// `-`, `_` and `#` (anything else `_`), so that no id names a path outside the run's.
+///
+/// ```
+/// assert_eq!(savsim::runs::row_name(7, "../a b"), "000007-___a_b");
+/// ```
+pub fn row_name(index: u64, id: &str) -> String {
+    let id: String = id
+        .chars()
+        .take(64)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_#".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    format!("{index:06}-{id}")
+}

@@ -12,11 +12,51 @@ use serde_json::json;
 
 use crate::daa::ratios::{rates, ratios, Outcome, RESAMPLES};
 
+/// One row as a report shows it: who it is, how it ended, what it measured (`None` where the
+/// shard has no such column or the row no value).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RowView {
+    /// The row's index in its manifest.
+    pub index: u64,
+    /// `row_id` (study) or `run_id` (batch).
+    pub id: String,
+    /// The variant (`nominal` when the row names none).
+    pub variant: String,
+    /// The pair (the row's id when it names none).
+    pub pair: String,
+    /// How it ended: `collision`, `nmac`, `soft_fail`, `pass` or `error`.
+    pub ended: String,
+    /// Closest approach to traffic, metres.
+    pub cpa_m: Option<f64>,
+    /// Closest approach to a scene obstacle, metres.
+    pub closest_obstacle_m: Option<f64>,
+    /// When the autopilot first acted (study), seconds on the row's timeline.
+    pub first_acted_t_s: Option<f64>,
+    /// Simulated seconds per wall-clock second (study).
+    pub achieved_speedup: Option<f64>,
+    /// Wall-clock seconds the row took.
+    pub wall_s: Option<f64>,
+    /// Why it failed, for `error` rows.
+    pub error: Option<String>,
+    /// The autopilot's version, as it told it (study).
+    pub autopilot_version: Option<String>,
+}
+
+impl RowView {
+    /// Whether the row is worth a look: it did not pass in a variant other than `nominal`,
+    /// or passed in `nominal` (where the event was meant to happen), or failed to run.
+    pub fn worth_a_look(&self, nominal: &str) -> bool {
+        (self.variant == nominal) == (self.ended == "pass") || self.ended == "error"
+    }
+}
+
 /// The rows of a directory of shards, as the summary needs them.
 #[derive(Debug, Default)]
 pub struct Summary {
     /// Rows that ran.
     pub outcomes: Vec<Outcome>,
+    /// Every row read, in file and row order.
+    pub rows: Vec<RowView>,
     /// Per variant: how many rows ended each way (`collision`, `nmac`, `pass`, `error`, and
     /// the command's own: `soft_fail`).
     pub counts: BTreeMap<String, BTreeMap<String, u64>>,
@@ -25,15 +65,16 @@ pub struct Summary {
 }
 
 impl Summary {
-    /// Take one row: its variant, how it ended, and (when it ran) its outcome.
-    pub fn add(&mut self, variant: &str, ended: &str, outcome: Option<Outcome>) {
+    /// Take one row and (when it ran) its outcome.
+    pub fn add(&mut self, row: RowView, outcome: Option<Outcome>) {
         *self
             .counts
-            .entry(variant.to_owned())
+            .entry(row.variant.clone())
             .or_default()
-            .entry(ended.to_owned())
+            .entry(row.ended.clone())
             .or_default() += 1;
         self.outcomes.extend(outcome);
+        self.rows.push(row);
     }
 
     /// Rows that failed (`error`), in every variant.

@@ -196,6 +196,26 @@ pub fn column<'a, T: 'static>(batch: &'a RecordBatch, name: &str, path: &Path) -
         .ok_or_else(|| Error::Usage(format!("{}: no column {name} of its type", path.display())))
 }
 
+/// Column `name` of `batch` when it is there with type `T` (columns a report shows where a
+/// shard has them).
+pub fn optional<'a, T: 'static>(batch: &'a RecordBatch, name: &str) -> Option<&'a T> {
+    batch
+        .column_by_name(name)
+        .and_then(|c| c.as_any().downcast_ref::<T>())
+}
+
+/// Row `i` of an optional number column, `None` where it is absent or null.
+pub fn float_at(column: Option<&Float64Array>, i: usize) -> Option<f64> {
+    column.filter(|c| c.is_valid(i)).map(|c| c.value(i))
+}
+
+/// Row `i` of an optional text column, `None` where it is absent or null.
+pub fn text_at(column: Option<&StringArray>, i: usize) -> Option<String> {
+    column
+        .filter(|c| c.is_valid(i))
+        .map(|c| c.value(i).to_string())
+}
+
 /// Row `i` of a text column, or `default` where it is null.
 pub fn text_or(column: &StringArray, i: usize, default: &str) -> String {
     if column.is_valid(i) {

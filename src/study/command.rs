@@ -24,6 +24,9 @@ pub const MAX_JOBS: usize = 64;
 pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     match &args.command {
         Some(StudyCommand::Summarize { dir, nominal, json }) => summarize(dir, nominal, *json),
+        Some(StudyCommand::Report { dir, out, nominal }) => {
+            write_report(dir, out.as_deref(), nominal)
+        }
         Some(StudyCommand::Gen {
             kind,
             autopilot,
@@ -47,6 +50,19 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
 /// `study summarize`.
 fn summarize(dir: &Path, nominal: &str, json: bool) -> Result<()> {
     crate::study::summarize::read_dir(dir)?.print(nominal, json);
+    Ok(())
+}
+
+/// `study report`: the page written, its path printed.
+fn write_report(dir: &Path, out: Option<&Path>, nominal: &str) -> Result<()> {
+    let summary = crate::study::summarize::read_dir(dir)?;
+    let options = crate::runs::report::Options {
+        command: "study",
+        nominal,
+        failing_rows_only: false,
+    };
+    let path = crate::runs::report::write(dir, &summary, out, options)?;
+    println!("{}", path.display());
     Ok(())
 }
 
@@ -102,6 +118,7 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
         shutdown.clone(),
     );
     setup.record_feed = args.keep_work;
+    setup.record_rows = args.rerun_rows.clone();
     let results = fly_shard(&rows[range.clone()], range.start, args, &setup);
     if shutdown.load(Ordering::Relaxed) {
         return Err(Error::Runtime(
@@ -161,12 +178,33 @@ fn fly_shard(
             r.sim_s,
             r.wall_s
         );
+        let folder = setup.work.join(crate::runs::row_name(r.index, &r.row_id));
+        keep_recording(r, &folder, setup);
         if !args.keep_work && r.outcome != Outcome::Error {
-            let folder = crate::study::run::folder_name(r.index, &r.row_id);
-            let _ = std::fs::remove_dir_all(setup.work.join(folder));
+            let _ = std::fs::remove_dir_all(folder);
         }
     };
     crate::study::run_rows(rows, first_index, args.jobs, setup, &on_done)
+}
+
+/// Move row `r`'s recording (when it made one) beside the results if `--rerun-rows` keeps it,
+/// else remove it; what happened said on stderr.
+fn keep_recording(r: &StudyResult, folder: &Path, setup: &Setup) {
+    let made = folder.join(crate::study::run::RECORDING);
+    let Some(choice) = setup.record_rows.as_ref().filter(|_| made.is_file()) else {
+        return;
+    };
+    let variant = r.inputs.variant.as_deref().unwrap_or("nominal");
+    if !choice.keeps(&r.row_id, variant, r.outcome.name(), "nominal") {
+        let _ = std::fs::remove_file(&made);
+        return;
+    }
+    // The results directory: the work folder's parent.
+    let out = setup.work.parent().unwrap_or(&setup.work);
+    match crate::runs::recordings::keep(&made, out, r.index, &r.row_id) {
+        Ok(kept) => eprintln!("study: {}: recording {}", r.row_id, kept.display()),
+        Err(e) => eprintln!("study: {}: the recording was not kept: {e}", r.row_id),
+    }
 }
 
 /// ArduCopter from `--arducopter` or `SAVSIM_ARDUCOPTER`, with `SAVSIM_ARDUCOPTER_DEFAULTS`.

@@ -19,6 +19,7 @@ use crate::ingest::live::Link;
 use crate::ingest::stats::SenderId;
 use crate::live::{run_links, Flag, LiveOptions, LiveRun};
 use crate::pipeline::CollisionConfig;
+use crate::runs::recordings::RowChoice;
 use crate::runs::scenes::{SceneCache, SceneLookup};
 use crate::scene::{Kind, Scene, Waypoint};
 use crate::session::Session;
@@ -126,6 +127,8 @@ pub struct Setup {
     /// Record every frame the feed sends a row's vehicle to `feed.tlog` in the row's folder
     /// (`--keep-work` keeps it). Default false.
     pub record_feed: bool,
+    /// Rows recorded for the rerun viewer, each to [`RECORDING`] in its folder (`--rerun-rows`).
+    pub record_rows: Option<RowChoice>,
     scenes: SceneCache,
 }
 
@@ -145,6 +148,7 @@ impl Setup {
             work,
             stop,
             record_feed: false,
+            record_rows: None,
             scenes: SceneCache::load(rows.iter().filter_map(|r| r.scene.as_deref())),
         }
     }
@@ -288,6 +292,28 @@ fn session_for(
     Ok(session)
 }
 
+/// The file in a row's folder its recording is written to while it flies.
+pub const RECORDING: &str = "row.rrd";
+
+/// Record the row's session for the rerun viewer, to [`RECORDING`] in `dir` (made).
+#[cfg(feature = "viz")]
+fn record_to(session: &mut Session, dir: &Path) -> Result<(), RowError> {
+    let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
+    std::fs::create_dir_all(dir)
+        .map_err(|e| RowError::Savsim(format!("{}: {e}", dir.display())))?;
+    let target = crate::viz::RerunTarget::Save(dir.join(RECORDING));
+    session
+        .start_viz(&target, crate::viz::VizOptions::default())
+        .map_err(savsim)
+}
+
+#[cfg(not(feature = "viz"))]
+fn record_to(_: &mut Session, _: &Path) -> Result<(), RowError> {
+    Err(RowError::Savsim(
+        "--rerun-rows: this savsim was built without rerun (feature viz)".into(),
+    ))
+}
+
 /// The row's scene, with its intruder as a scripted track `intruder`.
 fn scene_for(row: &StudyRow, checked: &Checked, setup: &Setup) -> Result<Arc<Scene>, RowError> {
     let scene = setup.scene(row.scene.as_deref())?;
@@ -319,13 +345,22 @@ fn fly_row(
     let checked = check(row, setup.speedup)?;
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
-    let session = session_for(row, scene.clone(), checked.feed)?;
+    let mut session = session_for(row, scene.clone(), checked.feed)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
         .build()
         .map_err(|e| RowError::Savsim(format!("start the network runtime: {e}")))?;
-    let dir = setup.work.join(folder_name(result.index, &result.row_id));
+    let dir = setup
+        .work
+        .join(crate::runs::row_name(result.index, &result.row_id));
+    if setup
+        .record_rows
+        .as_ref()
+        .is_some_and(|c| c.records(&result.row_id))
+    {
+        record_to(&mut session, &dir)?;
+    }
     let start = Start {
         instance,
         home: home_of(&scene),
@@ -631,23 +666,6 @@ fn did(heard: &Heard, flown: &Flown, px4: bool) -> AutopilotDid {
         first_acted_t_s,
         version: heard.version.clone(),
     }
-}
-
-/// Row `index`'s folder name: its index, then its id's letters, digits, `-`, `_` and `#`
-/// (anything else `_`), so that no id names a folder outside the study's.
-pub fn folder_name(index: u64, id: &str) -> String {
-    let id: String = id
-        .chars()
-        .take(64)
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_#".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    format!("{index:06}-{id}")
 }
 
 #[cfg(test)]

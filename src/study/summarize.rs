@@ -9,8 +9,8 @@ use arrow_array::{Array, BooleanArray, Float64Array, RecordBatch, StringArray, U
 
 use crate::daa::ratios::Outcome;
 use crate::error::Result;
-use crate::runs::summary::Summary;
-use crate::runs::table::{column, for_each_batch, text_or};
+use crate::runs::summary::{RowView, Summary};
+use crate::runs::table::{column, float_at, for_each_batch, optional, text_at, text_or};
 
 /// Read every `*.parquet` in `dir`.
 pub fn read_dir(dir: &Path) -> Result<Summary> {
@@ -33,18 +33,43 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
         column::<BooleanArray>(batch, "lowc", path)?,
     );
     let collisions = column::<UInt64Array>(batch, "collisions", path)?;
+    let number = |name: &str| optional::<Float64Array>(batch, name);
+    let (cpa, obstacle, acted, speedup, wall) = (
+        number("cpa_m"),
+        number("closest_obstacle_m"),
+        number("first_acted_t_s"),
+        number("achieved_speedup"),
+        number("wall_s"),
+    );
+    let (error, version) = (
+        optional::<StringArray>(batch, "error"),
+        optional::<StringArray>(batch, "autopilot_version"),
+    );
+    let index = column::<UInt64Array>(batch, "index", path)?;
     for i in 0..batch.num_rows() {
-        let variant = text_or(variant, i, "nominal");
-        let ended = text_or(outcome, i, "error");
-        let flew = (ended != "error").then(|| Outcome {
+        let row = RowView {
+            index: index.value(i),
+            id: row_id.value(i).to_string(),
+            variant: text_or(variant, i, "nominal"),
             pair: text_or(pair, i, row_id.value(i)),
-            variant: variant.clone(),
+            ended: text_or(outcome, i, "error"),
+            cpa_m: float_at(cpa, i),
+            closest_obstacle_m: float_at(obstacle, i),
+            first_acted_t_s: float_at(acted, i),
+            achieved_speedup: float_at(speedup, i),
+            wall_s: float_at(wall, i),
+            error: text_at(error, i),
+            autopilot_version: text_at(version, i),
+        };
+        let flew = (row.ended != "error").then(|| Outcome {
+            pair: row.pair.clone(),
+            variant: row.variant.clone(),
             weight: if w.is_valid(i) { w.value(i) } else { 1.0 },
             nmac: nmac.value(i),
             lowc: lowc.value(i),
             collision: collisions.value(i) > 0,
         });
-        all.add(&variant, &ended, flew);
+        all.add(row, flew);
     }
     Ok(())
 }

@@ -118,6 +118,7 @@ mod osm;
 mod pairing;
 mod properties;
 mod rays;
+mod report;
 mod results;
 mod scenes;
 mod sensed_daa;

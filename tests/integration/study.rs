@@ -303,6 +303,8 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
             "study",
             "--speedup",
             &env("SAVSIM_STUDY_SPEEDUP", "10"),
+            "--rerun-rows",
+            "all",
             "--out",
         ])
         .arg(&out_dir)
@@ -322,6 +324,49 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
     let pairs: u64 = env("SAVSIM_STUDY_PAIRS", "2").parse().unwrap();
     assert_eq!(json["outcomes"]["nominal"]["collision"], pairs);
     assert!(json["outcomes"]["mitigated"]["collision"].is_null());
+    rows_are_recorded_and_linked(&out_dir, 2 * pairs as usize);
+}
+
+/// Every row of a study flown with `--rerun-rows all` has a recording that rerun's own reader
+/// verifies (`rerun rrd verify`, when the CLI is there) and that the study's report links to.
+fn rows_are_recorded_and_linked(out_dir: &Path, rows: usize) {
+    let mut recordings: Vec<_> = std::fs::read_dir(out_dir.join("rows"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    recordings.sort();
+    assert_eq!(recordings.len(), rows, "{recordings:?}");
+    let rerun = Command::new("rerun").arg("--version").output();
+    if rerun.is_ok_and(|o| o.status.success()) {
+        let verify = Command::new("rerun")
+            .args(["rrd", "verify"])
+            .args(&recordings)
+            .output()
+            .unwrap();
+        assert_ran(&verify);
+    } else {
+        assert!(
+            std::env::var_os("SAVSIM_REQUIRE_RENDERER").is_none(),
+            "the rerun CLI is required here but missing"
+        );
+        eprintln!("SKIP: no rerun CLI (pip install rerun-sdk==0.36.3): recordings not verified");
+    }
+    let report = savsim()
+        .args(["study", "report"])
+        .arg(out_dir)
+        .output()
+        .unwrap();
+    assert_ran(&report);
+    let page = std::fs::read_to_string(out_dir.join("report.html")).unwrap();
+    let links: Vec<&str> = page
+        .split("<a href=\"")
+        .skip(1)
+        .map(|s| &s[..s.find('"').unwrap()])
+        .collect();
+    assert_eq!(links.len(), rows, "{links:?}");
+    for link in links {
+        assert!(out_dir.join(link).is_file(), "{link}");
+    }
 }
 
 /// Whether process `pid` runs (Linux's /proc: there, and not a zombie awaiting its parent).

@@ -1,0 +1,228 @@
+//! `savsim study report DIR` and `savsim batch report DIR`: a results directory as one
+//! self-contained HTML page (no network, no script but the table's sorting): the outcome
+//! counts per variant, every risk ratio with its 95% interval, histograms of the closest
+//! approaches (to traffic, to obstacles), of when the autopilot first acted and of the achieved
+//! speedups, the rows (each linked to its recording when `--rerun-rows` kept one) and the
+//! study's metadata from its shard files. Written whole or not at all.
+
+pub mod charts;
+pub mod html;
+
+use std::path::{Path, PathBuf};
+
+use crate::daa::ratios::ratios;
+use crate::error::{Error, Result};
+use crate::runs::summary::{RowView, Summary};
+use crate::runs::table::read_settings;
+
+/// The folder of a results directory that row recordings go to (`--rerun-rows`).
+pub const RECORDINGS: &str = "rows";
+
+/// What the report is of.
+#[derive(Debug, Clone, Copy)]
+pub struct Options<'a> {
+    /// `study` or `batch`.
+    pub command: &'static str,
+    /// The variant the others are compared with.
+    pub nominal: &'a str,
+    /// Only the rows worth a look in the table (a batch of 10^5 rows), else every row.
+    pub failing_rows_only: bool,
+}
+
+/// Where row `index` (`id`)'s recording is kept in results directory `dir`.
+pub fn recording_path(dir: &Path, index: u64, id: &str) -> PathBuf {
+    dir.join(RECORDINGS)
+        .join(format!("{}.rrd", crate::runs::row_name(index, id)))
+}
+
+/// Write the report of `summary` (read from `dir`) to `out` (default `dir/report.html`);
+/// the path written.
+pub fn write(
+    dir: &Path,
+    summary: &Summary,
+    out: Option<&Path>,
+    options: Options,
+) -> Result<PathBuf> {
+    let out = out.map_or_else(|| dir.join("report.html"), Path::to_path_buf);
+    let page = page(dir, summary, &out, options)?;
+    let tmp = out.with_extension("html.tmp");
+    std::fs::write(&tmp, page).map_err(|e| Error::file(&tmp, e))?;
+    std::fs::rename(&tmp, &out).map_err(|e| Error::file(&out, e))?;
+    Ok(out)
+}
+
+/// The page's text.
+fn page(dir: &Path, summary: &Summary, out: &Path, options: Options) -> Result<String> {
+    let Options {
+        command, nominal, ..
+    } = options;
+    let title = format!("savsim {command} report: {}", dir.display());
+    let mut sections = vec![html::section(
+        "summary",
+        "Summary",
+        &format!("<pre>{}</pre>\n", html::escape(&summary.text(nominal, 3))),
+    )];
+    sections.push(html::section(
+        "outcomes",
+        "Outcomes",
+        &html::figure(Some(charts::outcomes(&summary.counts)?), ""),
+    ));
+    sections.push(html::section(
+        "ratios",
+        &format!("Risk ratios against {nominal}"),
+        &html::figure(
+            charts::ratios(&ratios(&summary.outcomes, nominal))?,
+            "No ratio is defined: no variant was flown over the same pairs as the nominal one, \
+             or the nominal one had no event.",
+        ),
+    ));
+    sections.extend(distributions(summary)?);
+    sections.push(rows_section(dir, summary, out, options));
+    sections.push(metadata(summary)?);
+    Ok(html::page(&title, &sections))
+}
+
+/// One row measure per variant, over the rows that have it.
+fn per_variant(summary: &Summary, f: impl Fn(&RowView) -> Option<f64>) -> Vec<(String, Vec<f64>)> {
+    summary
+        .counts
+        .keys()
+        .map(|variant| {
+            let values = summary
+                .rows
+                .iter()
+                .filter(|r| &r.variant == variant)
+                .filter_map(&f)
+                .collect();
+            (variant.clone(), values)
+        })
+        .collect()
+}
+
+/// A histogram's section id, heading, unit, and the measure of a row it counts.
+type Measure = (
+    &'static str,
+    &'static str,
+    &'static str,
+    fn(&RowView) -> Option<f64>,
+);
+
+/// The histograms: closest approaches, first action, achieved speedup.
+fn distributions(summary: &Summary) -> Result<Vec<String>> {
+    let specs: [Measure; 4] = [
+        ("traffic", "Closest approach to traffic", "metres", |r| {
+            r.cpa_m
+        }),
+        (
+            "obstacles",
+            "Closest approach to an obstacle",
+            "metres",
+            |r| r.closest_obstacle_m,
+        ),
+        (
+            "acted",
+            "When the autopilot first acted",
+            "seconds on the row's timeline",
+            |r| r.first_acted_t_s,
+        ),
+        (
+            "speedups",
+            "Achieved speedup",
+            "simulated seconds per wall-clock second",
+            |r| r.achieved_speedup,
+        ),
+    ];
+    specs
+        .iter()
+        .map(|&(id, heading, unit, f)| {
+            let chart = charts::histograms(unit, &per_variant(summary, f))?;
+            Ok(html::section(
+                id,
+                heading,
+                &html::figure(chart, "No row has this measure."),
+            ))
+        })
+        .collect()
+}
+
+/// The rows' table, each linked to its recording when there is one.
+fn rows_section(dir: &Path, summary: &Summary, out: &Path, options: Options) -> String {
+    let shown: Vec<&RowView> = summary
+        .rows
+        .iter()
+        .filter(|r| !options.failing_rows_only || r.worth_a_look(options.nominal))
+        .collect();
+    let beside = out.parent().is_some_and(|p| same_dir(p, dir));
+    let table = html::rows_table(&shown, |row| {
+        let path = recording_path(dir, row.index, &row.id);
+        path.is_file().then(|| {
+            if beside {
+                format!(
+                    "{RECORDINGS}/{}",
+                    path.file_name().unwrap_or_default().to_string_lossy()
+                )
+            } else {
+                path.canonicalize().unwrap_or(path).display().to_string()
+            }
+        })
+    });
+    let what = if options.failing_rows_only {
+        format!(
+            "{} of {} rows: those worth a look (not `pass` in a variant other than {n}; `pass` in {n})",
+            shown.len(),
+            summary.rows.len(),
+            n = options.nominal
+        )
+    } else {
+        format!("All {} rows; click a heading to sort.", shown.len())
+    };
+    html::section(
+        "rows",
+        "Rows",
+        &format!("<p>{}</p>\n{table}", html::escape(&what)),
+    )
+}
+
+/// Whether `a` and `b` name one directory (`""` is the current one).
+fn same_dir(a: &Path, b: &Path) -> bool {
+    let real = |p: &Path| {
+        let p = if p.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            p
+        };
+        p.canonicalize().ok()
+    };
+    real(a).is_some() && real(a) == real(b)
+}
+
+/// The shard files and what the first says of how the results were made.
+fn metadata(summary: &Summary) -> Result<String> {
+    let mut pairs: Vec<(String, String)> = match summary.files.first() {
+        Some(first) => read_settings(first)?,
+        None => Vec::new(),
+    };
+    // Arrow's own copy of the schema (base64) is for readers, not people.
+    pairs.retain(|(k, _)| !k.starts_with("ARROW:"));
+    let mut versions: Vec<&str> = summary
+        .rows
+        .iter()
+        .filter_map(|r| r.autopilot_version.as_deref())
+        .collect();
+    versions.sort_unstable();
+    versions.dedup();
+    if !versions.is_empty() {
+        pairs.push(("autopilot versions (rows)".into(), versions.join(", ")));
+    }
+    let files: Vec<String> = summary
+        .files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect();
+    pairs.push(("shard files".into(), files.join(", ")));
+    Ok(html::section(
+        "metadata",
+        "How these results were made",
+        &html::pairs_table(&pairs),
+    ))
+}
