@@ -460,6 +460,20 @@ fn batch_rows_carry_the_loss_of_well_clear_and_summarize_gives_the_ratios() {
         low.zip(high).is_some_and(|(l, h)| l <= 0.2 && 0.2 <= h),
         "{ratio}"
     );
+    // The report's table holds the rows that did not pass: the four nominal NMACs, m0's, and
+    // the two unpaired rows' (100 m off: an NMAC).
+    let report = Command::new(env!("CARGO_BIN_EXE_savsim"))
+        .args(["batch", "report", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    crate::common::assert_ran(&report);
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        page.contains("The 7 of 10 rows that did not pass"),
+        "{page}"
+    );
+    assert_eq!(page.matches("<tr class=\"nmac\">").count(), 7);
+    assert_eq!(page.matches("<tr class=").count(), 7);
 }
 
 #[test]
