@@ -1,7 +1,8 @@
 //! The recording's default layout (a rerun blueprint): one chase view per vehicle (up to
-//! [`MAX_CHASE_VIEWS`]) whose eye rides with the vehicle, a top-down overview of the flown area,
-//! and the time series below. Written with rerun's blueprint archetypes directly, because the
-//! SDK's layout builder cannot set a view's eye (`EyeControls3D`).
+//! [`MAX_CHASE_VIEWS`]) whose eye rides with the vehicle, a top-down overview of the flown area
+//! (of the scene when nothing flew), and the time series below when something flew. Written
+//! with rerun's blueprint archetypes directly, because the SDK's layout builder cannot set a
+//! view's eye (`EyeControls3D`).
 
 use glam::Vec3;
 use rerun::blueprint::components::{
@@ -35,6 +36,8 @@ pub struct Layout {
     pub overview: Option<(Vec3, Vec3)>,
     /// A span of `tlog_time` (UNIX seconds) to select on the time panel: the first collision.
     pub focus_s: Option<(f64, f64)>,
+    /// The overview frames the scene alone (nothing flew): closely, not with a flight's margin.
+    pub scene_only: bool,
 }
 
 /// Send `layout` as the recording's active and default blueprint.
@@ -78,19 +81,25 @@ pub fn chase_eye(distance_m: f32) -> EyeControls3D {
 }
 
 /// The overview eye: straight down on the centre of `area` (north up), high enough that the
-/// whole area fits a 55-degree field of view with a margin.
-pub fn overview_eye(area: (Vec3, Vec3)) -> EyeControls3D {
+/// whole area fits a 55-degree field of view with a `margin` (2 around a flight: it also keeps
+/// tall buildings from looming; 1.1 around a scene alone).
+pub fn overview_eye(area: (Vec3, Vec3), margin: f32) -> EyeControls3D {
     let (min, max) = area;
     let centre = (min + max) * 0.5;
-    let half = ((max - min) * 0.5).max(Vec3::splat(50.0));
-    // tan(27.5 deg) = 0.52; 2 is the margin (it also keeps tall buildings from looming), and
-    // the width counts as the view is wider than it is tall only up to about 1.5.
-    let height = (half.x.max(half.y * 1.5) / 0.52 * 2.0 / 1.5).max(300.0);
+    let height = eye_height_m(area, margin);
     let eye = centre + Vec3::new(0.0, -0.02 * height, max.z - centre.z + height);
     EyeControls3D::new()
         .with_position(eye.to_array())
         .with_look_target(centre.to_array())
         .with_eye_up([0.0, 1.0, 0.0])
+}
+
+/// How high above the area's top the overview eye is, metres.
+fn eye_height_m((min, max): (Vec3, Vec3), margin: f32) -> f32 {
+    let half = ((max - min) * 0.5).max(Vec3::splat(50.0));
+    // tan(27.5 deg) = 0.52; the width counts as the view is wider than it is tall only up to
+    // about 1.5.
+    (half.x.max(half.y * 1.5) / 0.52 * margin / 1.5).max(300.0)
 }
 
 struct Writer<'a> {
@@ -173,6 +182,25 @@ impl Writer<'_> {
         self.view("TimeSeries", name, origin, &[format!("{origin}/**")], None)
     }
 
+    /// The row of time series: tick cost, active colliders, beta.
+    fn series_row(&mut self) -> RecordingStreamResult<String> {
+        let series = vec![
+            self.series("tick cost (µs)", &format!("/{}/cost_us", paths::METRICS))?,
+            self.series(
+                "active colliders",
+                &format!("/{}/colliders", paths::METRICS),
+            )?,
+            self.series("beta", &format!("/{}/beta", paths::METRICS))?,
+        ];
+        let (row, _) = self.container(
+            "series",
+            ContainerKind::Horizontal,
+            series,
+            &[1.0, 1.0, 1.0],
+        )?;
+        Ok(row)
+    }
+
     fn layout(&mut self, layout: &Layout) -> RecordingStreamResult<()> {
         let mut chases = Vec::new();
         for &(id, distance_m) in layout.chased.iter().take(MAX_CHASE_VIEWS) {
@@ -201,7 +229,9 @@ impl Writer<'_> {
             "overview",
             &format!("/{}", paths::WORLD),
             &contents,
-            layout.overview.map(overview_eye),
+            layout
+                .overview
+                .map(|a| overview_eye(a, if layout.scene_only { 1.1 } else { 2.0 })),
         )?;
         let mut top = Vec::new();
         match chases.len() {
@@ -218,26 +248,13 @@ impl Writer<'_> {
         top.push(overview);
         let top_shares = vec![1.0; top.len()];
         let (top, _) = self.container("top", ContainerKind::Horizontal, top, &top_shares)?;
-        let series = vec![
-            self.series("tick cost (µs)", &format!("/{}/cost_us", paths::METRICS))?,
-            self.series(
-                "active colliders",
-                &format!("/{}/colliders", paths::METRICS),
-            )?,
-            self.series("beta", &format!("/{}/beta", paths::METRICS))?,
-        ];
-        let (bottom, _) = self.container(
-            "series",
-            ContainerKind::Horizontal,
-            series,
-            &[1.0, 1.0, 1.0],
-        )?;
-        let (_, root) = self.container(
-            "root",
-            ContainerKind::Vertical,
-            vec![top, bottom],
-            &[3.0, 1.0],
-        )?;
+        // The time series only when something flies (a scene alone has none to draw).
+        let (rows, shares) = if layout.vehicles.is_empty() {
+            (vec![top], vec![1.0])
+        } else {
+            (vec![top, self.series_row()?], vec![3.0, 1.0])
+        };
+        let (_, root) = self.container("root", ContainerKind::Vertical, rows, &shares)?;
         self.rec.log(
             "viewport",
             &ViewportBlueprint::new()
@@ -292,6 +309,17 @@ mod tests {
             bytes: 0x5a75_0000_0000_4000_8000_0000_0000_0001_u128.to_be_bytes(),
         });
         assert_eq!(text, "5a750000-0000-4000-8000-000000000001");
+    }
+
+    #[test]
+    fn a_scene_alone_is_framed_closer_than_a_flight() {
+        let area = (
+            Vec3::new(-1000.0, -1000.0, 0.0),
+            Vec3::new(1000.0, 1000.0, 50.0),
+        );
+        // 1000 * 1.5 / 0.52 * margin / 1.5.
+        assert!((eye_height_m(area, 1.1) - 2115.4).abs() < 0.1);
+        assert!((eye_height_m(area, 2.0) - 3846.2).abs() < 0.1);
     }
 
     #[test]

@@ -85,8 +85,19 @@ pub fn run(
         }
     }
     state.rows.flush(&rec).map_err(text)?;
+    if state.layout.vehicles.is_empty() {
+        // Nothing flew (`scene show`): the overview frames the scene.
+        state.layout.overview = scene_area(scene, state.offset);
+        state.layout.scene_only = true;
+    }
     blueprint::send(&rec, &state.layout).map_err(text)?;
     rec.flush_blocking().map_err(|e| e.to_string())
+}
+
+/// The static scene's bounds, logged (viz-offset) metres; `None` without obstacles.
+fn scene_area(scene: &Scene, offset: DVec3) -> Option<(Vec3, Vec3)> {
+    let b = scene.bounds_enu_m();
+    (b.min.cmple(b.max).all()).then(|| (local(offset, b.min), local(offset, b.max)))
 }
 
 fn log_scene(rec: &RecordingStream, state: &State<'_>) -> RecordingStreamResult<()> {

@@ -167,6 +167,17 @@ fn the_whole_octree_is_drawn_on_request() {
     assert!(text.contains("world/octree"));
 }
 
+/// `scene show`: nothing flies, so no time series is laid out, and the overview's eye is set
+/// (framing the scene; `savsim::viz::blueprint::overview_eye`).
+#[test]
+fn a_scene_alone_is_framed_without_empty_plots() {
+    let (mut session, storage) = city_session_in_memory(savsim::viz::VizOptions::default());
+    session.finish().unwrap();
+    let text = format!("{:?}", storage.take());
+    assert!(!text.contains("TimeSeries"), "an empty plot is laid out");
+    assert!(text.contains("overview") && text.contains("EyeControls3D"));
+}
+
 #[test]
 fn a_far_scene_is_logged_near_zero() {
     let text = "[origin]\nlat_deg = 47.0\nlon_deg = 8.0\nalt_m = 400.0\n\
