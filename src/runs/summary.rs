@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 use serde_json::json;
 
-use crate::daa::ratios::{rates, ratios, Outcome, RESAMPLES};
+use crate::daa::ratios::{rates, ratios, Outcome, VariantRates, VariantRatios, RESAMPLES};
 
 /// One row as a report shows it: who it is, how it ended, what it measured (`None` where the
 /// shard has no such column or the row no value).
@@ -110,6 +110,18 @@ impl Summary {
 
     /// The summary for a person at a terminal, numbers to `decimals` places.
     pub fn text(&self, nominal: &str, decimals: usize) -> String {
+        let (rates, ratios) = (rates(&self.outcomes), ratios(&self.outcomes, nominal));
+        self.text_of(&rates, &ratios, nominal, decimals)
+    }
+
+    /// [`Summary::text`] from rates and ratios already computed (the bootstrap is the cost).
+    pub fn text_of(
+        &self,
+        rates: &[VariantRates],
+        ratios: &[VariantRatios],
+        nominal: &str,
+        decimals: usize,
+    ) -> String {
         let e = |x: &crate::daa::ratios::Estimate| x.text(decimals);
         let mut text = format!(
             "{} rows ran, {} failed (left out), from {} files; 95% intervals: bootstrap over pairs\n",
@@ -121,7 +133,7 @@ impl Summary {
             let list: Vec<String> = counts.iter().map(|(k, n)| format!("{k} {n}")).collect();
             text += &format!("  {variant:<12} {}\n", list.join(", "));
         }
-        for r in rates(&self.outcomes) {
+        for r in rates {
             text += &format!(
                 "  {:<12} collision rate {}   NMAC rate {}   LoWC rate {}\n",
                 r.variant,
@@ -130,7 +142,7 @@ impl Summary {
                 e(&r.lowc_rate)
             );
         }
-        for r in ratios(&self.outcomes, nominal) {
+        for r in ratios {
             text += &format!(
                 "  {} / {nominal}: {} pairs   collision ratio {}   NMAC ratio {}   LoWC ratio {}\n",
                 r.variant,

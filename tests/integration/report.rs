@@ -127,6 +127,11 @@ fn a_study_report_shows_the_counts_ratios_and_rows_it_was_given() {
     // LoWC in the nominal rows): one point.
     let ratios = section(&page, "ratios");
     assert_eq!(count(ratios, "<circle"), 1, "{ratios}");
+    // The collision ratio over the first 2, 4, 6, 8, 10 and 12 pairs (12 k / 6): six points,
+    // in one panel.
+    let convergence = section(&page, "convergence");
+    assert_eq!(count(convergence, "<circle"), 6, "{convergence}");
+    assert!(convergence.contains("mitigated collision ratio"));
     // Histograms: closest approach to traffic in two panels (12 rows each, nominal 5-16 m,
     // mitigated 40-51 m), first action in the mitigated rows only.
     let traffic = section(&page, "traffic");

@@ -236,6 +236,91 @@ pub fn ratios(ratios: &[VariantRatios]) -> Result<Option<String>> {
     Ok(Some(chart))
 }
 
+/// One ratio's estimates as pairs accumulate: (pairs flown, estimate).
+pub type Trace = (String, Vec<(usize, Estimate)>);
+
+/// One panel per ratio, two a row: its value (points joined) and its 95% interval (a band; an
+/// unbounded end clipped at the panel's top) against the number of pairs flown. `None`
+/// without traces.
+pub fn convergence(traces: &[Trace]) -> Result<Option<String>> {
+    if traces.is_empty() {
+        return Ok(None);
+    }
+    let pairs_max = traces
+        .iter()
+        .flat_map(|(_, t)| t.iter().map(|(n, _)| *n))
+        .max()
+        .unwrap_or(1)
+        .max(1) as f64;
+    // Two panels a row.
+    let rows = traces.len().div_ceil(2);
+    let chart = svg(170 * rows as u32, |root| {
+        let areas = root.split_evenly((rows, 2));
+        for ((name, trace), area) in traces.iter().zip(&areas) {
+            let top = trace
+                .iter()
+                .flat_map(|(_, e)| [e.value, e.high])
+                .flatten()
+                .fold(1.0f64, f64::max)
+                * 1.1;
+            let mut chart = ChartBuilder::on(area)
+                .caption(name, FONT)
+                .margin(6)
+                .x_label_area_size(28)
+                .y_label_area_size(50)
+                .build_cartesian_2d(0f64..pairs_max * 1.02, 0f64..top)
+                .map_err(failed)?;
+            chart
+                .configure_mesh()
+                .x_desc("pairs flown")
+                .y_desc("ratio")
+                .x_label_formatter(&|x| format!("{x:.0}"))
+                .y_labels(4)
+                .label_style(FONT)
+                .draw()
+                .map_err(failed)?;
+            let colour = VARIANT_COLOURS[0];
+            let band: Vec<(f64, f64)> = trace
+                .iter()
+                .filter(|(_, e)| e.value.is_some())
+                .map(|(n, e)| (*n as f64, e.high.unwrap_or(top).min(top)))
+                .chain(
+                    trace
+                        .iter()
+                        .rev()
+                        .filter(|(_, e)| e.value.is_some())
+                        .map(|(n, e)| (*n as f64, e.low.unwrap_or(0.0))),
+                )
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    band,
+                    colour.mix(0.2).filled(),
+                )))
+                .map_err(failed)?;
+            let points: Vec<(f64, f64)> = trace
+                .iter()
+                .filter_map(|(n, e)| Some((*n as f64, e.value?)))
+                .collect();
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    points.clone(),
+                    colour.stroke_width(2),
+                )))
+                .map_err(failed)?;
+            chart
+                .draw_series(
+                    points
+                        .into_iter()
+                        .map(|p| Circle::new(p, 3, colour.filled())),
+                )
+                .map_err(failed)?;
+        }
+        Ok(())
+    })?;
+    Ok(Some(chart))
+}
+
 /// Bins of equal width from 0 to the largest value (at least 1), and each series' counts.
 fn bin(series: &[(String, Vec<f64>)], bins: usize) -> (f64, Vec<Vec<u64>>) {
     let top = series

@@ -10,7 +10,7 @@ pub mod html;
 
 use std::path::{Path, PathBuf};
 
-use crate::daa::ratios::ratios;
+use crate::daa::ratios::{rates, ratios, Estimate, VariantRatios};
 use crate::error::{Error, Result};
 use crate::runs::summary::{RowView, Summary};
 use crate::runs::table::read_settings;
@@ -57,10 +57,13 @@ fn page(dir: &Path, summary: &Summary, out: &Path, options: Options) -> Result<S
         command, nominal, ..
     } = options;
     let title = format!("savsim {command} report: {}", dir.display());
+    // The bootstrap is the report's cost: each estimate computed once.
+    let all = ratios(&summary.outcomes, nominal);
+    let text = summary.text_of(&rates(&summary.outcomes), &all, nominal, 3);
     let mut sections = vec![html::section(
         "summary",
         "Summary",
-        &format!("<pre>{}</pre>\n", html::escape(&summary.text(nominal, 3))),
+        &format!("<pre>{}</pre>\n", html::escape(&text)),
     )];
     sections.push(html::section(
         "outcomes",
@@ -71,15 +74,71 @@ fn page(dir: &Path, summary: &Summary, out: &Path, options: Options) -> Result<S
         "ratios",
         &format!("Risk ratios against {nominal}"),
         &html::figure(
-            charts::ratios(&ratios(&summary.outcomes, nominal))?,
+            charts::ratios(&all)?,
             "No ratio is defined: no variant was flown over the same pairs as the nominal one, \
              or the nominal one had no event.",
+        ),
+    ));
+    sections.push(html::section(
+        "convergence",
+        "Risk ratios as pairs accumulate",
+        &html::figure(
+            charts::convergence(&convergence(summary, &all, nominal))?,
+            "No ratio is defined.",
         ),
     ));
     sections.extend(distributions(summary)?);
     sections.push(rows_section(dir, summary, out, options));
     sections.push(metadata(summary)?);
     Ok(html::page(&title, &sections))
+}
+
+/// Points on the convergence chart: the ratios over the first k/[`STEPS`] of the pairs (a
+/// prefix costs its share of a bootstrap over all of them: 6 points cost 2.5 more).
+const STEPS: usize = 6;
+
+/// Each ratio defined over all the pairs (`all`), computed again over the first pairs (in the
+/// order the rows name them) at [`STEPS`] sizes: is the answer settled, or still moving?
+fn convergence(summary: &Summary, all: &[VariantRatios], nominal: &str) -> Vec<charts::Trace> {
+    let mut order: Vec<&str> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for o in &summary.outcomes {
+        if seen.insert(o.pair.as_str()) {
+            order.push(o.pair.as_str());
+        }
+    }
+    let mut traces: std::collections::BTreeMap<String, Vec<(usize, Estimate)>> = Default::default();
+    let mut sizes: Vec<usize> = (1..STEPS).map(|k| order.len() * k / STEPS).collect();
+    sizes.dedup();
+    let prefixes = sizes.into_iter().filter(|n| *n > 0).map(|n| {
+        let first: std::collections::HashSet<&str> = order[..n].iter().copied().collect();
+        let some: Vec<_> = summary
+            .outcomes
+            .iter()
+            .filter(|o| first.contains(o.pair.as_str()))
+            .cloned()
+            .collect();
+        ratios(&some, nominal)
+    });
+    for rs in prefixes.chain(std::iter::once(all.to_vec())) {
+        for r in rs {
+            for (measure, e) in [
+                ("collision", r.collision_ratio),
+                ("NMAC", r.nmac_ratio),
+                ("LoWC", r.lowc_ratio),
+            ] {
+                traces
+                    .entry(format!("{} {measure} ratio", r.variant))
+                    .or_default()
+                    .push((r.pairs, e));
+            }
+        }
+    }
+    // Only the ratios defined over all the pairs.
+    traces
+        .into_iter()
+        .filter(|(_, t)| t.last().is_some_and(|(_, e)| e.value.is_some()))
+        .collect()
 }
 
 /// One row measure per variant, over the rows that have it.

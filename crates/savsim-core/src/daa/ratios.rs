@@ -100,31 +100,25 @@ pub const RESAMPLES: usize = 2000;
 /// The bootstrap's seed (ChaCha8): the same intervals on every run.
 pub const BOOTSTRAP_SEED: u64 = 0x5a75_1a7e;
 
-/// A weighted rate over rows: sum(w * event) / sum(w).
-fn rate(rows: &[Weighted]) -> Option<f64> {
-    let total: f64 = rows.iter().map(|r| r.0).sum();
-    // + 0.0: an empty sum of floats is -0.0.
-    let hits: f64 = rows.iter().map(|r| r.0 * r.1).sum::<f64>() + 0.0;
-    (total > 0.0).then(|| hits / total)
-}
+/// A rate or a ratio as a quotient of sums, each item its (numerator, denominator) terms:
+/// a weighted rate's are (w * event, w), a ratio's (w * event under the variant, w * event
+/// under the nominal one). Undefined when the denominator's sum is not positive.
+type Terms = (f64, f64);
 
-/// A weight and whether the event happened (1 or 0), or for an encounter flown several
-/// times under one variant, the share of its flights in which it happened.
-type Weighted = (f64, f64);
-
-/// A ratio over pairs (the variant's, the nominal's): sum(w * event | variant) /
-/// sum(w * event | nominal).
-fn ratio(pairs: &[(Weighted, Weighted)]) -> Option<f64> {
-    let num: f64 = pairs.iter().map(|p| p.0 .0 * p.0 .1).sum::<f64>() + 0.0;
-    let den: f64 = pairs.iter().map(|p| p.1 .0 * p.1 .1).sum();
+/// sum(numerators) / sum(denominators), summed in the items' order.
+fn quotient(terms: impl Iterator<Item = Terms>) -> Option<f64> {
+    // From -0.0 as `Iterator::sum` does; + 0.0: an empty (or all -0.0) sum is then 0.0.
+    let (num, den) = terms.fold((-0.0f64, -0.0f64), |(n, d), (a, b)| (n + a, d + b));
+    let num = num + 0.0;
     (den > 0.0).then(|| num / den)
 }
 
-/// The statistic on the data and its percentile-bootstrap interval. A resample whose
-/// statistic is undefined (a ratio whose resample drew no nominal event) counts as unbounded:
-/// it sorts above every finite value, so a bound that falls on one is `None` (unbounded).
-fn estimate<T: Clone>(items: &[T], stat: impl Fn(&[T]) -> Option<f64>) -> Estimate {
-    let value = stat(items);
+/// The quotient on the data and its percentile-bootstrap interval. A resample whose quotient
+/// is undefined (a ratio whose resample drew no nominal event) counts as unbounded: it sorts
+/// above every finite value, so a bound that falls on one is `None` (unbounded). Each resample
+/// is summed as it is drawn, nothing copied.
+fn estimate(items: &[Terms]) -> Estimate {
+    let value = quotient(items.iter().copied());
     if items.is_empty() {
         return Estimate {
             value,
@@ -133,12 +127,10 @@ fn estimate<T: Clone>(items: &[T], stat: impl Fn(&[T]) -> Option<f64>) -> Estima
         };
     }
     let mut rng = ChaCha8Rng::seed_from_u64(BOOTSTRAP_SEED);
-    let mut sample = Vec::with_capacity(items.len());
     let mut stats: Vec<f64> = Vec::with_capacity(RESAMPLES);
     for _ in 0..RESAMPLES {
-        sample.clear();
-        sample.extend((0..items.len()).map(|_| items[rng.random_range(0..items.len())].clone()));
-        stats.push(stat(&sample).unwrap_or(f64::INFINITY));
+        let drawn = (0..items.len()).map(|_| items[rng.random_range(0..items.len())]);
+        stats.push(quotient(drawn).unwrap_or(f64::INFINITY));
     }
     stats.sort_by(f64::total_cmp);
     let (low, high) = percentile_bounds(&stats);
@@ -172,16 +164,19 @@ pub fn rates(outcomes: &[Outcome]) -> Vec<VariantRates> {
     }
     by.into_iter()
         .map(|(variant, rows)| {
-            let of = |f: fn(&Outcome) -> bool| -> Vec<Weighted> {
-                rows.iter().map(|o| (o.weight, share(&[*o], f))).collect()
+            // A weighted rate: sum(w * event) / sum(w).
+            let of = |f: fn(&Outcome) -> bool| -> Vec<Terms> {
+                rows.iter()
+                    .map(|o| (o.weight * share(&[*o], f), o.weight))
+                    .collect()
             };
             let (nmac, lowc, collision) = (of(|o| o.nmac), of(|o| o.lowc), of(|o| o.collision));
             VariantRates {
                 variant: variant.into(),
                 encounters: rows.len(),
-                nmac_rate: estimate(&nmac, rate),
-                lowc_rate: estimate(&lowc, rate),
-                collision_rate: estimate(&collision, rate),
+                nmac_rate: estimate(&nmac),
+                lowc_rate: estimate(&lowc),
+                collision_rate: estimate(&collision),
             }
         })
         .collect()
@@ -228,17 +223,18 @@ pub fn ratios(outcomes: &[Outcome], nominal: &str) -> Vec<VariantRatios> {
                 .values()
                 .filter_map(|m| Some((m.get(variant)?.as_slice(), m.get(nominal)?.as_slice())))
                 .collect();
-            let of = |f: fn(&Outcome) -> bool| -> Vec<(Weighted, Weighted)> {
+            // sum(w * event | variant) / sum(w * event | nominal).
+            let of = |f: fn(&Outcome) -> bool| -> Vec<Terms> {
                 both.iter()
-                    .map(|(v, n)| ((mean_weight(v), share(v, f)), (mean_weight(n), share(n, f))))
+                    .map(|(v, n)| (mean_weight(v) * share(v, f), mean_weight(n) * share(n, f)))
                     .collect()
             };
             VariantRatios {
                 variant: variant.into(),
                 pairs: both.len(),
-                nmac_ratio: estimate(&of(|o| o.nmac), ratio),
-                lowc_ratio: estimate(&of(|o| o.lowc), ratio),
-                collision_ratio: estimate(&of(|o| o.collision), ratio),
+                nmac_ratio: estimate(&of(|o| o.nmac)),
+                lowc_ratio: estimate(&of(|o| o.lowc)),
+                collision_ratio: estimate(&of(|o| o.collision)),
             }
         })
         .collect()
