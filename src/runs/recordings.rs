@@ -76,10 +76,19 @@ impl RowChoice {
     }
 }
 
+/// The folder of a results directory that row recordings go to.
+pub const RECORDINGS: &str = "rows";
+
+/// Where row `index` (`id`)'s recording is kept in results directory `dir`.
+pub fn recording_path(dir: &Path, index: u64, id: &str) -> PathBuf {
+    dir.join(RECORDINGS)
+        .join(format!("{}.rrd", crate::runs::row_name(index, id)))
+}
+
 /// Keep a recording made at `made` as row (`index`, `id`)'s in results directory `out`
 /// (`out/rows/`, made when needed); the path it is kept at.
 pub fn keep(made: &Path, out: &Path, index: u64, id: &str) -> std::io::Result<PathBuf> {
-    let kept = crate::runs::report::recording_path(out, index, id);
+    let kept = recording_path(out, index, id);
     if let Some(parent) = kept.parent() {
         std::fs::create_dir_all(parent)?;
     }

@@ -290,6 +290,13 @@ impl Session {
         )
     }
 
+    /// Record this run to an .rrd file at `path` (a study row's recording). Needs a scene.
+    #[cfg(feature = "viz")]
+    pub fn record_to_file(&mut self, path: &std::path::Path) -> Result<()> {
+        let target = crate::viz::RerunTarget::Save(path.to_path_buf());
+        self.start_viz(&target, crate::viz::VizOptions::default())
+    }
+
     /// Stream this run into an already open rerun stream (tests use a memory stream).
     #[cfg(feature = "viz")]
     pub fn start_viz_stream(

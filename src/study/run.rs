@@ -301,10 +301,7 @@ fn record_to(session: &mut Session, dir: &Path) -> Result<(), RowError> {
     let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
     std::fs::create_dir_all(dir)
         .map_err(|e| RowError::Savsim(format!("{}: {e}", dir.display())))?;
-    let target = crate::viz::RerunTarget::Save(dir.join(RECORDING));
-    session
-        .start_viz(&target, crate::viz::VizOptions::default())
-        .map_err(savsim)
+    session.record_to_file(&dir.join(RECORDING)).map_err(savsim)
 }
 
 #[cfg(not(feature = "viz"))]

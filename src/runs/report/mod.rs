@@ -1,9 +1,10 @@
 //! `savsim study report DIR` and `savsim batch report DIR`: a results directory as one
 //! self-contained HTML page (no network, no script but the table's sorting): the outcome
-//! counts per variant, every risk ratio with its 95% interval, histograms of the closest
-//! approaches (to traffic, to obstacles), of when the autopilot first acted and of the achieved
-//! speedups, the rows (each linked to its recording when `--rerun-rows` kept one) and the
-//! study's metadata from its shard files. Written whole or not at all.
+//! counts per variant, every risk ratio with its 95% interval, the ratios as pairs accumulate,
+//! histograms of the closest approaches (to traffic, to obstacles), of when the autopilot first
+//! acted and of the achieved speedups, the rows (each linked to its recording when
+//! `--rerun-rows` kept one) and the study's metadata from its shard files. Written whole or not
+//! at all.
 
 pub mod charts;
 pub mod html;
@@ -12,11 +13,9 @@ use std::path::{Path, PathBuf};
 
 use crate::daa::ratios::{rates, ratios, Estimate, VariantRatios};
 use crate::error::{Error, Result};
+use crate::runs::recordings::{recording_path, RECORDINGS};
 use crate::runs::summary::{RowView, Summary};
 use crate::runs::table::read_settings;
-
-/// The folder of a results directory that row recordings go to (`--rerun-rows`).
-pub const RECORDINGS: &str = "rows";
 
 /// What the report is of.
 #[derive(Debug, Clone, Copy)]
@@ -27,12 +26,6 @@ pub struct Options<'a> {
     pub nominal: &'a str,
     /// Only the rows that did not pass in the table (a batch of 10^5 rows), else every row.
     pub failing_rows_only: bool,
-}
-
-/// Where row `index` (`id`)'s recording is kept in results directory `dir`.
-pub fn recording_path(dir: &Path, index: u64, id: &str) -> PathBuf {
-    dir.join(RECORDINGS)
-        .join(format!("{}.rrd", crate::runs::row_name(index, id)))
 }
 
 /// Write the report of `summary` (read from `dir`) to `out` (default `dir/report.html`);
