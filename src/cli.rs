@@ -145,6 +145,19 @@ pub enum StudyGenKind {
     Encounters,
 }
 
+/// `savsim study report` and `savsim batch report`.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// The results directory (its *.parquet shard files).
+    pub dir: PathBuf,
+    /// Where the page goes (default DIR/report.html).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// The variant the others are compared with.
+    #[arg(long, default_value = "nominal")]
+    pub nominal: String,
+}
+
 /// `savsim study ...` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum StudyCommand {
@@ -164,16 +177,7 @@ pub enum StudyCommand {
     /// One self-contained HTML page of a results directory: outcome counts and risk ratios
     /// as charts, histograms of the closest approaches, the rows with links to their
     /// recordings, and how the results were made (docs/study.md).
-    Report {
-        /// The results directory (its *.parquet shard files).
-        dir: PathBuf,
-        /// Where the page goes (default DIR/report.html).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// The variant the others are compared with.
-        #[arg(long, default_value = "nominal")]
-        nominal: String,
-    },
+    Report(ReportArgs),
     /// Write pairs of rows, each as `nominal` (avoidance off) and `mitigated` (on):
     /// `approaches` (a box of random size, offset and yaw across a straight path flown at a
     /// random speed and heading; the proximity feed and ArduCopter's proximity avoidance) or
@@ -310,16 +314,7 @@ pub enum BatchCommand {
     /// One self-contained HTML page of a results directory: outcome counts and risk ratios
     /// as charts, histograms of the closest approaches, the rows with links to their
     /// recordings, and how the results were made (docs/batch.md).
-    Report {
-        /// The results directory (its *.parquet shard files).
-        dir: PathBuf,
-        /// Where the page goes (default DIR/report.html).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// The variant the others are compared with.
-        #[arg(long, default_value = "nominal")]
-        nominal: String,
-    },
+    Report(ReportArgs),
 }
 
 /// `savsim bench`.

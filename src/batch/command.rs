@@ -68,16 +68,14 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             crate::batch::summarize::read_dir(dir)?.print(nominal, *json);
             Ok(())
         }
-        Some(BatchCommand::Report { dir, out, nominal }) => {
-            let summary = crate::batch::summarize::read_dir(dir)?;
+        Some(BatchCommand::Report(report)) => {
+            let summary = crate::batch::summarize::read_dir(&report.dir)?;
             let options = crate::runs::report::Options {
                 command: "batch",
-                nominal,
+                nominal: &report.nominal,
                 failing_rows_only: true,
             };
-            let path = crate::runs::report::write(dir, &summary, out.as_deref(), options)?;
-            println!("{}", path.display());
-            Ok(())
+            crate::runs::report::command(&report.dir, report.out.as_deref(), &summary, options)
         }
         None => run_shard(args),
     }

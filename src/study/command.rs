@@ -24,8 +24,14 @@ pub const MAX_JOBS: usize = 64;
 pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     match &args.command {
         Some(StudyCommand::Summarize { dir, nominal, json }) => summarize(dir, nominal, *json),
-        Some(StudyCommand::Report { dir, out, nominal }) => {
-            write_report(dir, out.as_deref(), nominal)
+        Some(StudyCommand::Report(report)) => {
+            let summary = crate::study::summarize::read_dir(&report.dir)?;
+            let options = crate::runs::report::Options {
+                command: "study",
+                nominal: &report.nominal,
+                failing_rows_only: false,
+            };
+            crate::runs::report::command(&report.dir, report.out.as_deref(), &summary, options)
         }
         Some(StudyCommand::Gen {
             kind,
@@ -50,19 +56,6 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
 /// `study summarize`.
 fn summarize(dir: &Path, nominal: &str, json: bool) -> Result<()> {
     crate::study::summarize::read_dir(dir)?.print(nominal, json);
-    Ok(())
-}
-
-/// `study report`: the page written, its path printed.
-fn write_report(dir: &Path, out: Option<&Path>, nominal: &str) -> Result<()> {
-    let summary = crate::study::summarize::read_dir(dir)?;
-    let options = crate::runs::report::Options {
-        command: "study",
-        nominal,
-        failing_rows_only: false,
-    };
-    let path = crate::runs::report::write(dir, &summary, out, options)?;
-    println!("{}", path.display());
     Ok(())
 }
 

@@ -28,6 +28,14 @@ pub struct Options<'a> {
     pub failing_rows_only: bool,
 }
 
+/// `study report` / `batch report`: the page of `summary` (read from `dir`) written to `out`
+/// (default `dir/report.html`), its path printed.
+pub fn command(dir: &Path, out: Option<&Path>, summary: &Summary, options: Options) -> Result<()> {
+    let path = write(dir, summary, out, options)?;
+    println!("{}", path.display());
+    Ok(())
+}
+
 /// Write the report of `summary` (read from `dir`) to `out` (default `dir/report.html`);
 /// the path written.
 pub fn write(
