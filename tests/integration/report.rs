@@ -264,6 +264,16 @@ fn reports_of_what_is_not_results_fail_clearly_and_write_nothing() {
     let bytes = std::fs::read(&shard).unwrap();
     std::fs::write(&shard, &bytes[..bytes.len() / 2]).unwrap();
     fail(&["study", "report"], dir.path(), "shard-0-of-1.parquet");
+    // `--out` a directory: the rename fails, and its temporary file is not left behind.
+    let dir = study_dir();
+    let out = savsim()
+        .args(["study", "report", "--out"])
+        .arg(dir.path())
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(matches!(out.status.code(), Some(1 | 2)), "{:?}", out.status);
+    assert!(!dir.path().with_extension("html.tmp").exists());
     // A study's shard given to batch: another schema.
     let dir = study_dir();
     fail(&["batch", "report"], dir.path(), "run_id");

@@ -48,7 +48,11 @@ pub fn write(
     let page = page(dir, summary, &out, options)?;
     let tmp = out.with_extension("html.tmp");
     std::fs::write(&tmp, page).map_err(|e| Error::file(&tmp, e))?;
-    std::fs::rename(&tmp, &out).map_err(|e| Error::file(&out, e))?;
+    std::fs::rename(&tmp, &out).map_err(|e| {
+        // Nothing half-made is left: not the page, not its temporary file.
+        let _ = std::fs::remove_file(&tmp);
+        Error::file(&out, e)
+    })?;
     Ok(out)
 }
 
