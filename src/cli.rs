@@ -134,6 +134,21 @@ pub struct StudyArgs {
     /// the others dropped), `all`, or row ids separated by commas.
     #[arg(long)]
     pub rerun_rows: Option<crate::runs::recordings::RowChoice>,
+    /// Fly the manifest's pairs in rounds (OUT/round-NNNNN.parquet) until every ratio of
+    /// --converge-on has a 95% interval whose half-width is within PCT percent of its value,
+    /// judged after each round from the second on; the manifest is the budget.
+    #[arg(long, value_name = "PCT")]
+    pub until_converged: Option<f64>,
+    /// The ratios --until-converged judges, separated by commas.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = crate::study::converge::Ratio::DEFAULT)]
+    pub converge_on: Vec<crate::study::converge::Ratio>,
+    /// Pairs per round of --until-converged.
+    #[arg(long, default_value_t = crate::study::converge::DEFAULT_ROUND_PAIRS)]
+    pub round_pairs: usize,
+    /// The variant the others are compared with (--until-converged, and which rows
+    /// `--rerun-rows failed` keeps).
+    #[arg(long, default_value = "nominal")]
+    pub nominal: String,
 }
 
 /// What `savsim study gen` writes.

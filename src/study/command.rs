@@ -10,10 +10,10 @@ use crate::cli::{StudyArgs, StudyCommand, StudyGenKind};
 use crate::error::{Error, Result};
 use crate::runs::shard::Shard;
 use crate::runs::table::Settings;
-use crate::study::manifest;
 use crate::study::result::{Outcome, StudyResult};
 use crate::study::run::{Setup, SPEEDUP_RANGE};
 use crate::study::sitl::{ArduCopter, Px4};
+use crate::study::{converge, manifest};
 
 /// Set in the environment of a study that runs inside its own network namespace.
 pub const INSIDE_NETNS: &str = "SAVSIM_STUDY_NETNS";
@@ -59,12 +59,82 @@ fn summarize(dir: &Path, nominal: &str, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// `study MANIFEST --out DIR`: the flags checked, the shard chosen (and skipped if done), the
-/// study run in a network namespace of its own where one can be made.
+/// `study MANIFEST --out DIR`: the flags checked, the shard chosen (and skipped if done), or
+/// the rounds of `--until-converged`; the study run in a network namespace of its own where
+/// one can be made.
 fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };
+    check_flags(args)?;
+    let rows = manifest::load(manifest_path)?;
+    let plan = match args.until_converged {
+        None => Plan::Shard(Shard::from_args(args.shard.as_deref(), |v| {
+            std::env::var(v).ok()
+        })?),
+        Some(pct) => Plan::Rounds(pct),
+    };
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
+    if let Plan::Shard(shard) = plan {
+        let path = out.join(shard.file_name());
+        if path.exists() && !args.force {
+            eprintln!(
+                "study: shard {}/{} is done ({} exists): skipped",
+                shard.index,
+                shard.count,
+                path.display()
+            );
+            return Ok(());
+        }
+    }
+    if !args.no_netns && std::env::var_os(INSIDE_NETNS).is_none() {
+        if let Some(status) = in_own_namespace(&shutdown)? {
+            return status;
+        }
+    }
+    // Absolute: each SITL runs in its own folder and reads its files from there.
+    let work = std::fs::canonicalize(out)
+        .map_err(|e| Error::file(out, e))?
+        .join("work");
+    let mut setup = Setup::new(
+        &rows,
+        (
+            arducopter(args.arducopter.as_deref()),
+            px4(args.px4.as_deref()),
+        ),
+        args.speedup,
+        work,
+        shutdown,
+    );
+    setup.record_feed = args.keep_work;
+    setup.record_rows = args.rerun_rows.clone();
+    let study = Study {
+        args,
+        manifest: manifest_path,
+        rows: &rows,
+        out,
+        setup: &setup,
+    };
+    match plan {
+        Plan::Shard(shard) => {
+            let range: Vec<usize> = shard.rows(rows.len()).collect();
+            study.fly_part(&range, shard, &out.join(shard.file_name()))
+        }
+        Plan::Rounds(pct) => study.until_converged(pct),
+    }
+}
+
+/// What one `savsim study` process flies.
+#[derive(Clone, Copy)]
+enum Plan {
+    /// One shard of the manifest.
+    Shard(Shard),
+    /// Rounds until the ratios are within this percentage (`--until-converged`).
+    Rounds(f64),
+}
+
+/// The flags that need no file to be checked.
+fn check_flags(args: &StudyArgs) -> Result<()> {
     if !(1..=MAX_JOBS).contains(&args.jobs) {
         return Err(Error::Usage(format!(
             "--jobs {}: give 1 to {MAX_JOBS}",
@@ -77,54 +147,100 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
             args.speedup, SPEEDUP_RANGE.0, SPEEDUP_RANGE.1
         )));
     }
-    let rows = manifest::load(manifest_path)?;
-    let shard = Shard::from_args(args.shard.as_deref(), |v| std::env::var(v).ok())?;
-    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
-    let path = out.join(shard.file_name());
-    if path.exists() && !args.force {
-        eprintln!(
-            "study: shard {}/{} is done ({} exists): skipped",
-            shard.index,
-            shard.count,
-            path.display()
-        );
-        return Ok(());
-    }
-    if !args.no_netns && std::env::var_os(INSIDE_NETNS).is_none() {
-        if let Some(status) = in_own_namespace(&shutdown)? {
-            return status;
+    if let Some(pct) = args.until_converged {
+        if !(pct > 0.0 && pct <= 100.0) {
+            return Err(Error::Usage(format!(
+                "--until-converged {pct}: give a percentage above 0 and at most 100"
+            )));
+        }
+        if args.shard.is_some() {
+            return Err(Error::Usage(
+                "--until-converged flies its rounds one after another: not with --shard".into(),
+            ));
         }
     }
-    let range = shard.rows(rows.len());
-    // Absolute: each SITL runs in its own folder and reads its files from there.
-    let work = std::fs::canonicalize(out)
-        .map_err(|e| Error::file(out, e))?
-        .join("work");
-    let mut setup = Setup::new(
-        &rows[range.clone()],
-        (
-            arducopter(args.arducopter.as_deref()),
-            px4(args.px4.as_deref()),
-        ),
-        args.speedup,
-        work,
-        shutdown.clone(),
-    );
-    setup.record_feed = args.keep_work;
-    setup.record_rows = args.rerun_rows.clone();
-    let results = fly_shard(&rows[range.clone()], range.start, args, &setup);
-    if shutdown.load(Ordering::Relaxed) {
-        return Err(Error::Runtime(
-            "study: stopped by a signal; the shard was not written (run it again)".into(),
-        ));
+    if args.round_pairs == 0 {
+        return Err(Error::Usage("--round-pairs 0: give at least 1".into()));
     }
-    let settings = Settings {
-        command: "study",
-        manifest: manifest_path.display().to_string(),
-        shard,
-        more: vec![
-            ("speedup", args.speedup.to_string()),
-            ("jobs", args.jobs.to_string()),
+    Ok(())
+}
+
+/// A study ready to fly: its flags, manifest, rows, results directory and setup.
+struct Study<'a> {
+    args: &'a StudyArgs,
+    manifest: &'a Path,
+    rows: &'a [manifest::StudyRow],
+    out: &'a Path,
+    setup: &'a Setup,
+}
+
+impl Study<'_> {
+    /// Fly the rows at `indexes` and write their results to `path` (as part `part` of the
+    /// study, in its metadata); what they found printed.
+    fn fly_part(&self, indexes: &[usize], part: Shard, path: &Path) -> Result<()> {
+        let rows: Vec<(usize, &manifest::StudyRow)> =
+            indexes.iter().map(|&i| (i, &self.rows[i])).collect();
+        let results = fly_rows(&rows, self.args, self.setup);
+        if self.setup.stop.load(Ordering::Relaxed) {
+            return Err(Error::Runtime(format!(
+                "study: stopped by a signal; {} was not written (run it again)",
+                path.display()
+            )));
+        }
+        crate::study::table::write_atomic(&results, &self.settings(part), path)?;
+        print!("{}", report(&results, path));
+        Ok(())
+    }
+
+    /// `--until-converged PCT`: rounds of `--round-pairs` pairs (a round whose file exists is
+    /// kept, unless `--force`), the ratios of every round so far judged after each from the
+    /// second on; stops when they are within `pct`, or when the manifest is flown.
+    fn until_converged(&self, pct: f64) -> Result<()> {
+        let rounds = converge::rounds(self.rows, self.args.round_pairs);
+        let nominal = self.args.nominal.as_str();
+        let mut pairs = 0;
+        for (k, indexes) in rounds.iter().enumerate() {
+            let path = self.out.join(converge::file_name(k));
+            let part = Shard {
+                index: k,
+                count: rounds.len(),
+            };
+            if path.exists() && !self.args.force {
+                eprintln!("study: round {k} is done ({} exists): kept", path.display());
+            } else {
+                self.fly_part(indexes, part, &path)?;
+            }
+            pairs += distinct_pairs(self.rows, indexes);
+            if k + 1 < converge::MIN_ROUNDS {
+                continue;
+            }
+            let summary = crate::study::summarize::read_dir(self.out)?;
+            let ratios = crate::daa::ratios::ratios(&summary.outcomes, nominal);
+            let (within, judged) = converge::judge(&ratios, &self.args.converge_on, pct, nominal);
+            let said = format!(
+                "after {} rounds ({pairs} pairs): {}",
+                k + 1,
+                converge::line(&judged)
+            );
+            if within {
+                println!("study: converged within {pct}% {said}");
+                return Ok(());
+            }
+            eprintln!("study: not yet within {pct}% {said}");
+        }
+        println!(
+            "study: the manifest's {pairs} pairs are flown and the ratios are not within {pct}% \
+             (a larger manifest goes on from here: its first rounds' files are kept)"
+        );
+        Ok(())
+    }
+
+    /// What a part's file says of how it was made.
+    fn settings(&self, part: Shard) -> Settings {
+        let setup = self.setup;
+        let mut more = vec![
+            ("speedup", self.args.speedup.to_string()),
+            ("jobs", self.args.jobs.to_string()),
             (
                 "arducopter",
                 setup
@@ -141,18 +257,40 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
                     .map(|p| p.binary.display().to_string())
                     .unwrap_or_default(),
             ),
-        ],
-    };
-    crate::study::table::write_atomic(&results, &settings, &path)?;
-    print!("{}", report(&results, &path));
-    Ok(())
+        ];
+        if let Some(pct) = self.args.until_converged {
+            more.push(("until_converged", pct.to_string()));
+            let on: Vec<String> = self
+                .args
+                .converge_on
+                .iter()
+                .map(|r| format!("{r:?}"))
+                .collect();
+            more.push(("converge_on", on.join(",").to_lowercase()));
+            more.push(("round_pairs", self.args.round_pairs.to_string()));
+        }
+        Settings {
+            command: "study",
+            manifest: self.manifest.display().to_string(),
+            shard: part,
+            more,
+        }
+    }
 }
 
-/// The shard's rows, each reported on stderr as it ends (and its folder removed when it flew,
+/// How many pairs the rows at `indexes` fly.
+fn distinct_pairs(rows: &[manifest::StudyRow], indexes: &[usize]) -> usize {
+    let pairs: std::collections::HashSet<String> = indexes
+        .iter()
+        .map(|&i| rows[i].pair.clone().unwrap_or_else(|| rows[i].id_or(i)))
+        .collect();
+    pairs.len()
+}
+
+/// Fly `rows`, each reported on stderr as it ends (and its folder removed when it flew,
 /// unless `--keep-work`).
-fn fly_shard(
-    rows: &[manifest::StudyRow],
-    first_index: usize,
+fn fly_rows(
+    rows: &[(usize, &manifest::StudyRow)],
     args: &StudyArgs,
     setup: &Setup,
 ) -> Vec<StudyResult> {
@@ -172,23 +310,23 @@ fn fly_shard(
             r.wall_s
         );
         let folder = setup.work.join(crate::runs::row_name(r.index, &r.row_id));
-        keep_recording(r, &folder, setup);
+        keep_recording(r, &folder, setup, &args.nominal);
         if !args.keep_work && r.outcome != Outcome::Error {
             let _ = std::fs::remove_dir_all(folder);
         }
     };
-    crate::study::run_rows(rows, first_index, args.jobs, setup, &on_done)
+    crate::study::run_rows(rows, args.jobs, setup, &on_done)
 }
 
 /// Move row `r`'s recording (when it made one) beside the results if `--rerun-rows` keeps it,
 /// else remove it; what happened said on stderr.
-fn keep_recording(r: &StudyResult, folder: &Path, setup: &Setup) {
+fn keep_recording(r: &StudyResult, folder: &Path, setup: &Setup, nominal: &str) {
     let made = folder.join(crate::study::run::RECORDING);
     let Some(choice) = setup.record_rows.as_ref().filter(|_| made.is_file()) else {
         return;
     };
     let variant = r.inputs.variant.as_deref().unwrap_or("nominal");
-    if !choice.keeps(&r.row_id, variant, r.outcome.name(), "nominal") {
+    if !choice.keeps(&r.row_id, variant, r.outcome.name(), nominal) {
         let _ = std::fs::remove_file(&made);
         return;
     }

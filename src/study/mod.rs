@@ -10,9 +10,11 @@
 //! - [`run`](mod@run): one row, its failure kept as its row's error.
 //! - [`result`]: what a row's result holds; [`table`]: results as Parquet.
 //! - [`summarize`]: risk ratios from a study's shards; [`gen`]: obstacle-approach pairs.
+//! - [`converge`]: `--until-converged`, pairs in rounds until the ratios are known.
 //! - [`command`]: `savsim study` on the command line.
 
 pub mod command;
+pub mod converge;
 pub mod fly;
 pub mod gen;
 pub mod manifest;
@@ -31,11 +33,10 @@ use manifest::StudyRow;
 use result::StudyResult;
 use run::Setup;
 
-/// Run `rows` (rows `first_index..` of the manifest) `jobs` at a time, job `k` on SITL
-/// instance `k`, calling `on_done` after each; results in manifest order.
+/// Run `rows` (each with its index in the manifest) `jobs` at a time, job `k` on SITL
+/// instance `k`, calling `on_done` after each; results in the order of `rows`.
 pub fn run_rows(
-    rows: &[StudyRow],
-    first_index: usize,
+    rows: &[(usize, &StudyRow)],
     jobs: usize,
     setup: &Setup,
     on_done: &(dyn Fn(&StudyResult) + Sync),
@@ -47,8 +48,10 @@ pub fn run_rows(
             let (next, done) = (&next, &done);
             scope.spawn(move || loop {
                 let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(row) = rows.get(i) else { return };
-                let result = run::run_row(first_index + i, row, job as u16, setup);
+                let Some(&(index, row)) = rows.get(i) else {
+                    return;
+                };
+                let result = run::run_row(index, row, job as u16, setup);
                 on_done(&result);
                 if let Ok(mut done) = done.lock() {
                     done[i] = Some(result);
@@ -60,6 +63,6 @@ pub fn run_rows(
         .unwrap_or_else(|e| e.into_inner())
         .into_iter()
         .enumerate()
-        .map(|(i, r)| r.unwrap_or_else(|| StudyResult::of_inputs(first_index + i, &rows[i])))
+        .map(|(i, r)| r.unwrap_or_else(|| StudyResult::of_inputs(rows[i].0, rows[i].1)))
         .collect()
 }

@@ -228,6 +228,85 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("colour"));
 }
 
+/// `--until-converged`: the manifest's pairs in rounds of `--round-pairs`, one file per round;
+/// rows that cannot fly give no ratio, so every round is flown and the study says the ratios
+/// are not within; a second run keeps the rounds done; bad flags are usage errors.
+#[test]
+fn until_converged_flies_rounds_of_pairs_and_says_when_the_budget_ends_unconverged() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    let mut csv = String::from("id,pair,variant,autopilot,plan\n");
+    // Pairs interleaved as a hand-written manifest may have them: every nominal row first.
+    for variant in ["nominal", "mitigated"] {
+        for k in 0..5 {
+            csv += &format!("p{k}-{variant},p{k},{variant},arducopter,takeoff 20\n");
+        }
+    }
+    std::fs::write(&manifest, csv).unwrap();
+    let out_dir = dir.path().join("out");
+    let study = |extra: &[&str]| {
+        savsim()
+            .args(["study", "--no-netns", "--out"])
+            .arg(&out_dir)
+            .arg(&manifest)
+            .args(extra)
+            .env_remove("SAVSIM_ARDUCOPTER")
+            .output()
+            .unwrap()
+    };
+    let run = study(&["--until-converged", "5", "--round-pairs", "2"]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr),
+    );
+    assert!(run.status.success(), "{stdout}{stderr}");
+    assert!(
+        stdout.contains("5 pairs are flown and the ratios are not within 5%"),
+        "{stdout}"
+    );
+    // Rounds of 2, 2 and 1 pairs: 4, 4 and 2 rows, each a pair's two variants.
+    for (round, rows) in [(0, 4), (1, 4), (2, 2)] {
+        let file = out_dir.join(format!("round-{round:05}.parquet"));
+        let summary = savsim::study::summarize::read_dir(file.parent().unwrap()).unwrap();
+        assert!(summary.files.contains(&file), "{:?}", summary.files);
+        let meta = savsim::runs::table::read_settings(&file).unwrap();
+        let has = |k: &str, v: &str| meta.iter().any(|(a, b)| a == k && b == v);
+        assert!(
+            has("until_converged", "5") && has("shard", &format!("{round}/3")),
+            "{meta:?}"
+        );
+        let n = stdout.matches(&format!("{rows} rows: ")).count();
+        assert!(n >= 1, "round {round}: {stdout}");
+    }
+    let summary = savsim::study::summarize::read_dir(&out_dir).unwrap();
+    let mut pairs: Vec<&str> = summary.rows.iter().map(|r| r.pair.as_str()).collect();
+    pairs.sort_unstable();
+    assert_eq!(
+        pairs,
+        ["p0", "p0", "p1", "p1", "p2", "p2", "p3", "p3", "p4", "p4"]
+    );
+    assert!(
+        stderr.contains("not yet within 5% after 2 rounds (4 pairs)"),
+        "{stderr}"
+    );
+    // Run again: every round is kept, none flown.
+    let again = study(&["--until-converged", "5", "--round-pairs", "2"]);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert_eq!(stderr.matches("is done").count(), 3, "{stderr}");
+    assert!(!stderr.contains("1/4"), "{stderr}");
+    for bad in [
+        &["--until-converged", "0"][..],
+        &["--until-converged", "101"],
+        &["--until-converged", "NaN"],
+        &["--until-converged", "5", "--shard", "0/2"],
+        &["--until-converged", "5", "--round-pairs", "0"],
+        &["--until-converged", "5", "--converge-on", "speed"],
+    ] {
+        let out = study(bad);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {out:?}");
+    }
+}
+
 /// A flown row with `collisions` collisions, for the table.
 fn flown(index: usize, pair: &str, variant: &str, collisions: u64) -> StudyResult {
     let row = StudyRow {
@@ -273,8 +352,10 @@ fn summarize_reads_the_written_results_into_the_collision_risk_ratio() {
 }
 
 /// Obstacle-approach pairs on ArduCopter SITL (`SAVSIM_ARDUCOPTER`, `SAVSIM_ARDUCOPTER_DEFAULTS`):
-/// `SAVSIM_STUDY_PAIRS` pairs (default 2) at `SAVSIM_STUDY_SPEEDUP` (default 10): every
-/// nominal row hits its box, every mitigated row does not.
+/// `SAVSIM_STUDY_PAIRS` pairs (default 2, rounded up to even) at `SAVSIM_STUDY_SPEEDUP`
+/// (default 10): every nominal row hits its box, every mitigated row does not. Flown with
+/// `--until-converged` on the collision ratio in two rounds of half the pairs, from a manifest
+/// of one pair more: the ratio is then 0 [0, 0], so the study stops with that pair not flown.
 #[test]
 fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
     // The turn is held while the studies fly (`sitl_test`: heavy tests take turns).
@@ -282,6 +363,11 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
         return;
     };
     let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.into());
+    let round: usize = env("SAVSIM_STUDY_PAIRS", "2")
+        .parse::<usize>()
+        .unwrap()
+        .div_ceil(2);
+    let pairs = 2 * round;
     let dir = tempfile::tempdir().unwrap();
     let gen = savsim()
         .args([
@@ -290,7 +376,7 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
             "--seed",
             "11",
             "--n",
-            &env("SAVSIM_STUDY_PAIRS", "2"),
+            &(pairs + 1).to_string(),
             "--out",
         ])
         .arg(dir.path())
@@ -305,6 +391,12 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
             &env("SAVSIM_STUDY_SPEEDUP", "10"),
             "--rerun-rows",
             "all",
+            "--until-converged",
+            "5",
+            "--converge-on",
+            "collision",
+            "--round-pairs",
+            &round.to_string(),
             "--out",
         ])
         .arg(&out_dir)
@@ -314,6 +406,17 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
     let stdout = String::from_utf8_lossy(&run.stdout);
     eprintln!("{stdout}{}", String::from_utf8_lossy(&run.stderr));
     assert!(run.status.success());
+    assert!(
+        stdout.contains(&format!(
+            "converged within 5% after 2 rounds ({pairs} pairs)"
+        )),
+        "{stdout}"
+    );
+    assert!(out_dir.join("round-00001.parquet").is_file());
+    assert!(
+        !out_dir.join("round-00002.parquet").exists(),
+        "the last pair was flown"
+    );
     let summary = savsim()
         .args(["study", "summarize", "--json"])
         .arg(&out_dir)
@@ -321,10 +424,10 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
         .unwrap();
     let json: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
     eprintln!("{json:#}");
-    let pairs: u64 = env("SAVSIM_STUDY_PAIRS", "2").parse().unwrap();
-    assert_eq!(json["outcomes"]["nominal"]["collision"], pairs);
+    assert_eq!(json["outcomes"]["nominal"]["collision"], pairs as u64);
     assert!(json["outcomes"]["mitigated"]["collision"].is_null());
-    rows_are_recorded_and_linked(&out_dir, 2 * pairs as usize);
+    assert_eq!(json["ratios"][0]["collision_ratio"]["high"], 0.0);
+    rows_are_recorded_and_linked(&out_dir, 2 * pairs);
 }
 
 /// Every row of a study flown with `--rerun-rows all` has a recording that rerun's own reader
