@@ -140,10 +140,10 @@ pub struct StudyArgs {
     #[arg(long, value_name = "PCT")]
     pub until_converged: Option<f64>,
     /// The ratios --until-converged judges, separated by commas.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = crate::study::converge::Ratio::DEFAULT)]
-    pub converge_on: Vec<crate::study::converge::Ratio>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = crate::runs::summary::Ratio::DEFAULT)]
+    pub converge_on: Vec<crate::runs::summary::Ratio>,
     /// Pairs per round of --until-converged.
-    #[arg(long, default_value_t = crate::study::converge::DEFAULT_ROUND_PAIRS)]
+    #[arg(long, default_value_t = 50)]
     pub round_pairs: usize,
     /// The variant the others are compared with (--until-converged, and which rows
     /// `--rerun-rows failed` keeps).

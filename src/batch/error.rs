@@ -3,10 +3,11 @@
 
 use std::path::PathBuf;
 
-use crate::batch::encounter::{DaaTracksError, WaypointError};
+use crate::batch::encounter::DaaTracksError;
 use crate::batch::trajectory::TrajectoryError;
 use crate::daa::well_clear::SETTING_HELP;
 use crate::runs::scenes::SceneLookup;
+use crate::runs::waypoints::WaypointError;
 use savsim_core::bounds::{OutOfRange, MAX_SAMPLES};
 
 /// Why a row could not run. Its text is the row's `error` cell.

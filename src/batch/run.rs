@@ -231,7 +231,7 @@ fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypo
     } else if is_trajectory_path(text) {
         track_from_trajectory(Path::new(text.trim()), scene)?
     } else {
-        encounter::parse_waypoints(text)?
+        crate::runs::waypoints::parse_waypoints(text)?
     };
     if track.is_empty() {
         return Err(TrackError::Empty);

@@ -10,6 +10,7 @@
 //! - [`summary`]: outcome counts, rates and risk ratios per variant, as text and JSON.
 //! - [`report`]: the same as one self-contained HTML page with charts and the rows.
 //! - [`recordings`]: which rows are kept as rerun recordings (`--rerun-rows`).
+//! - [`waypoints`]: tracks written as text, `t_s e_m n_m u_m; ...`.
 
 pub mod manifest;
 pub mod recordings;
@@ -18,6 +19,7 @@ pub mod scenes;
 pub mod shard;
 pub mod summary;
 pub mod table;
+pub mod waypoints;
 
 /// Row `index`'s name for its files and folders: its index, then its id's letters, digits,
 /// `-`, `_` and `#` (anything else `_`), so that no id names a path outside the run's.

@@ -10,7 +10,36 @@ use std::path::PathBuf;
 
 use serde_json::json;
 
-use crate::daa::ratios::{rates, ratios, Outcome, VariantRates, VariantRatios, RESAMPLES};
+use crate::daa::ratios::{
+    rates, ratios, Estimate, Outcome, VariantRates, VariantRatios, RESAMPLES,
+};
+
+/// Which risk ratio `--converge-on` judges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Ratio {
+    /// P(NMAC | variant) / P(NMAC | nominal).
+    Nmac,
+    /// The same for loss of well clear.
+    Lowc,
+    /// The same for collisions.
+    Collision,
+}
+
+impl Ratio {
+    /// The ratios judged unless `--converge-on` says otherwise.
+    pub const DEFAULT: [Ratio; 2] = [Ratio::Nmac, Ratio::Lowc];
+    /// Every ratio, in the order reports give them.
+    pub const ALL: [Ratio; 3] = [Ratio::Collision, Ratio::Nmac, Ratio::Lowc];
+
+    /// Its name and its estimate in `r`.
+    pub fn of(self, r: &VariantRatios) -> (&'static str, &Estimate) {
+        match self {
+            Ratio::Nmac => ("NMAC", &r.nmac_ratio),
+            Ratio::Lowc => ("LoWC", &r.lowc_ratio),
+            Ratio::Collision => ("collision", &r.collision_ratio),
+        }
+    }
+}
 
 /// One row as a report shows it: who it is, how it ended, what it measured (`None` where the
 /// shard has no such column or the row no value).
@@ -40,6 +69,16 @@ pub struct RowView {
     pub error: Option<String>,
     /// The autopilot's version, as it told it (study).
     pub autopilot_version: Option<String>,
+    /// The scene file the row named (study).
+    pub scene: Option<String>,
+    /// The vehicle's track, `t_s e_m n_m u_m; ...` (study).
+    pub vehicle_track: Option<String>,
+    /// The intruder's track as the row gave it (study).
+    pub intruder: Option<String>,
+    /// When the closest approach to traffic happened, seconds on the row's timeline.
+    pub cpa_t_s: Option<f64>,
+    /// When the first collision happened, seconds on the row's timeline.
+    pub first_collision_t_s: Option<f64>,
 }
 
 impl RowView {

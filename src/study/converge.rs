@@ -17,10 +17,9 @@
 use std::collections::HashMap;
 
 use crate::daa::ratios::{Estimate, VariantRatios};
+use crate::runs::summary::Ratio;
 use crate::study::manifest::StudyRow;
 
-/// Pairs per round unless `--round-pairs` says otherwise.
-pub const DEFAULT_ROUND_PAIRS: usize = 50;
 /// Rounds flown before the first judgement.
 pub const MIN_ROUNDS: usize = 2;
 
@@ -71,46 +70,23 @@ pub struct Judged {
     pub half_width_pct: Option<f64>,
 }
 
-/// Which risk ratio `--converge-on` judges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Ratio {
-    /// P(NMAC | variant) / P(NMAC | nominal).
-    Nmac,
-    /// The same for loss of well clear.
-    Lowc,
-    /// The same for collisions.
-    Collision,
-}
-
-impl Ratio {
-    /// The ratios judged unless `--converge-on` says otherwise.
-    pub const DEFAULT: [Ratio; 2] = [Ratio::Nmac, Ratio::Lowc];
-
-    fn of(self, r: &VariantRatios) -> (&'static str, &Estimate) {
-        match self {
-            Ratio::Nmac => ("NMAC", &r.nmac_ratio),
-            Ratio::Lowc => ("LoWC", &r.lowc_ratio),
-            Ratio::Collision => ("collision", &r.collision_ratio),
-        }
-    }
-}
-
 /// The `on` ratios of every variant in `ratios`, judged against `pct`: whether all are within
 /// it (false when there is none), and each as judged.
 ///
 /// ```
 /// use savsim::daa::ratios::{Estimate, VariantRatios};
-/// use savsim::study::converge::{judge, Ratio};
+/// use savsim::runs::summary::Ratio;
+/// use savsim::study::converge::judge;
 /// let e = |value: f64, low: f64, high: f64| Estimate { value: Some(value), low: Some(low), high: Some(high) };
 /// let r = VariantRatios {
 ///     variant: "mitigated".into(), pairs: 400,
-///     nmac_ratio: e(0.2, 0.19, 0.21), lowc_ratio: e(0.5, 0.4, 0.6),
+///     nmac_ratio: e(0.2, 0.19, 0.21), lowc_ratio: e(0.5, 0.45, 0.55),
 ///     collision_ratio: Estimate { value: None, low: None, high: None },
 /// };
 /// let (within, judged) = judge(&[r.clone()], &Ratio::DEFAULT, 5.0, "nominal");
 /// assert!(!within); // the LoWC ratio's half-width is 10% of its value
 /// assert_eq!(judged.len(), 2);
-/// assert!(judge(&[r.clone()], &Ratio::DEFAULT, 10.0, "nominal").0);
+/// assert!(judge(&[r.clone()], &Ratio::DEFAULT, 11.0, "nominal").0);
 /// // An undefined ratio is never within.
 /// assert!(!judge(&[r], &[Ratio::Collision], 100.0, "nominal").0);
 /// ```

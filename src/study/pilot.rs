@@ -98,9 +98,14 @@ pub struct Fix {
     pub heading_deg: Option<f64>,
 }
 
-/// What the autopilot said, apart from its positions.
+/// What the autopilot said, and its positions sampled.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Heard {
+    /// Its positions in the scene's frame (ENU, m) with its clock (ms), one each
+    /// [`TRACK_PERIOD_MS`] of its clock: the first [`TRACK_POINTS_KEPT`].
+    pub track: Vec<(u32, DVec3)>,
+    /// Its last position, with its clock (ms).
+    pub last_fix: Option<(u32, DVec3)>,
     /// Armed at its last heartbeat.
     pub armed: bool,
     /// Its mode at its last heartbeat (custom_mode).
@@ -129,6 +134,11 @@ pub struct Heard {
     /// name: as many as the autopilot has parameters).
     pub params: std::collections::HashMap<String, (f32, u8)>,
 }
+
+/// The vehicle's clock between two points of [`Heard::track`], ms.
+pub const TRACK_PERIOD_MS: u32 = 500;
+/// The most points [`Heard::track`] keeps (two hours at [`TRACK_PERIOD_MS`]).
+pub const TRACK_POINTS_KEPT: usize = 14_400;
 
 /// How many of the last STATUSTEXTs [`Heard`] keeps.
 pub const RECENT_TEXTS: usize = 20;
@@ -766,12 +776,14 @@ fn pass_on(
                 f64::from(p.alt) * 1e-3,
             );
             let ned = DVec3::new(f64::from(p.vx), f64::from(p.vy), f64::from(p.vz)) * 0.01;
+            let enu_m = plane.enu_m_from_geodetic(&at);
             if let Ok(mut h) = heard.lock() {
                 h.time_boot_ms = p.time_boot_ms;
+                h.take_position(p.time_boot_ms, enu_m);
             }
             News::Fix(Fix {
                 time_boot_ms: p.time_boot_ms,
-                enu_m: plane.enu_m_from_geodetic(&at),
+                enu_m,
                 velocity_enu_mps: DVec3::new(ned.y, ned.x, -ned.z),
                 heading_deg: (p.hdg != u16::MAX).then(|| f64::from(p.hdg) / 100.0),
             })
@@ -784,6 +796,52 @@ fn pass_on(
         }
     };
     tx.send(news).is_ok()
+}
+
+impl Heard {
+    /// Take a position at `ms` of the vehicle's clock: the last, and into the track when
+    /// [`TRACK_PERIOD_MS`] have passed since its last point.
+    pub fn take_position(&mut self, ms: u32, enu_m: DVec3) {
+        self.last_fix = Some((ms, enu_m));
+        let due = self
+            .track
+            .last()
+            .is_none_or(|(t, _)| ms >= t.saturating_add(TRACK_PERIOD_MS));
+        if due && self.track.len() < TRACK_POINTS_KEPT {
+            self.track.push((ms, enu_m));
+        }
+    }
+
+    /// The track and the last position as waypoints in the text an intruder's track is
+    /// given in (`t_s e_m n_m u_m; ...`, seconds of the vehicle's clock, decimetres); `None`
+    /// when no position was heard.
+    ///
+    /// ```
+    /// use glam::DVec3;
+    /// let mut heard = savsim::study::pilot::Heard::default();
+    /// assert_eq!(heard.track_text(), None);
+    /// for (ms, e) in [(1000, 0.0), (1200, 1.0), (1500, 2.5), (1700, 3.0)] {
+    ///     heard.take_position(ms, DVec3::new(e, 10.0, 20.0));
+    /// }
+    /// assert_eq!(heard.track_text().unwrap(), "1.000 0.0 10.0 20.0; 1.500 2.5 10.0 20.0; 1.700 3.0 10.0 20.0");
+    /// ```
+    pub fn track_text(&self) -> Option<String> {
+        let last = self.last_fix?;
+        let mut points = self.track.clone();
+        if points.last().is_none_or(|(t, _)| *t < last.0) {
+            points.push(last);
+        }
+        let one = |(ms, p): &(u32, DVec3)| {
+            format!(
+                "{:.3} {:.1} {:.1} {:.1}",
+                f64::from(*ms) / 1000.0,
+                p.x,
+                p.y,
+                p.z
+            )
+        };
+        Some(points.iter().map(one).collect::<Vec<_>>().join("; "))
+    }
 }
 
 /// Take one message other than a position into `heard`.

@@ -95,6 +95,9 @@ pub struct StudyResult {
     pub obstacles: Vec<ObstacleApproach>,
     /// The closest of them, metres.
     pub closest_obstacle_m: Option<f64>,
+    /// The vehicle's positions as it sent them, every half second of its clock and its last:
+    /// `t_s e_m n_m u_m; ...` in the scene's frame, as an intruder's track is written.
+    pub track: Option<String>,
     /// When it was armed (GUIDED), seconds of its clock: SITL's boot until then is time the
     /// row spends before its plan.
     pub armed_t_s: Option<f64>,
@@ -137,6 +140,7 @@ impl StudyResult {
             measured: RunRow::of_inputs(index, &Run::default(), "exact"),
             obstacles: Vec::new(),
             closest_obstacle_m: None,
+            track: None,
             armed_t_s: None,
             legs_completed: 0,
             plan_completed: false,

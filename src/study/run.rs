@@ -199,7 +199,7 @@ fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
         .as_deref()
         .filter(|t| !t.trim().is_empty())
         .map(|t| {
-            crate::batch::encounter::parse_waypoints(t)
+            crate::runs::waypoints::parse_waypoints(t)
                 .map_err(|why| input("intruder", why.to_string()))
         })
         .transpose()?
@@ -629,6 +629,7 @@ fn record(
     result.plan_completed = flown.legs_completed == legs;
     result.sim_s = f64::from(flown.last_ms) / 1000.0;
     result.autopilot_did = did(heard, flown, px4);
+    result.track = heard.track_text();
     Ok(())
 }
 

@@ -41,10 +41,10 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
         number("achieved_speedup"),
         number("wall_s"),
     );
-    let (error, version) = (
-        optional::<StringArray>(batch, "error"),
-        optional::<StringArray>(batch, "autopilot_version"),
-    );
+    let text = |name: &str| optional::<StringArray>(batch, name);
+    let (error, version) = (text("error"), text("autopilot_version"));
+    let (scene, track, intruder) = (text("scene"), text("vehicle_track"), text("intruder"));
+    let (cpa_t, collision_t) = (number("cpa_t_s"), number("first_collision_t_s"));
     let index = column::<UInt64Array>(batch, "index", path)?;
     for i in 0..batch.num_rows() {
         let row = RowView {
@@ -60,6 +60,11 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
             wall_s: float_at(wall, i),
             error: text_at(error, i),
             autopilot_version: text_at(version, i),
+            scene: text_at(scene, i),
+            vehicle_track: text_at(track, i),
+            intruder: text_at(intruder, i),
+            cpa_t_s: float_at(cpa_t, i),
+            first_collision_t_s: float_at(collision_t, i),
         };
         let flew = (row.ended != "error").then(|| Outcome {
             pair: row.pair.clone(),

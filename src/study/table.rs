@@ -96,6 +96,7 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("cpa_vertical_m", floats(rows, |r| m(r).cpa_vertical_m)),
         ("cpa_t_s", floats(rows, |r| m(r).cpa_t_s)),
         ("cpa_track", strings(rows, |r| m(r).cpa_track.clone())),
+        ("vehicle_track", strings(rows, |r| r.track.clone())),
         ("lowc", bools(rows, |r| m(r).lowc)),
         ("lowc_first_t_s", floats(rows, |r| m(r).lowc_first_t_s)),
         (

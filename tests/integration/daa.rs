@@ -681,7 +681,7 @@ fn model_encounters_hold_their_miss_distances_at_tca_and_fly() {
     let headers = reader.headers().unwrap().clone();
     let col = |name: &str| headers.iter().position(|h| h == name).unwrap();
     let at = |track: &str, t: f64| -> DVec3 {
-        let w = savsim::batch::encounter::parse_waypoints(track).unwrap();
+        let w = savsim::runs::waypoints::parse_waypoints(track).unwrap();
         let k = w.iter().position(|p| (p.t_s - t).abs() < 1e-9).unwrap();
         DVec3::from(w[k].position_enu_m)
     };
@@ -696,7 +696,7 @@ fn model_encounters_hold_their_miss_distances_at_tca_and_fly() {
         assert!((d.truncate().length() - hmd).abs() < 0.01, "{d} vs {hmd}");
         assert!((d.z - vmd).abs() < 0.01, "{d} vs {vmd}");
         // Not straight lines: some tracks turn (their heading changes along them).
-        let w = savsim::batch::encounter::parse_waypoints(own).unwrap();
+        let w = savsim::runs::waypoints::parse_waypoints(own).unwrap();
         let heading = |k: usize| {
             let v = DVec3::from(w[k + 1].position_enu_m) - DVec3::from(w[k].position_enu_m);
             v.y.atan2(v.x)

@@ -6,10 +6,10 @@
 
 use glam::DVec3;
 use rand::SeedableRng;
-use savsim::batch::encounter::parse_waypoints;
 use savsim::batch::gen::GenOptions;
 use savsim::daa::encounter_model::{track, Model};
 use savsim::daa::pairing_ini::PairingSettings;
+use savsim::runs::waypoints::parse_waypoints;
 
 use crate::common::root;
 use crate::daa::chi_square_p;

@@ -59,6 +59,28 @@ fn study_dir() -> tempfile::TempDir {
             ..StudyRow::default()
         },
     );
+    // Each row flies north through a box at 60 m (the scene beside the results); pair p10's
+    // scene is missing; the mitigated rows meet an intruder crossing east at 60 m.
+    let scene = dir.path().join("box.toml");
+    std::fs::write(
+        &scene,
+        "[origin]\nlat_deg = -35.36\nlon_deg = 149.16\nalt_m = 584\n\n[[obstacle]]\n\
+         id = \"box\"\nkind = \"building\"\nshape = { box = [20.0, 10.0, 40.0] }\n\
+         position_enu_m = [0.0, 60.0, 0.0]\n",
+    )
+    .unwrap();
+    for r in &mut rows {
+        r.track = Some("0 0 0 20; 10 0 50 20; 20 0 100 20".into());
+        r.inputs.scene = Some(if r.inputs.pair.as_deref() == Some("p10") {
+            dir.path().join("missing.toml").display().to_string()
+        } else {
+            scene.display().to_string()
+        });
+        r.measured.cpa_t_s = Some(12.0);
+        if r.inputs.variant.as_deref() == Some("mitigated") {
+            r.inputs.intruder = Some("0 -500 60 20; 60 500 60 20".into());
+        }
+    }
     broken.error = Some("SITL: ended by itself".into());
     broken.outcome = savsim::study::result::Outcome::Error;
     rows.push(broken);
@@ -138,6 +160,14 @@ fn a_study_report_shows_the_counts_ratios_and_rows_it_was_given() {
     assert!(traffic.contains("nominal: 12 rows") && traffic.contains("mitigated: 12 rows"));
     let acted = section(&page, "acted");
     assert!(acted.contains("mitigated: 12 rows") && !acted.contains("nominal:"));
+    // In plan, the rows worth a look: nominal passed (p9-p11), mitigated collided (p0-p2);
+    // the box in each but p10's (its scene is missing, and said so); the intruder in the
+    // mitigated ones.
+    let plans = section(&page, "plans");
+    assert_eq!(count(plans, "<figure class=\"plan\">"), 6, "{plans}");
+    assert_eq!(count(plans, "<polygon"), 5, "{plans}");
+    assert_eq!(count(plans, "footprints not drawn"), 1, "{plans}");
+    assert_eq!(count(plans, "stroke=\"#FF7F0E\""), 3, "{plans}");
     // Every row, the error with its reason.
     let rows = section(&page, "rows");
     assert_eq!(count(rows, "<tr class="), 25);

@@ -11,6 +11,7 @@ use plotters::prelude::*;
 use crate::chart_font::font;
 use crate::daa::ratios::{Estimate, VariantRatios};
 use crate::error::{Error, Result};
+use crate::runs::summary::Ratio;
 
 /// Outcomes in the order they are stacked, with their colours.
 pub const OUTCOMES: [(&str, RGBColor); 5] = [
@@ -32,22 +33,30 @@ const VARIANT_COLOURS: [RGBColor; 6] = [
 ];
 
 const WIDTH: u32 = 1000;
-const FONT: (&str, u32) = ("sans-serif", 13);
+pub(super) const FONT: (&str, u32) = ("sans-serif", 13);
 const CAPTION: (&str, u32) = ("sans-serif", 15);
 
-fn failed(e: impl std::fmt::Display) -> Error {
+pub(super) fn failed(e: impl std::fmt::Display) -> Error {
     Error::Usage(format!("drawing a chart: {e}"))
 }
 
-/// Draw into an SVG string of `height` pixels.
+/// Draw into an SVG string of the page's width and `height` pixels.
 fn svg(
     height: u32,
+    draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<()>,
+) -> Result<String> {
+    svg_of((WIDTH, height), draw)
+}
+
+/// Draw into an SVG string of `size` pixels.
+pub(super) fn svg_of(
+    size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<()>,
 ) -> Result<String> {
     font()?;
     let mut text = String::new();
     {
-        let root = SVGBackend::with_string(&mut text, (WIDTH, height)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
         root.fill(&WHITE).map_err(failed)?;
         draw(&root)?;
         root.present().map_err(failed)?;
@@ -151,22 +160,18 @@ pub fn outcomes(counts: &BTreeMap<String, BTreeMap<String, u64>>) -> Result<Stri
     })
 }
 
-/// The three ratios of one variant, named.
-fn three(r: &VariantRatios) -> [(&'static str, Estimate); 3] {
-    [
-        ("collision", r.collision_ratio),
-        ("NMAC", r.nmac_ratio),
-        ("LoWC", r.lowc_ratio),
-    ]
-}
-
 /// Every defined ratio as a point with its 95% interval as a line (an unbounded end drawn to
 /// the chart's edge with an arrowhead), one line per variant and measure; 1 (no effect)
 /// a grey line. `None` when no ratio is defined.
 pub fn ratios(ratios: &[VariantRatios]) -> Result<Option<String>> {
     let rows: Vec<(String, Estimate)> = ratios
         .iter()
-        .flat_map(|r| three(r).map(|(m, e)| (format!("{} {m}", r.variant), e)))
+        .flat_map(|r| {
+            Ratio::ALL.map(|k| {
+                let (m, e) = k.of(r);
+                (format!("{} {m}", r.variant), *e)
+            })
+        })
         .filter(|(_, e)| e.value.is_some())
         .collect();
     if rows.is_empty() {

@@ -94,7 +94,9 @@ table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #ddd;padd
 table.rows th{cursor:pointer;background:#eee;position:sticky;top:0}\
 table.rows td[data-v]{text-align:right}tr.collision td:nth-child(4){color:#d62728}\
 tr.nmac td:nth-child(4){color:#ff7f0e}tr.error td:nth-child(4){color:#7f7f7f}\
-table.meta th{text-align:left;background:#f6f6f6}p.none{color:#777}";
+table.meta th{text-align:left;background:#f6f6f6}p.none{color:#777}\
+figure.plan{display:inline-block;margin:0.3em;vertical-align:top;max-width:470px}\
+figure.plan figcaption{font-size:0.85em}";
 
 /// Sorts a `table.rows` by the clicked column (numbers by `data-v`, else text), again to
 /// reverse.

@@ -2,19 +2,20 @@
 //! self-contained HTML page (no network, no script but the table's sorting): the outcome
 //! counts per variant, every risk ratio with its 95% interval, the ratios as pairs accumulate,
 //! histograms of the closest approaches (to traffic, to obstacles), of when the autopilot first
-//! acted and of the achieved speedups, the rows (each linked to its recording when
-//! `--rerun-rows` kept one) and the study's metadata from its shard files. Written whole or not
-//! at all.
+//! acted and of the achieved speedups, the rows worth a look in plan (their tracks and the
+//! scene's footprints), the rows (each linked to its recording when `--rerun-rows` kept one)
+//! and the study's metadata from its shard files. Written whole or not at all.
 
 pub mod charts;
 pub mod html;
+pub mod plan;
 
 use std::path::{Path, PathBuf};
 
 use crate::daa::ratios::{rates, ratios, Estimate, VariantRatios};
 use crate::error::{Error, Result};
 use crate::runs::recordings::{recording_path, RECORDINGS};
-use crate::runs::summary::{RowView, Summary};
+use crate::runs::summary::{Ratio, RowView, Summary};
 use crate::runs::table::read_settings;
 
 /// What the report is of.
@@ -93,6 +94,7 @@ fn page(dir: &Path, summary: &Summary, out: &Path, options: Options) -> Result<S
         ),
     ));
     sections.extend(distributions(summary)?);
+    sections.extend(plans_section(dir, summary, out, options)?);
     sections.push(rows_section(dir, summary, out, options));
     sections.push(metadata(summary)?);
     Ok(html::page(&title, &sections))
@@ -127,15 +129,11 @@ fn convergence(summary: &Summary, all: &[VariantRatios], nominal: &str) -> Vec<c
     });
     for rs in prefixes.chain(std::iter::once(all.to_vec())) {
         for r in rs {
-            for (measure, e) in [
-                ("collision", r.collision_ratio),
-                ("NMAC", r.nmac_ratio),
-                ("LoWC", r.lowc_ratio),
-            ] {
+            for (measure, e) in Ratio::ALL.map(|k| k.of(&r)) {
                 traces
                     .entry(format!("{} {measure} ratio", r.variant))
                     .or_default()
-                    .push((r.pairs, e));
+                    .push((r.pairs, *e));
             }
         }
     }
@@ -209,6 +207,85 @@ fn distributions(summary: &Summary) -> Result<Vec<String>> {
         .collect()
 }
 
+/// The link to row `row`'s recording in `dir`, from the page at `out`: relative when the page
+/// is in `dir`, else absolute; `None` when there is no recording.
+fn recording_link(dir: &Path, out: &Path, row: &RowView) -> Option<String> {
+    let path = recording_path(dir, row.index, &row.id);
+    if !path.is_file() {
+        return None;
+    }
+    if out.parent().is_some_and(|p| same_dir(p, dir)) {
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        Some(format!("{RECORDINGS}/{name}"))
+    } else {
+        Some(path.canonicalize().unwrap_or(path).display().to_string())
+    }
+}
+
+/// Plans drawn at most: the first rows worth a look.
+const MAX_PLANS: usize = 24;
+
+/// The rows worth a look (`RowView::worth_a_look`) that hold their track, in plan: the first
+/// [`MAX_PLANS`], each linked to its recording. `None` when no row holds a track (a batch).
+fn plans_section(
+    dir: &Path,
+    summary: &Summary,
+    out: &Path,
+    options: Options,
+) -> Result<Option<String>> {
+    let tracked = || summary.rows.iter().filter(|r| r.vehicle_track.is_some());
+    if tracked().next().is_none() {
+        return Ok(None);
+    }
+    let chosen: Vec<&RowView> = tracked()
+        .filter(|r| r.worth_a_look(options.nominal))
+        .collect();
+    let scenes = crate::runs::scenes::SceneCache::load(
+        chosen
+            .iter()
+            .take(MAX_PLANS)
+            .filter_map(|r| r.scene.as_deref()),
+    );
+    let mut body = format!(
+        "<p>{}</p>\n",
+        html::escape(&format!(
+            "{} rows are worth a look (not passed in a variant other than {nominal}, passed \
+             in {nominal}, or failed to run){}. Seen from above: the vehicle's track (blue), \
+             the intruder's (orange, from {around} s before the marked moment to {around} s \
+             after), each from its dot; the scene's footprints (grey); the red crosses mark \
+             both where the first collision, else the closest approach to traffic, happened.",
+            chosen.len(),
+            if chosen.len() > MAX_PLANS {
+                format!(": the first {MAX_PLANS} are drawn")
+            } else {
+                String::new()
+            },
+            nominal = options.nominal,
+            around = plan::AROUND_S,
+        ))
+    );
+    for row in chosen.iter().take(MAX_PLANS) {
+        let scene = scenes.get(row.scene.as_deref());
+        let Some(svg) = plan::chart(row, scene.as_deref().ok())? else {
+            continue;
+        };
+        let mut caption = html::escape(&format!("{} ({}, {})", row.id, row.variant, row.ended));
+        if let Err(e) = scene {
+            caption += &html::escape(&format!("; footprints not drawn: {e}"));
+        }
+        if let Some(href) = recording_link(dir, out, row) {
+            caption += &format!(" <a href=\"{}\">.rrd</a>", html::escape(&href));
+        }
+        body +=
+            &format!("<figure class=\"plan\">{svg}<figcaption>{caption}</figcaption></figure>\n");
+    }
+    Ok(Some(html::section(
+        "plans",
+        "Rows worth a look, in plan",
+        &body,
+    )))
+}
+
 /// The rows' table, each linked to its recording when there is one.
 fn rows_section(dir: &Path, summary: &Summary, out: &Path, options: Options) -> String {
     let shown: Vec<&RowView> = summary
@@ -216,20 +293,7 @@ fn rows_section(dir: &Path, summary: &Summary, out: &Path, options: Options) -> 
         .iter()
         .filter(|r| !options.failing_rows_only || r.ended != "pass")
         .collect();
-    let beside = out.parent().is_some_and(|p| same_dir(p, dir));
-    let table = html::rows_table(&shown, |row| {
-        let path = recording_path(dir, row.index, &row.id);
-        path.is_file().then(|| {
-            if beside {
-                format!(
-                    "{RECORDINGS}/{}",
-                    path.file_name().unwrap_or_default().to_string_lossy()
-                )
-            } else {
-                path.canonicalize().unwrap_or(path).display().to_string()
-            }
-        })
-    });
+    let table = html::rows_table(&shown, |row| recording_link(dir, out, row));
     let what = if options.failing_rows_only {
         format!(
             "The {} of {} rows that did not pass; click a heading to sort.",
