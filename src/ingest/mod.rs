@@ -13,6 +13,7 @@
 //! - [`supervisor`]: per-vehicle routes, stream requests and their supervision (pure).
 //! - [`forward`]: `--forward`, routing between vehicles and ground stations (pure).
 //! - [`signing`]: MAVLink 2 signing of what savsim sends, and judging what it receives.
+//! - [`notes`]: what an autopilot says (STATUSTEXT, mode changes, COLLISION) as text.
 //!
 //! Every MAVLink frame funnels into [`Ingestor::frame`], so replay and live decode identically;
 //! autopilot logs join at the reports (`Session::on_report`).
@@ -24,6 +25,7 @@ pub mod flightlog;
 pub mod forward;
 pub mod frame;
 pub mod live;
+pub mod notes;
 pub mod outbox;
 pub mod signing;
 pub mod stats;

@@ -34,6 +34,9 @@ use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 /// report; the rest are counted (`notable_not_kept`), and every figure drawn from the run
 /// comes from [`EventDigest`], which takes them all.
 const NOTABLE_KEPT: usize = 1000;
+/// Notes held for senders with no position yet, at most.
+#[cfg(feature = "viz")]
+const HELD_NOTES: usize = 64;
 
 /// A run's state.
 pub struct Session {
@@ -73,6 +76,13 @@ pub struct Session {
     /// The rerun logger, when `--rerun` is on.
     #[cfg(feature = "viz")]
     viz: Option<crate::viz::Logger>,
+    /// What the vehicles say (STATUSTEXT, mode changes, COLLISION), for the logger.
+    #[cfg(feature = "viz")]
+    notes: crate::ingest::notes::Notes,
+    /// Notes of senders with no position yet, held until their first (at most
+    /// [`HELD_NOTES`]).
+    #[cfg(feature = "viz")]
+    held_notes: Vec<(f64, crate::ingest::notes::Note)>,
     ticks: u64,
     /// The closed-loop feed, when `--feed` is on.
     feed: Option<Feed>,
@@ -149,6 +159,10 @@ impl Session {
             log: None,
             #[cfg(feature = "viz")]
             viz: None,
+            #[cfg(feature = "viz")]
+            notes: crate::ingest::notes::Notes::default(),
+            #[cfg(feature = "viz")]
+            held_notes: Vec::new(),
             ticks: 0,
             feed: None,
             feed_out: Vec::new(),
@@ -376,6 +390,10 @@ impl Session {
         } else {
             t_s
         };
+        #[cfg(feature = "viz")]
+        if frame.status == FrameStatus::Valid {
+            self.note_for_viewer(t_s, frame);
+        }
         let Some(decoded) = self.ingestor.frame(frame) else {
             return Ok(());
         };
@@ -388,6 +406,64 @@ impl Session {
             }
         }
         self.on_report(t_s, decoded.sender, &decoded.report)
+    }
+
+    /// What a vehicle said in `frame` (received at `t_s`), to the logger at the vehicle's last
+    /// clock; held until its first position when it has none yet. Nothing without a logger
+    /// or from savsim's own senders.
+    #[cfg(feature = "viz")]
+    fn note_for_viewer(&mut self, t_s: f64, frame: &RawFrame<'_>) {
+        if self.viz.is_none() {
+            return;
+        }
+        let Some(note) = self.notes.take(frame) else {
+            return;
+        };
+        if self.own.contains(&note.sender) {
+            return;
+        }
+        let latest = self
+            .world
+            .vehicles
+            .get(&note.sender)
+            .and_then(|v| v.history.latest());
+        match latest {
+            Some(at) => {
+                let time_boot_ms = at.time_boot_ms;
+                self.send_note(t_s, time_boot_ms, note);
+            }
+            None if self.held_notes.len() < HELD_NOTES => self.held_notes.push((t_s, note)),
+            None => {}
+        }
+    }
+
+    /// Send `note` to the logger at `t_s` and the vehicle's clock `time_boot_ms`.
+    #[cfg(feature = "viz")]
+    fn send_note(&mut self, t_s: f64, time_boot_ms: u32, note: crate::ingest::notes::Note) {
+        let Some(viz) = &mut self.viz else { return };
+        viz.send(crate::viz::VizMsg::Note(Box::new(crate::viz::NoteFrame {
+            tick: self.ticks,
+            t_s,
+            time_boot_ms,
+            system_id: note.sender.system_id,
+            severity: note.severity,
+            text: note.text,
+        })));
+    }
+
+    /// The notes `sender` said before its first position, sent at `time_boot_ms`.
+    #[cfg(feature = "viz")]
+    fn send_held_notes(&mut self, sender: SenderId, time_boot_ms: u32) {
+        if self.held_notes.is_empty() {
+            return;
+        }
+        let held = std::mem::take(&mut self.held_notes);
+        let (mine, others): (Vec<_>, Vec<_>) =
+            held.into_iter().partition(|(_, n)| n.sender == sender);
+        self.held_notes = others;
+        for (t_s, note) in mine {
+            self.send_note(t_s, time_boot_ms, note);
+        }
     }
 
     /// Take one report from `sender` at `t_s` (seconds on the source's clock): what a frame

@@ -40,12 +40,13 @@ impl Session {
         let first_event = self.events.len();
         self.judge_well_clear(&tick);
         let (report, cost_ns) = self.step_pipeline(&scene, &tick);
+        let first_feed = self.feed_out.len();
         self.feed_sample(&scene, &tick);
         self.ticks += 1;
         #[cfg(not(feature = "viz"))]
-        let _ = (first_event, report, cost_ns);
+        let _ = (first_event, first_feed, report, cost_ns);
         #[cfg(feature = "viz")]
-        self.send_viz_frame(&scene, &tick, first_event, report, cost_ns);
+        self.send_viz_frame(&scene, &tick, (first_event, first_feed), report, cost_ns);
         self.write_feed()?;
         self.flush_events()
     }
@@ -167,10 +168,12 @@ impl Session {
         &mut self,
         scene: &Scene,
         tick: &TickInput,
-        first_event: usize,
+        (first_event, first_feed): (usize, usize),
         report: TickReport,
         cost_ns: u64,
     ) {
+        let adsb_sent = adsb_sent(&self.feed_out[first_feed..], self.world.plane());
+        self.send_held_notes(tick.sender, tick.current.time_boot_ms);
         let (Some(viz), Some(pipeline)) = (&mut self.viz, &self.pipeline) else {
             return;
         };
@@ -202,6 +205,7 @@ impl Session {
                 .as_ref()
                 .map_or_else(Vec::new, |f| f.readings().to_vec()),
             feed_max_m: self.feed.as_ref().map_or(0.0, |f| f.config.range.max_m),
+            adsb_sent,
             node: sensing
                 .and_then(|s| s.node())
                 .map(|n| pipeline.octree().node_aabb(n)),
@@ -228,6 +232,36 @@ impl Session {
             cost_us: cost_ns as f64 / 1e3,
         })));
     }
+}
+
+/// The ADS-B reports among `sent`: each a label (ICAO address, callsign) and the position
+/// it gave, in `plane`'s ENU metres.
+#[cfg(feature = "viz")]
+fn adsb_sent(
+    sent: &[crate::feed::FeedMessage],
+    plane: &crate::geo::LocalTangentPlane,
+) -> Vec<(String, glam::DVec3)> {
+    use mavlink::dialects::ardupilotmega::MavMessage;
+    sent.iter()
+        .filter_map(|m| match &m.message {
+            MavMessage::ADSB_VEHICLE(a) => {
+                let at = crate::geo::Geodetic::new(
+                    f64::from(a.lat) * 1e-7,
+                    f64::from(a.lon) * 1e-7,
+                    f64::from(a.altitude) * 1e-3,
+                );
+                let callsign = a
+                    .callsign
+                    .to_str()
+                    .unwrap_or("")
+                    .trim_end_matches('\0')
+                    .trim();
+                let label = format!("{:06X} {callsign}", a.ICAO_address);
+                Some((label.trim().to_string(), plane.enu_m_from_geodetic(&at)))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 /// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a

@@ -47,44 +47,6 @@ pub mod mode {
     pub const AVOID_ADSB: u32 = 19;
 }
 
-/// ArduCopter's name of flight mode `custom_mode`.
-pub fn arducopter_mode_name(custom_mode: u32) -> String {
-    const NAMES: [&str; 28] = [
-        "STABILIZE",
-        "ACRO",
-        "ALT_HOLD",
-        "AUTO",
-        "GUIDED",
-        "LOITER",
-        "RTL",
-        "CIRCLE",
-        "",
-        "LAND",
-        "",
-        "DRIFT",
-        "",
-        "SPORT",
-        "FLIP",
-        "AUTOTUNE",
-        "POSHOLD",
-        "BRAKE",
-        "THROW",
-        "AVOID_ADSB",
-        "GUIDED_NOGPS",
-        "SMART_RTL",
-        "FLOWHOLD",
-        "FOLLOW",
-        "ZIGZAG",
-        "SYSTEMID",
-        "AUTOROTATE",
-        "AUTO_RTL",
-    ];
-    match NAMES.get(custom_mode as usize) {
-        Some(name) if !name.is_empty() => (*name).to_string(),
-        _ => format!("MODE{custom_mode}"),
-    }
-}
-
 /// One position of the vehicle, as the pilot heard it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fix {
@@ -639,31 +601,6 @@ fn param_on_wire(value: f64, kind: u8) -> (f32, MavParamType) {
         )
     } else {
         (value as f32, MavParamType::MAV_PARAM_TYPE_REAL32)
-    }
-}
-
-/// PX4's name of flight mode `custom_mode` (main mode in its third byte, AUTO's sub mode in
-/// its fourth).
-pub fn px4_mode_name(custom_mode: u32) -> String {
-    let (main, sub) = ((custom_mode >> 16) & 0xff, custom_mode >> 24);
-    const MAIN: [&str; 9] = [
-        "",
-        "MANUAL",
-        "ALTCTL",
-        "POSCTL",
-        "AUTO",
-        "ACRO",
-        "OFFBOARD",
-        "STABILIZED",
-        "RATTITUDE",
-    ];
-    const AUTO: [&str; 10] = [
-        "", "READY", "TAKEOFF", "LOITER", "MISSION", "RTL", "LAND", "", "FOLLOW", "PRECLAND",
-    ];
-    match (MAIN.get(main as usize), AUTO.get(sub as usize)) {
-        (Some(&"AUTO"), Some(sub)) if !sub.is_empty() => format!("AUTO.{sub}"),
-        (Some(main), _) if !main.is_empty() => (*main).to_string(),
-        _ => format!("MODE{custom_mode:#x}"),
     }
 }
 

@@ -16,6 +16,7 @@ use crate::feed::{FeedConfig, FeedKinds};
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::live::Link;
+use crate::ingest::notes::{arducopter_mode_name, px4_mode_name};
 use crate::ingest::stats::SenderId;
 use crate::live::{run_links, Flag, LiveOptions, LiveRun};
 use crate::pipeline::CollisionConfig;
@@ -25,7 +26,7 @@ use crate::scene::{Kind, Scene, Waypoint};
 use crate::session::Session;
 use crate::study::fly::{fly, fly_px4, Flown};
 use crate::study::manifest::StudyRow;
-use crate::study::pilot::{arducopter_mode_name, mode, px4_mode_name, Heard, Pilot, PilotError};
+use crate::study::pilot::{mode, Heard, Pilot, PilotError};
 use crate::study::plan::{self, Leg, PlanError};
 use crate::study::result::{AutopilotDid, Outcome, StudyResult};
 use crate::study::sitl::{

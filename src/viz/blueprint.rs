@@ -182,7 +182,7 @@ impl Writer<'_> {
         self.view("TimeSeries", name, origin, &[format!("{origin}/**")], None)
     }
 
-    /// The row of time series: tick cost, active colliders, beta.
+    /// The row below: tick cost, active colliders, beta, and what the vehicles said.
     fn series_row(&mut self) -> RecordingStreamResult<String> {
         let series = vec![
             self.series("tick cost (µs)", &format!("/{}/cost_us", paths::METRICS))?,
@@ -191,12 +191,19 @@ impl Writer<'_> {
                 &format!("/{}/colliders", paths::METRICS),
             )?,
             self.series("beta", &format!("/{}/beta", paths::METRICS))?,
+            self.view(
+                "TextLog",
+                "what the vehicles said",
+                &format!("/{}", paths::MESSAGES),
+                &[format!("/{}/**", paths::MESSAGES)],
+                None,
+            )?,
         ];
         let (row, _) = self.container(
             "series",
             ContainerKind::Horizontal,
             series,
-            &[1.0, 1.0, 1.0],
+            &[1.0, 1.0, 1.0, 1.5],
         )?;
         Ok(row)
     }

@@ -17,7 +17,7 @@ use super::draw::{
 };
 use super::markers::{Markers, Where};
 use super::rows::Rows;
-use super::{paths, TickFrame, VizMsg, VizOptions};
+use super::{paths, NoteFrame, TickFrame, VizMsg, VizOptions};
 use crate::collision::bodies::BodySource;
 use crate::scene::{Aabb64, Kind, Scene};
 
@@ -82,6 +82,7 @@ pub fn run(
     for msg in rx {
         match msg {
             VizMsg::Tick(frame) => log_tick(&rec, &mut state, &frame).map_err(text)?,
+            VizMsg::Note(note) => log_note(&rec, &mut state.rows, &note).map_err(text)?,
         }
     }
     state.rows.flush(&rec).map_err(text)?;
@@ -210,6 +211,7 @@ fn log_tick(
     log_track(rec, rows, v, f, position)?;
     log_rays(rec, rows, v, f, state.offset, position)?;
     log_feed(rec, f, position)?;
+    log_adsb_sent(rec, state.offset, f)?;
     log_node(rec, v, f, state.leaves, state.offset)?;
     // Colliders (what changed), and the beta of each one a ray sees.
     v.colliders.log(rec, scene, state.offset, f)?;
@@ -436,6 +438,42 @@ fn log_feed(rec: &RecordingStream, f: &TickFrame, position: Vec3) -> RecordingSt
         &Arrows3D::from_vectors(vectors)
             .with_origins(std::iter::repeat_n(position.to_array(), f.feed.len()))
             .with_colors(colors),
+    )
+}
+
+/// The ADS-B reports the feed sent at this tick, where each put its aircraft (orange,
+/// labelled): the last report of each stays drawn until the next.
+fn log_adsb_sent(rec: &RecordingStream, offset: DVec3, f: &TickFrame) -> RecordingStreamResult<()> {
+    if f.adsb_sent.is_empty() {
+        return Ok(());
+    }
+    let points = f
+        .adsb_sent
+        .iter()
+        .map(|(_, p)| local(offset, *p).to_array());
+    let labels = f.adsb_sent.iter().map(|(label, _)| label.as_str());
+    rec.log(
+        paths::vehicle_part(f.system_id, "feed/adsb"),
+        &Points3D::new(points)
+            .with_labels(labels)
+            .with_radii([rerun::Radius::new_ui_points(6.0)])
+            .with_colors([Color::from_rgb(255, 127, 14)]),
+    )
+}
+
+/// A line a vehicle said, as a text log on its timelines (a MAVLink severity as rerun's level).
+fn log_note(rec: &RecordingStream, rows: &mut Rows, n: &NoteFrame) -> RecordingStreamResult<()> {
+    rows.set_time(n.tick, f64::from(n.time_boot_ms) / 1000.0, n.t_s);
+    let level = match n.severity {
+        0..=3 => rerun::TextLogLevel::ERROR,
+        4 => rerun::TextLogLevel::WARN,
+        5 | 6 => rerun::TextLogLevel::INFO,
+        _ => rerun::TextLogLevel::DEBUG,
+    };
+    rows.log(
+        rec,
+        paths::messages(n.system_id),
+        &rerun::TextLog::new(n.text.as_str()).with_level(level),
     )
 }
 

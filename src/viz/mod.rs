@@ -115,6 +115,9 @@ pub struct TickFrame {
     pub feed: Vec<crate::feed::Reading>,
     /// The feed's range, metres (a reading of nothing is drawn this long).
     pub feed_max_m: f64,
+    /// The ADS-B reports the feed sent the vehicle at this tick: a label (ICAO address and
+    /// callsign) and where the report put the aircraft (scene ENU metres, its errors included).
+    pub adsb_sent: Vec<(String, DVec3)>,
     /// The vehicle's octree leaf.
     pub node: Option<Aabb64>,
     /// Obstacles with a collider: which, and beta.
@@ -129,11 +132,31 @@ pub struct TickFrame {
     pub cost_us: f64,
 }
 
+/// A line a vehicle said (a STATUSTEXT, a mode change, a COLLISION message), at its clock's
+/// last position.
+#[derive(Debug, Clone)]
+pub struct NoteFrame {
+    /// Ticks so far (all vehicles).
+    pub tick: u64,
+    /// Receive/tlog time, UNIX seconds.
+    pub t_s: f64,
+    /// The vehicle's clock at its last position, ms.
+    pub time_boot_ms: u32,
+    /// The vehicle's system id.
+    pub system_id: u8,
+    /// MAV_SEVERITY: 0 emergency .. 7 debug.
+    pub severity: u8,
+    /// The line.
+    pub text: String,
+}
+
 /// What goes to the logger thread.
 #[derive(Debug)]
 pub enum VizMsg {
     /// A vehicle's tick.
     Tick(Box<TickFrame>),
+    /// A line a vehicle said.
+    Note(Box<NoteFrame>),
 }
 
 /// What the logger draws beyond the defaults.

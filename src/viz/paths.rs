@@ -17,6 +17,14 @@ pub const WELL_CLEAR: &str = "world/events/well_clear";
 /// Metrics root.
 pub const METRICS: &str = "metrics";
 
+/// What vehicles said (STATUSTEXTs, mode changes, COLLISION messages), as text logs.
+pub const MESSAGES: &str = "messages";
+
+/// What vehicle `sysid` said: `messages/{sysid}`.
+pub fn messages(system_id: u8) -> String {
+    format!("{MESSAGES}/{system_id}")
+}
+
 /// A vehicle's root: `world/vehicles/{sysid}`.
 pub fn vehicle(system_id: u8) -> String {
     format!("world/vehicles/{system_id}")

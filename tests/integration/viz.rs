@@ -10,7 +10,7 @@ use savsim::session::Session;
 use crate::common::{root, signal_and_wait, wait_until};
 
 /// Paths every replay over the bundled city must log (docs/rerun.md).
-const PATHS: [&str; 20] = [
+const PATHS: [&str; 21] = [
     "world/obstacles/building",
     "world/vehicles/1/body",
     "world/vehicles/1/body/model",
@@ -31,6 +31,7 @@ const PATHS: [&str; 20] = [
     "world/events/collision_normals",
     "world/events/near_misses",
     "metrics/cost_us/1",
+    "messages/1",
 ];
 
 /// rerun-sdk's own verifier accepts the recording.
@@ -84,7 +85,9 @@ fn a_replay_saves_a_recording_rerun_verifies() {
     crate::common::assert_ran(&out);
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    assert_eq!(s["rerun"]["sent"], 2025);
+    // 2025 ticks and 41 notes: the tlog's 38 STATUSTEXTs and 3 mode changes, as pymavlink
+    // counts them.
+    assert_eq!(s["rerun"]["sent"], 2025 + 41);
     assert_rrd_verifies(&rrd);
     let printed = Command::new("rerun")
         .args(["rrd", "print", "-vv"])
@@ -334,4 +337,113 @@ fn a_fleet_gets_four_chase_views_and_one_overview() {
             "no chase view {id}"
         );
     }
+}
+
+/// What a vehicle says (STATUSTEXT, its mode changes, COLLISION) is a text log on its
+/// timelines, and the ADS-B reports the feed sent it are drawn where they put the aircraft,
+/// labelled; the layout has a text view of them.
+#[test]
+fn what_a_vehicle_says_and_the_adsb_it_was_told_are_in_its_recording() {
+    use mavlink::dialects::ardupilotmega::{
+        MavAutopilot, MavCollisionAction, MavCollisionSrc, MavCollisionThreatLevel, MavMessage,
+        MavSeverity, MavType, COLLISION_DATA, HEARTBEAT_DATA, STATUSTEXT_DATA,
+    };
+    let origin = savsim::geo::Geodetic {
+        lat_deg: 47.0,
+        lon_deg: 8.0,
+        alt_m: 400.0,
+    };
+    let scene = crate::common::scene_at(
+        origin,
+        "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
+         { t_s = 0.0, position_enu_m = [2000.0, 0.0, 30.0] }, \
+         { t_s = 100.0, position_enu_m = [-2000.0, 0.0, 30.0] }]\n",
+    );
+    let plane = savsim::geo::LocalTangentPlane::new(scene.origin);
+    let (mut session, storage) = session_in_memory(scene, savsim::viz::VizOptions::default());
+    session
+        .start_feed(savsim::feed::FeedConfig {
+            kinds: savsim::feed::FeedKinds::parse("adsb").unwrap(),
+            ..savsim::feed::FeedConfig::default()
+        })
+        .unwrap();
+    let heartbeat = |custom_mode: u32| {
+        let MavMessage::HEARTBEAT(hb) = crate::common::heartbeat(
+            MavType::MAV_TYPE_QUADROTOR,
+            MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+        ) else {
+            unreachable!()
+        };
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA { custom_mode, ..hb })
+    };
+    let said = MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+        severity: MavSeverity::MAV_SEVERITY_WARNING,
+        text: "ADSB: avoiding 4840D6".into(),
+        ..STATUSTEXT_DATA::default()
+    });
+    let collision = |first: bool| {
+        MavMessage::COLLISION(COLLISION_DATA {
+            src: MavCollisionSrc::MAV_COLLISION_SRC_ADSB,
+            id: 0x48_40D6,
+            action: if first {
+                MavCollisionAction::MAV_COLLISION_ACTION_REPORT
+            } else {
+                MavCollisionAction::MAV_COLLISION_ACTION_MOVE_HORIZONTALLY
+            },
+            threat_level: MavCollisionThreatLevel::MAV_COLLISION_THREAT_LEVEL_HIGH,
+            time_to_minimum_delta: 12.0,
+            altitude_minimum_delta: 3.0,
+            horizontal_minimum_delta: 40.0,
+        })
+    };
+    let mut seq = 0;
+    for step in 0..40u32 {
+        let mut bytes = Vec::new();
+        // GUIDED (4), then AVOID_ADSB (19) from step 20, with a STATUSTEXT then.
+        let mode = if step < 20 { 4 } else { 19 };
+        bytes.extend(crate::common::frame_v2(1, 1, seq, &heartbeat(mode)));
+        if step == 20 {
+            bytes.extend(crate::common::frame_v2(1, 1, seq, &said));
+        }
+        // The same COLLISION repeated, then its action changed.
+        if (21..26).contains(&step) {
+            bytes.extend(crate::common::frame_v2(1, 1, seq, &collision(step < 24)));
+        }
+        let p = glam::DVec3::new(0.0, f64::from(step), 30.0);
+        bytes.extend(crate::common::position_frames(
+            &plane,
+            1,
+            &mut seq,
+            50_000 + step * 100,
+            p,
+            glam::DVec3::Y * 10.0,
+        ));
+        crate::common::feed(&mut session, 1.7e9 + f64::from(step) * 0.1, &bytes);
+        session.drain_feed().for_each(drop);
+    }
+    session.finish().unwrap();
+    let text = format!("{:?}", storage.take());
+    for part in [
+        "messages/1",
+        "mode GUIDED",
+        "mode AVOID_ADSB",
+        "ADSB: avoiding 4840D6",
+        "world/vehicles/1/feed/adsb",
+        "what the vehicles said",
+    ] {
+        assert!(text.contains(part), "{part} is not in the recording");
+    }
+    // A mode is said once, when it changes, not at every heartbeat; a COLLISION when it
+    // changes.
+    assert_eq!(text.matches("mode AVOID_ADSB").count(), 1);
+    assert_eq!(
+        text.matches("COLLISION: threat ADS-B 4840D6").count(),
+        2,
+        "{text}"
+    );
+    assert_eq!(
+        text.matches("MAV_COLLISION_ACTION_MOVE_HORIZONTALLY")
+            .count(),
+        1
+    );
 }
