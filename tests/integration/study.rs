@@ -428,6 +428,23 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
     assert!(json["outcomes"]["mitigated"]["collision"].is_null());
     assert_eq!(json["ratios"][0]["collision_ratio"]["high"], 0.0);
     rows_are_recorded_and_linked(&out_dir, 2 * pairs);
+    // A colliding row stops at its collision, so its recording opens on it: the marker and
+    // its red label in the chase view; the row that stopped short has none.
+    if crate::viz_render::can_render() {
+        let row = |variant: &str| {
+            out_dir.join(format!(
+                "rows/00000{}-approach-00000-{variant}.rrd",
+                usize::from(variant == "mitigated")
+            ))
+        };
+        let hit = crate::viz_render::collision_pixels_in_chase_view(&row("nominal"), "study_hit");
+        let missed =
+            crate::viz_render::collision_pixels_in_chase_view(&row("mitigated"), "study_missed");
+        assert!(
+            hit >= 300 && missed < 50,
+            "collision-red pixels: {hit} hit, {missed} missed"
+        );
+    }
 }
 
 /// Every row of a study flown with `--rerun-rows all` has a recording that rerun's own reader

@@ -72,7 +72,7 @@ impl Drop for Xvfb {
 
 /// Render `rrd` with the native viewer at 1280x800 points into `png`: a fresh viewer state (no
 /// layout or window size persisted from earlier runs), its gRPC server on 127.0.0.1 only.
-fn screenshot(rrd: &Path, png: &Path) {
+pub fn screenshot(rrd: &Path, png: &Path) {
     let x = Xvfb::start();
     let state = tempfile::tempdir().unwrap();
     let mut viewer = Command::new("rerun")
@@ -105,18 +105,75 @@ fn screenshot(rrd: &Path, png: &Path) {
     let _ = viewer.wait();
 }
 
+/// Whether recordings can be rendered here (Xvfb and the rerun CLI); without them a test
+/// skips with a message, or fails when `SAVSIM_REQUIRE_RENDERER` is set.
+pub fn can_render() -> bool {
+    if have("Xvfb", "-help") && have("rerun", "--version") {
+        return true;
+    }
+    assert!(
+        std::env::var_os("SAVSIM_REQUIRE_RENDERER").is_none(),
+        "Xvfb and the rerun CLI are required here but missing"
+    );
+    eprintln!(
+        "SKIP: no headless renderer (apt-get install xvfb mesa-vulkan-drivers; \
+         pip install rerun-sdk==0.36.3; .ci/run does)"
+    );
+    false
+}
+
+/// A row's recording as it opens: the pure red pixels (the collision marker and its label,
+/// `COLLISION v1 ...`) in its chase view (the top-left half of the window); a second
+/// picture when the first shows none (the viewer may take it before the file has loaded).
+pub fn collision_pixels_in_chase_view(rrd: &Path, name: &str) -> usize {
+    let png = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}.png"));
+    let mut found = 0;
+    for _ in 0..2 {
+        let _ = std::fs::remove_file(&png);
+        screenshot(rrd, &png);
+        assert!(
+            png.exists(),
+            "the viewer wrote no screenshot of {}",
+            rrd.display()
+        );
+        found = count_in(
+            &png,
+            |(x, y), (w, h)| x < w / 2 && y > h / 10 && y < h * 72 / 100,
+            |[r, g, b]| r >= 235 && g <= 30 && b <= 30,
+        );
+        if found > 0 {
+            break;
+        }
+    }
+    found
+}
+
+/// Pixels of `png` in the region `inside` ((x, y), (width, height)) whose colour `is`.
+fn count_in(
+    png: &Path,
+    inside: impl Fn((usize, usize), (usize, usize)) -> bool,
+    is: impl Fn([u8; 3]) -> bool,
+) -> usize {
+    let decoder = png::Decoder::new(BufReader::new(std::fs::File::open(png).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    let (w, h) = (info.width as usize, info.height as usize);
+    let channels = info.line_size / w;
+    assert!(channels >= 3, "{:?}", info.color_type);
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| inside((x, y), (w, h)))
+        .filter(|&(x, y)| {
+            let i = y * info.line_size + x * channels;
+            is([pixels[i], pixels[i + 1], pixels[i + 2]])
+        })
+        .count()
+}
+
 #[test]
 fn the_demo_recording_shows_the_vehicle_in_its_chase_view() {
-    let required = std::env::var_os("SAVSIM_REQUIRE_RENDERER").is_some();
-    if !(have("Xvfb", "-help") && have("rerun", "--version")) {
-        assert!(
-            !required,
-            "Xvfb and the rerun CLI are required here but missing"
-        );
-        eprintln!(
-            "SKIP: no headless renderer (apt-get install xvfb mesa-vulkan-drivers; \
-             pip install rerun-sdk==0.36.3; .ci/run does)"
-        );
+    if !can_render() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -149,23 +206,15 @@ fn the_demo_recording_shows_the_vehicle_in_its_chase_view() {
 
 /// Pixels of the vehicle's colour around where the chase view's eye looks.
 fn vehicle_pixels_near_chase_centre(png: &Path) -> usize {
-    let decoder = png::Decoder::new(BufReader::new(std::fs::File::open(png).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut pixels).unwrap();
-    let (w, h) = (info.width as usize, info.height as usize);
-    let channels = info.line_size / w;
-    assert!(channels >= 3, "{:?}", info.color_type);
-    let at = |x: usize, y: usize| {
-        let i = y * info.line_size + x * channels;
-        [pixels[i], pixels[i + 1], pixels[i + 2]]
-    };
     // The layout: the chase view is the top-left half of the window (below the menu bar,
     // above the time series), its eye looking at the vehicle from behind and above.
-    let (cx, cy) = (w / 4, h * 2 / 5);
-    let (dx, dy) = (w * 8 / 100, h * 12 / 100);
-    (cy - dy..cy + dy)
-        .flat_map(|y| (cx - dx..cx + dx).map(move |x| (x, y)))
-        .filter(|&(x, y)| is_vehicle_pink(at(x, y)))
-        .count()
+    count_in(
+        png,
+        |(x, y), (w, h)| {
+            let (cx, cy) = (w / 4, h * 2 / 5);
+            let (dx, dy) = (w * 8 / 100, h * 12 / 100);
+            x + dx >= cx && x < cx + dx && y + dy >= cy && y < cy + dy
+        },
+        is_vehicle_pink,
+    )
 }
