@@ -269,6 +269,15 @@ pub struct BatchArgs {
     /// No progress bar.
     #[arg(long)]
     pub no_progress: bool,
+    /// Save rows as rerun recordings in OUT/rows/, each flown again after it ran (a tlog
+    /// replayed, an encounter's samples; docs/batch.md): `failed` (rows not `pass` in a
+    /// variant other than the nominal one, `pass` in the nominal one, or errors), `all`, or
+    /// run ids separated by commas.
+    #[arg(long)]
+    pub rerun_rows: Option<crate::runs::recordings::RowChoice>,
+    /// The variant the others are compared with (which rows `--rerun-rows failed` keeps).
+    #[arg(long, default_value = "nominal")]
+    pub nominal: String,
 }
 
 /// `savsim batch ...` subcommands.

@@ -38,7 +38,7 @@ fn run_manifest_json(
     let runs = manifest::parse_json(rows_json).map_err(|e| error(format!("manifest rows: {e}")))?;
     let parquet = py
         .detach(|| -> Result<Vec<u8>, String> {
-            let rows = savsim::batch::run_rows(&runs, first_index, jobs, |_| {})
+            let rows = savsim::batch::run_rows(&runs, first_index, jobs, None, |_| {})
                 .map_err(|e| e.to_string())?;
             let mut out = Vec::new();
             let settings = savsim::runs::table::Settings {

@@ -147,11 +147,25 @@ fn run_shard(args: &BatchArgs) -> Result<()> {
     let range = shard.rows(runs.len());
     let bar = (!args.no_progress && std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .then(|| indicatif::ProgressBar::new(range.len() as u64));
-    let rows = crate::batch::run_rows(&runs[range.clone()], range.start, args.jobs, |_| {
-        if let Some(bar) = &bar {
-            bar.inc(1);
-        }
-    })?;
+    let recorder = args
+        .rerun_rows
+        .as_ref()
+        .map(|choice| crate::batch::record::Recorder {
+            choice,
+            out,
+            nominal: &args.nominal,
+        });
+    let rows = crate::batch::run_rows(
+        &runs[range.clone()],
+        range.start,
+        args.jobs,
+        recorder,
+        |_| {
+            if let Some(bar) = &bar {
+                bar.inc(1);
+            }
+        },
+    )?;
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }

@@ -220,7 +220,11 @@ fn sense(
 }
 
 /// The ownship on its track at `t_s`: level, nose along its course.
-fn ownship_sample(plane: &LocalTangentPlane, track: &[Waypoint], t_s: f64) -> TrackSample {
+pub(crate) fn ownship_sample(
+    plane: &LocalTangentPlane,
+    track: &[Waypoint],
+    t_s: f64,
+) -> TrackSample {
     let (pose, velocity_enu_mps) = waypoint_pose(track, t_s);
     let time_boot_ms = (t_s * 1000.0).round() as u32;
     TrackSample {

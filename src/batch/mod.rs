@@ -8,6 +8,7 @@
 //! - [`error`]: why a row, or one of its tracks, could not run.
 //! - [`row`]: what a run's row holds.
 //! - [`table`]: rows as Arrow and Parquet.
+//! - [`record`]: rows as rerun recordings (`--rerun-rows`).
 
 //! - [`gen`]: generated encounters, their truth known by construction.
 //! - [`command`]: `savsim batch` on the command line.
@@ -23,6 +24,7 @@ pub mod gen;
 pub mod gen_model;
 pub mod gen_pairing;
 pub mod manifest;
+pub mod record;
 pub mod row;
 pub mod run;
 pub mod sensed;
@@ -37,11 +39,13 @@ use manifest::Run;
 use row::RunRow;
 
 /// Run `runs` (rows `first_index..` of a manifest) on `jobs` threads (all cores when `None`),
-/// calling `on_done` after each; rows in manifest order.
+/// each recorded after it ran when `recorder` keeps it, calling `on_done` after each; rows
+/// in manifest order.
 pub fn run_rows(
     runs: &[Run],
     first_index: usize,
     jobs: Option<usize>,
+    recorder: Option<record::Recorder<'_>>,
     on_done: impl Fn(&RunRow) + Sync,
 ) -> Result<Vec<RunRow>> {
     let scenes = run::Scenes::for_runs(runs);
@@ -55,6 +59,9 @@ pub fn run_rows(
             .enumerate()
             .map(|(i, r)| {
                 let row = run::run_one(first_index + i, r, &scenes);
+                if let Some(said) = recorder.and_then(|rec| rec.after(r, &row, &scenes)) {
+                    eprintln!("{said}");
+                }
                 on_done(&row);
                 row
             })

@@ -100,6 +100,20 @@ pub struct RunRow {
 }
 
 impl RunRow {
+    /// How the row ended, as `batch summarize` counts it: `error`, `collision`, `nmac` or
+    /// `pass`.
+    pub fn ended(&self) -> &'static str {
+        if self.error.is_some() {
+            "error"
+        } else if self.collisions > 0 {
+            "collision"
+        } else if self.nmac {
+            "nmac"
+        } else {
+            "pass"
+        }
+    }
+
     /// A row with `run`'s inputs and no results yet.
     pub fn of_inputs(index: usize, run: &Run, mode: &str) -> Self {
         let kind = match (&run.tlog, &run.own, &run.daa) {

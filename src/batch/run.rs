@@ -66,7 +66,7 @@ impl Scenes {
 }
 
 /// The mode a row asks for (`exact` when it says nothing).
-fn mode_of(run: &Run) -> Result<Mode, RowError> {
+pub(crate) fn mode_of(run: &Run) -> Result<Mode, RowError> {
     match run.mode.as_deref().filter(|m| !m.is_empty()) {
         None => Ok(Mode::Exact),
         Some(m) => Mode::from_name(m).ok_or_else(|| RowError::Mode(m.to_owned())),
@@ -108,6 +108,29 @@ pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
 }
 
 fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(), RowError> {
+    let (scene, pipeline, flight) = prepare(run, mode, scenes, row)?;
+    match flight {
+        Flight::Tlog(path) => replay_tlog(&path, scene, pipeline, well_clear(run)?, row),
+        Flight::Encounter(encounter) => fly_encounter(run, &scene, pipeline, &encounter, row),
+    }
+}
+
+/// What a row flies: a tlog replayed, or an encounter's tracks.
+pub enum Flight {
+    /// A tlog, replayed as fast as it reads.
+    Tlog(std::path::PathBuf),
+    /// An ownship track and its intruders, sampled.
+    Encounter(Encounter),
+}
+
+/// A row checked and made ready to fly: its scene, a pipeline in its mode, what it flies
+/// (what reading its tracks cost is counted in `row`).
+pub(crate) fn prepare(
+    run: &Run,
+    mode: Mode,
+    scenes: &Scenes,
+    row: &mut RunRow,
+) -> Result<(Arc<Scene>, Pipeline, Flight), RowError> {
     if let Some(w) = run.w {
         savsim_core::bounds::within("w", w, 0.0, 1e300)?;
     }
@@ -117,35 +140,32 @@ fn execute(run: &Run, mode: Mode, scenes: &Scenes, row: &mut RunRow) -> Result<(
         ..CollisionConfig::default()
     };
     let pipeline = scenes.pipeline(run.scene.as_deref(), &scene, config);
-    match (&run.tlog, &run.own, &run.intruder, &run.daa) {
-        (Some(tlog), None, None, None) => {
-            replay_tlog(Path::new(tlog), scene, pipeline, well_clear(run)?, row)
-        }
+    let flight = match (&run.tlog, &run.own, &run.intruder, &run.daa) {
+        (Some(tlog), None, None, None) => Flight::Tlog(Path::new(tlog).to_path_buf()),
         (None, Some(own), Some(intruder), None) => {
             let mut stats = IngestStats::default();
             let own = track(own, &scene, &mut stats).map_err(RowError::Own)?;
             let intruder = track(intruder, &scene, &mut stats).map_err(RowError::Intruder)?;
             row.record_ingest(&stats);
             let intruders = vec![(Arc::from("intruder"), intruder)];
-            fly_encounter(run, &scene, pipeline, own, intruders, row)
+            Flight::Encounter(encounter_of(run, own, intruders)?)
         }
         (None, None, None, Some(daa)) => {
             let tracks = encounter::tracks_from_daa(Path::new(daa), &scene)?;
-            fly_encounter(run, &scene, pipeline, tracks.own, tracks.intruders, row)
+            Flight::Encounter(encounter_of(run, tracks.own, tracks.intruders)?)
         }
-        _ => Err(RowError::Columns),
-    }
+        _ => return Err(RowError::Columns),
+    };
+    Ok((scene, pipeline, flight))
 }
 
-/// Fly an encounter row: its length, rate, intruder kind and well-clear volume from the row.
-fn fly_encounter(
+/// An encounter row's flight: its length, rate, intruder kind and well-clear volume from the
+/// row.
+fn encounter_of(
     run: &Run,
-    scene: &Scene,
-    pipeline: Pipeline,
     own: Vec<Waypoint>,
     intruders: Vec<(Arc<str>, Vec<Waypoint>)>,
-    row: &mut RunRow,
-) -> Result<(), RowError> {
+) -> Result<Encounter, RowError> {
     let duration_s = match run.duration_s {
         Some(d) => positive("duration_s", d, MAX_DURATION_S)?,
         None => own.last().map_or(0.0, |w| w.t_s),
@@ -161,7 +181,7 @@ fn fly_encounter(
             rate_hz,
         });
     }
-    let encounter = Encounter {
+    Ok(Encounter {
         own,
         intruders,
         intruder_kind: match run.intruder_kind.as_deref().filter(|k| !k.is_empty()) {
@@ -171,9 +191,19 @@ fn fly_encounter(
         rate_hz,
         duration_s,
         well_clear: well_clear(run)?,
-    };
+    })
+}
+
+/// Fly an encounter row, with its sensed DAA system when it names one.
+fn fly_encounter(
+    run: &Run,
+    scene: &Scene,
+    pipeline: Pipeline,
+    encounter: &Encounter,
+    row: &mut RunRow,
+) -> Result<(), RowError> {
     let mut sensed = sensed_daa(run, scene)?;
-    let flown = encounter::fly(scene, pipeline, &encounter, &mut sensed);
+    let flown = encounter::fly(scene, pipeline, encounter, &mut sensed);
     row.record_run(
         flown.pipeline.totals(),
         &flown.digest,
@@ -240,7 +270,7 @@ fn track(text: &str, scene: &Scene, stats: &mut IngestStats) -> Result<Vec<Waypo
 }
 
 /// The row's well-clear volume (small UAS when it names none; `None` for `none`).
-fn well_clear(run: &Run) -> Result<Option<Volume>, RowError> {
+pub(crate) fn well_clear(run: &Run) -> Result<Option<Volume>, RowError> {
     let name = run
         .well_clear
         .as_deref()

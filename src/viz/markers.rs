@@ -66,7 +66,7 @@ impl Markers {
                     at: local(at.offset, DVec3::from(*point_enu_m)),
                     label: format!(
                         "COLLISION v{id} {obstacle} +{:.2} s",
-                        time_of_impact - f.t0_s
+                        (time_of_impact - f.t0_s).max(0.0)
                     ),
                     normal: DVec3::from(*normal_enu).as_vec3(),
                 });
@@ -106,7 +106,7 @@ impl Markers {
                     at: at.position_at(*lost_t),
                     label: format!(
                         "LoWC v{id} {track} {horizontal_m:.0} m / {vertical_m:.0} m +{:.1} s",
-                        lost_t - f.t0_s
+                        (lost_t - f.t0_s).max(0.0)
                     ),
                     normal: Vec3::ZERO,
                 });

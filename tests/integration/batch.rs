@@ -354,3 +354,80 @@ fn the_python_package_and_its_ray_example_give_the_clis_rows() {
     assert!(said.contains("GIL released"), "{said}");
     assert_eq!(said.contains("Ray on 2 workers"), ray, "{said}");
 }
+
+/// `--rerun-rows failed`: the rows that did not pass (NMAC encounters, the tlog that hits a
+/// building) are recorded, flown again after they ran, and only they; each recording holds
+/// what made its row fail; `batch report` links each.
+#[test]
+fn failed_rows_are_recorded_and_linked() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = encounters(dir.path(), 30, "40", false);
+    let mut text = std::fs::read_to_string(&manifest).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let row: Vec<String> = header
+        .iter()
+        .map(|c| match *c {
+            "id" => "city-tlog".to_string(),
+            "tlog" => demo_tlog(),
+            "scene" => city(),
+            _ => String::new(),
+        })
+        .collect();
+    text += &(row.join(",") + "\n");
+    std::fs::write(&manifest, text).unwrap();
+    let out = dir.path().join("out");
+    let ran = savsim(&[
+        "batch",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--rerun-rows",
+        "failed",
+    ]);
+    assert_ran(&ran);
+    let rows = read(&out.join("part-00000-of-00001.parquet"));
+    let ids = column::<StringArray>(&rows, "run_id");
+    let (nmac, collisions) = (
+        column::<BooleanArray>(&rows, "nmac"),
+        column::<UInt64Array>(&rows, "collisions"),
+    );
+    let failed: Vec<(usize, &str)> = (0..rows.num_rows())
+        .filter(|&i| nmac.value(i) || collisions.value(i) > 0)
+        .map(|i| (i, ids.value(i)))
+        .collect();
+    assert!(failed.len() >= 2, "{failed:?}");
+    assert!(failed.iter().any(|(_, id)| *id == "city-tlog"));
+    let mut kept: Vec<PathBuf> = std::fs::read_dir(out.join("rows"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    kept.sort();
+    let want: Vec<PathBuf> = failed
+        .iter()
+        .map(|(i, id)| savsim::runs::recordings::recording_path(&out, *i as u64, id))
+        .collect();
+    assert_eq!(kept, want);
+    if crate::viz::have_rerun_cli() {
+        for (path, (i, id)) in kept.iter().zip(&failed) {
+            crate::viz::assert_rrd_verifies(path);
+            let printed = Command::new("rerun")
+                .args(["rrd", "print", "-vv"])
+                .arg(path)
+                .output()
+                .unwrap();
+            let text = String::from_utf8_lossy(&printed.stdout);
+            let what = if collisions.value(*i) > 0 {
+                "world/events/collisions"
+            } else {
+                // An encounter's NMAC: its intruder, and well clear lost.
+                assert!(text.contains("world/traffic/intruder"), "{id}");
+                "world/events/well_clear"
+            };
+            assert!(text.contains(what), "{id}: no {what} in its recording");
+        }
+    }
+    let report = savsim(&["batch", "report", out.to_str().unwrap()]);
+    assert_ran(&report);
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(page.matches("<a href=\"rows/").count(), failed.len());
+}

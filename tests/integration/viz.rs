@@ -35,7 +35,7 @@ const PATHS: [&str; 21] = [
 ];
 
 /// rerun-sdk's own verifier accepts the recording.
-fn assert_rrd_verifies(rrd: &Path) {
+pub(crate) fn assert_rrd_verifies(rrd: &Path) {
     let verify = Command::new("rerun")
         .args(["rrd", "verify"])
         .arg(rrd)
@@ -49,7 +49,7 @@ fn assert_rrd_verifies(rrd: &Path) {
     );
 }
 
-fn have_rerun_cli() -> bool {
+pub(crate) fn have_rerun_cli() -> bool {
     let ok = Command::new("rerun")
         .arg("--version")
         .output()
