@@ -1,6 +1,7 @@
 """Send a fleet's telemetry to a savsim udpin port on 127.0.0.1, as many vehicles on one link
 would: N vehicles (MAVLink system ids 1..250, then component ids 1, 2, ... for more than 250),
-each flying a circle over the bundled city at its own place, each sending GLOBAL_POSITION_INT
+each flying a circle over the bundled city at its own place (or, with --spacing-m, in a
+block around the origin), each sending GLOBAL_POSITION_INT
 and ATTITUDE at --hz (one datagram per vehicle and sample) and HEARTBEAT at 1 Hz. Every frame
 is encoded before the first is sent; the send loop only keeps the schedule (each vehicle at its
 own phase in the period), so the sender's cost does not limit the rate.
@@ -8,6 +9,8 @@ own phase in the period), so the sender's cost does not limit the rate.
     savsim live --connect udpin:127.0.0.1:14550 --scene scenes/city.toml --duration-s 70 \\
         --summary-json live.json &
     python3 scripts/fleet.py 14550 --vehicles 1000 --hz 10 --seconds 60
+    # a drone-show block: 25 m apart at 360 m, small circles
+    python3 scripts/fleet.py 14550 --vehicles 1000 --spacing-m 25 --altitude-m 360 --radius-m 5
 
 It prints the frames and datagrams it sent and how late its sends ran; savsim's summary says
 what it took in (`ingest`), and its link report the receive -> processed latency.
@@ -47,20 +50,29 @@ def vehicle_id(n):
     return n % 250 + 1, n // 250 + 1
 
 
-def place(n, count):
-    """Vehicle n's circle centre (east, north, up) on a square grid over the city."""
+def place(n, count, spacing_m=None, altitude_m=None):
+    """Vehicle n's circle centre (east, north, up) on a square grid: spread over the whole city
+    (60-100 m up), or `spacing_m` apart around the origin (a drone-show block), `altitude_m`
+    up when given."""
     side = max(1, math.ceil(math.sqrt(count)))
-    step = 2 * EXTENT_M / side
-    east = -EXTENT_M + step * (n % side + 0.5)
-    north = -EXTENT_M + step * (n // side + 0.5)
-    return east, north, 60.0 + 40.0 * ((n * 7919) % 5) / 4.0
+    col, row = n % side, n // side
+    if spacing_m is None:
+        step = 2 * EXTENT_M / side
+        east = -EXTENT_M + step * (col + 0.5)
+        north = -EXTENT_M + step * (row + 0.5)
+    else:
+        east = (col - (side - 1) / 2) * spacing_m
+        north = (row - (side - 1) / 2) * spacing_m
+    up = altitude_m if altitude_m is not None else 60.0 + 40.0 * ((n * 7919) % 5) / 4.0
+    return east, north, up
 
 
-def frames_of(n, count, hz, seconds, radius_m, speed_mps):
+def frames_of(n, count, args):
     """Vehicle n's datagrams: (t_s, bytes, frames) in time order."""
+    hz, seconds, radius_m, speed_mps = args.hz, args.seconds, args.radius_m, args.speed_mps
     system_id, component_id = vehicle_id(n)
     enc = Encoder(system_id, component_id)
-    east0, north0, up = place(n, count)
+    east0, north0, up = place(n, count, args.spacing_m, args.altitude_m)
     phase_s = (n / count) / hz
     omega = speed_mps / radius_m
     lat0 = ORIGIN_LAT + north0 / M_PER_DEG_LAT
@@ -106,17 +118,34 @@ def main():
     p.add_argument("--seconds", type=float, default=60.0)
     p.add_argument("--radius-m", type=float, default=40.0)
     p.add_argument("--speed-mps", type=float, default=8.0)
+    p.add_argument(
+        "--spacing-m",
+        type=float,
+        default=None,
+        help="circle centres this far apart on a square grid around the origin (a drone-show "
+        "block); default: spread over the whole city",
+    )
+    p.add_argument(
+        "--altitude-m",
+        type=float,
+        default=None,
+        help="every vehicle this high (default 60-100 m, by vehicle)",
+    )
     args = p.parse_args()
     if not 1 <= args.vehicles <= 250 * 255:
         p.error("--vehicles must be in 1..63750")
     if not (0 < args.hz <= 100 and 0 < args.seconds <= 3600):
         p.error("--hz must be in (0, 100] and --seconds in (0, 3600]")
+    if args.spacing_m is not None and not 0 < args.spacing_m <= 10_000:
+        p.error("--spacing-m must be in (0, 10000]")
+    if args.altitude_m is not None and not 0 <= args.altitude_m <= 10_000:
+        p.error("--altitude-m must be in [0, 10000]")
+    if not 0 < args.radius_m <= 10_000:
+        p.error("--radius-m must be in (0, 10000]")
     built = time.perf_counter()
     schedule = []
     for n in range(args.vehicles):
-        schedule.extend(
-            frames_of(n, args.vehicles, args.hz, args.seconds, args.radius_m, args.speed_mps)
-        )
+        schedule.extend(frames_of(n, args.vehicles, args))
     schedule.sort(key=lambda x: x[0])
     frames = sum(f for _, _, f in schedule)
     print(f"encoded {len(schedule)} datagrams in {time.perf_counter() - built:.1f} s")

@@ -3,6 +3,9 @@
 //! [`read`], so a file larger than its kind allows, a device that never ends (`/dev/zero`), or a
 //! FIFO that keeps writing is an error, never an allocation without bound or a read without
 //! end. A FIFO or pipe is read up to the bound; a character or block device is refused.
+//!
+//! Every file savsim writes for others to read (shards, reports, summaries) goes through
+//! [`write_atomic`]: whole or not at all.
 
 use std::io::Read;
 use std::path::Path;
@@ -57,6 +60,48 @@ pub fn read(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
         return Err(too_large());
     }
     Ok(bytes)
+}
+
+/// Write the file at `path` whole or not at all: `write` fills `<path>.tmp` beside it, which is
+/// synced and renamed into place, so that a reader (or a re-run looking for finished files)
+/// sees the whole file or none, even when savsim is stopped. On any failure the temporary
+/// file is removed and `path` is left as it was.
+///
+/// ```
+/// use std::io::Write;
+/// let dir = tempfile::tempdir().unwrap();
+/// let path = dir.path().join("f.json");
+/// savsim::files::write_atomic(&path, |w| w.write_all(b"{}")).unwrap();
+/// assert_eq!(std::fs::read(&path).unwrap(), b"{}");
+/// // A failed write leaves the file as it was, and nothing beside it.
+/// let failed = savsim::files::write_atomic(&path, |_| Err(std::io::Error::other("no")));
+/// assert!(failed.is_err());
+/// assert_eq!(std::fs::read(&path).unwrap(), b"{}");
+/// assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+/// // A directory in the way: an error, and no temporary file left.
+/// assert!(savsim::files::write_atomic(dir.path(), |w| w.write_all(b"x")).is_err());
+/// assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+/// ```
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".tmp");
+    let tmp = path.with_file_name(name);
+    let written = (|| {
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        write(&mut out)?;
+        let file = out
+            .into_inner()
+            .map_err(std::io::IntoInnerError::into_error)?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// [`read`] as UTF-8 text.

@@ -126,15 +126,10 @@ pub fn write(
 /// Write `batch` to `path` atomically (a temporary file, synced, then renamed): a reader, or a
 /// re-run looking for finished shards, sees the whole file or none.
 pub fn write_atomic(batch: &RecordBatch, settings: &Settings, path: &Path) -> Result<()> {
-    let tmp = path.with_extension("parquet.tmp");
-    let file = File::create(&tmp).map_err(|e| Error::file(&tmp, e))?;
-    let mut out = std::io::BufWriter::new(file);
-    write(batch, settings, &mut out).map_err(|e| Error::file(&tmp, std::io::Error::other(e)))?;
-    let file = out
-        .into_inner()
-        .map_err(|e| Error::file(&tmp, e.into_error()))?;
-    file.sync_all().map_err(|e| Error::file(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
+    crate::files::write_atomic(path, |out| {
+        write(batch, settings, out).map_err(std::io::Error::other)
+    })
+    .map_err(|e| Error::file(path, e))
 }
 
 /// A shard file's key-value metadata.

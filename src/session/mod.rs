@@ -532,8 +532,8 @@ impl Session {
 /// Write a JSON value to `path` atomically (a temporary file renamed into place), so a reader
 /// never sees half a file, even when savsim is stopped by a signal.
 pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
-    let tmp = path.with_extension("json.tmp");
-    let text = serde_json::to_vec_pretty(value).map_err(|e| Error::file(path, e.into()))?;
-    std::fs::write(&tmp, text).map_err(|e| Error::file(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::file(path, e))
+    crate::files::write_atomic(path, |w| {
+        serde_json::to_writer_pretty(w, value).map_err(std::io::Error::other)
+    })
+    .map_err(|e| Error::file(path, e))
 }

@@ -47,13 +47,8 @@ pub fn write(
 ) -> Result<PathBuf> {
     let out = out.map_or_else(|| dir.join("report.html"), Path::to_path_buf);
     let page = page(dir, summary, &out, options)?;
-    let tmp = out.with_extension("html.tmp");
-    std::fs::write(&tmp, page).map_err(|e| Error::file(&tmp, e))?;
-    std::fs::rename(&tmp, &out).map_err(|e| {
-        // Nothing half-made is left: not the page, not its temporary file.
-        let _ = std::fs::remove_file(&tmp);
-        Error::file(&out, e)
-    })?;
+    crate::files::write_atomic(&out, |w| std::io::Write::write_all(w, page.as_bytes()))
+        .map_err(|e| Error::file(&out, e))?;
     Ok(out)
 }
 
