@@ -27,7 +27,7 @@ const MARGIN_M: f64 = 25.0;
 /// Footprint polygons drawn in one plan at most (a city's roofs near a long track).
 const MAX_FOOTPRINTS: usize = 4000;
 /// The intruder is drawn this long before and after the moment marked, seconds.
-pub const AROUND_S: f64 = 30.0;
+pub const AROUND_S: f64 = 15.0;
 
 const VEHICLE: RGBColor = RGBColor(31, 119, 180);
 const INTRUDER: RGBColor = RGBColor(255, 127, 14);
