@@ -234,13 +234,13 @@ impl Session {
     }
 }
 
-/// The ADS-B reports among `sent`: each a label (ICAO address, callsign) and the position
-/// it gave, in `plane`'s ENU metres.
+/// The ADS-B reports among `sent`: each its ICAO address, a label (the address and the
+/// callsign) and the position it gave, in `plane`'s ENU metres.
 #[cfg(feature = "viz")]
 fn adsb_sent(
     sent: &[crate::feed::FeedMessage],
     plane: &crate::geo::LocalTangentPlane,
-) -> Vec<(String, glam::DVec3)> {
+) -> Vec<(u32, String, glam::DVec3)> {
     use mavlink::dialects::ardupilotmega::MavMessage;
     sent.iter()
         .filter_map(|m| match &m.message {
@@ -257,7 +257,8 @@ fn adsb_sent(
                     .trim_end_matches('\0')
                     .trim();
                 let label = format!("{:06X} {callsign}", a.ICAO_address);
-                Some((label.trim().to_string(), plane.enu_m_from_geodetic(&at)))
+                let at_enu_m = plane.enu_m_from_geodetic(&at);
+                Some((a.ICAO_address, label.trim().to_string(), at_enu_m))
             }
             _ => None,
         })

@@ -96,8 +96,13 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let work = std::fs::canonicalize(out)
         .map_err(|e| Error::file(out, e))?
         .join("work");
+    // Each scene the process's rows name is loaded once: a shard's rows, or every round's.
+    let flown = match plan {
+        Plan::Shard(shard) => &rows[shard.rows(rows.len())],
+        Plan::Rounds(_) => &rows[..],
+    };
     let mut setup = Setup::new(
-        &rows,
+        flown,
         (
             arducopter(args.arducopter.as_deref()),
             px4(args.px4.as_deref()),

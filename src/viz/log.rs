@@ -441,24 +441,19 @@ fn log_feed(rec: &RecordingStream, f: &TickFrame, position: Vec3) -> RecordingSt
     )
 }
 
-/// The ADS-B reports the feed sent at this tick, where each put its aircraft (orange,
-/// labelled): the last report of each stays drawn until the next.
+/// The ADS-B reports the feed sent at this tick, each where it put its aircraft (orange,
+/// labelled), one entity per aircraft: each aircraft's last report stays drawn until its next.
 fn log_adsb_sent(rec: &RecordingStream, offset: DVec3, f: &TickFrame) -> RecordingStreamResult<()> {
-    if f.adsb_sent.is_empty() {
-        return Ok(());
+    for (icao, label, p) in &f.adsb_sent {
+        rec.log(
+            paths::vehicle_part(f.system_id, &format!("feed/adsb/{icao:06X}")),
+            &Points3D::new([local(offset, *p).to_array()])
+                .with_labels([label.as_str()])
+                .with_radii([rerun::Radius::new_ui_points(6.0)])
+                .with_colors([Color::from_rgb(255, 127, 14)]),
+        )?;
     }
-    let points = f
-        .adsb_sent
-        .iter()
-        .map(|(_, p)| local(offset, *p).to_array());
-    let labels = f.adsb_sent.iter().map(|(label, _)| label.as_str());
-    rec.log(
-        paths::vehicle_part(f.system_id, "feed/adsb"),
-        &Points3D::new(points)
-            .with_labels(labels)
-            .with_radii([rerun::Radius::new_ui_points(6.0)])
-            .with_colors([Color::from_rgb(255, 127, 14)]),
-    )
+    Ok(())
 }
 
 /// A line a vehicle said, as a text log on its timelines (a MAVLink severity as rerun's level).

@@ -115,9 +115,10 @@ pub struct TickFrame {
     pub feed: Vec<crate::feed::Reading>,
     /// The feed's range, metres (a reading of nothing is drawn this long).
     pub feed_max_m: f64,
-    /// The ADS-B reports the feed sent the vehicle at this tick: a label (ICAO address and
-    /// callsign) and where the report put the aircraft (scene ENU metres, its errors included).
-    pub adsb_sent: Vec<(String, DVec3)>,
+    /// The ADS-B reports the feed sent the vehicle at this tick: the ICAO address, a label
+    /// (the address and the callsign) and where the report put the aircraft (scene ENU
+    /// metres, its errors included).
+    pub adsb_sent: Vec<(u32, String, DVec3)>,
     /// The vehicle's octree leaf.
     pub node: Option<Aabb64>,
     /// Obstacles with a collider: which, and beta.

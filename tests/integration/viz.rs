@@ -428,7 +428,7 @@ fn what_a_vehicle_says_and_the_adsb_it_was_told_are_in_its_recording() {
         "mode GUIDED",
         "mode AVOID_ADSB",
         "ADSB: avoiding 4840D6",
-        "world/vehicles/1/feed/adsb",
+        "world/vehicles/1/feed/adsb/",
         "what the vehicles said",
     ] {
         assert!(text.contains(part), "{part} is not in the recording");
