@@ -228,6 +228,7 @@ impl Session {
                 })
                 .cloned()
                 .collect(),
+            well_clear_m: self.approaches.volume().map(|v| (v.dthr_m, v.zthr_m)),
             report,
             cost_us: cost_ns as f64 / 1e3,
         })));

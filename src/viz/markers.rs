@@ -1,10 +1,12 @@
-//! Collision and near-miss markers: every one so far, labelled, a fixed size on screen so that
-//! they read in the chase views and the overview alike.
+//! Collision, near-miss and loss-of-well-clear markers: every one so far, labelled, a fixed
+//! size on screen so that they read in the chase views and the overview alike; and the
+//! well-clear volume around the vehicle where each loss happened.
 
 use std::collections::VecDeque;
 
 use glam::{DVec3, Vec3};
-use rerun::{Arrows3D, Color, Points3D, RecordingStream, RecordingStreamResult};
+use rerun::components::FillMode;
+use rerun::{Arrows3D, Color, Cylinders3D, Points3D, RecordingStream, RecordingStreamResult};
 
 use super::draw::local;
 use super::{paths, TickFrame};
@@ -39,6 +41,8 @@ pub struct Markers {
     collisions: Vec<Marker>,
     near_misses: Vec<Marker>,
     well_clear: Vec<Marker>,
+    /// The well-clear volume at each loss: its centre, radius and height, metres.
+    volumes: Vec<(Vec3, f32, f32)>,
 }
 
 impl Markers {
@@ -118,10 +122,31 @@ impl Markers {
                     [255, 220, 0],
                     true,
                 )?;
+                if let Some((dthr_m, zthr_m)) = f.well_clear_m {
+                    let centre = at.position_at(*lost_t);
+                    self.volumes
+                        .push((centre, dthr_m as f32, 2.0 * zthr_m as f32));
+                    self.log_volumes(rec)?;
+                }
                 Ok(None)
             }
             _ => Ok(None),
         }
+    }
+
+    /// The well-clear volume (DTHR wide, ZTHR above and below) around the vehicle at every
+    /// loss so far: yellow wireframe cylinders.
+    fn log_volumes(&self, rec: &RecordingStream) -> RecordingStreamResult<()> {
+        rec.log(
+            paths::WELL_CLEAR_VOLUMES,
+            &Cylinders3D::from_lengths_and_radii(
+                self.volumes.iter().map(|v| v.2),
+                self.volumes.iter().map(|v| v.1),
+            )
+            .with_centers(self.volumes.iter().map(|v| v.0.to_array()))
+            .with_colors([Color::from_unmultiplied_rgba(255, 220, 0, 160)])
+            .with_fill_mode(FillMode::MajorWireframe),
+        )
     }
 
     /// Every collision so far: its point, labelled, and its normal as an arrow `normal_m`

@@ -127,6 +127,9 @@ pub struct TickFrame {
     pub dynamic: Vec<(BodyKey, String, Kind, usize, BodyPose)>,
     /// Collisions and near misses reported at this tick.
     pub events: Vec<Event>,
+    /// The well-clear volume losses are judged with: its horizontal and vertical thresholds
+    /// (DTHR, ZTHR), metres.
+    pub well_clear_m: Option<(f64, f64)>,
     /// The pipeline's counts for the tick.
     pub report: TickReport,
     /// What the tick cost, microseconds.

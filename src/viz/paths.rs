@@ -14,6 +14,8 @@ pub const COLLISION_NORMALS: &str = "world/events/collision_normals";
 pub const NEAR_MISSES: &str = "world/events/near_misses";
 /// Loss-of-well-clear markers (all so far): where the vehicle was when it lost well clear.
 pub const WELL_CLEAR: &str = "world/events/well_clear";
+/// The well-clear volume around the vehicle where each loss of well clear happened.
+pub const WELL_CLEAR_VOLUMES: &str = "world/events/well_clear/volumes";
 /// Metrics root.
 pub const METRICS: &str = "metrics";
 

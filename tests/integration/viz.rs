@@ -356,8 +356,8 @@ fn what_a_vehicle_says_and_the_adsb_it_was_told_are_in_its_recording() {
     let scene = crate::common::scene_at(
         origin,
         "[[dynamic]]\nid = \"airliner\"\nkind = \"a320\"\nwaypoints = [\
-         { t_s = 0.0, position_enu_m = [2000.0, 0.0, 30.0] }, \
-         { t_s = 100.0, position_enu_m = [-2000.0, 0.0, 30.0] }]\n",
+         { t_s = 0.0, position_enu_m = [700.0, 0.0, 30.0] }, \
+         { t_s = 100.0, position_enu_m = [-3300.0, 0.0, 30.0] }]\n",
     );
     let plane = savsim::geo::LocalTangentPlane::new(scene.origin);
     let (mut session, storage) = session_in_memory(scene, savsim::viz::VizOptions::default());
@@ -430,6 +430,10 @@ fn what_a_vehicle_says_and_the_adsb_it_was_told_are_in_its_recording() {
         "ADSB: avoiding 4840D6",
         "world/vehicles/1/feed/adsb/",
         "what the vehicles said",
+        // The airliner passes within well clear: the loss marked, its volume drawn.
+        "world/events/well_clear",
+        "world/events/well_clear/volumes",
+        "Cylinders3D",
     ] {
         assert!(text.contains(part), "{part} is not in the recording");
     }
