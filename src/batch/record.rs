@@ -119,8 +119,10 @@ fn fly_recorded(
             )));
         }
     }
-    let mut session = recording_session(Arc::new(with), pipeline, encounter.well_clear, path)?;
+    let mut session = Session::with_pipeline(Arc::new(with), pipeline, None)?;
     session.use_vehicle_clock();
+    session.set_approaches(Approaches::with_volume(encounter.well_clear));
+    session.record_to_file(path)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let sender = SenderId {
         system_id: OWNSHIP,

@@ -322,6 +322,10 @@ impl Session {
             return Err(Error::Usage("--rerun needs --scene".into()));
         };
         let leaves = pipeline.octree().leaves().map(|(_, b, _)| b).collect();
+        let options = crate::viz::VizOptions {
+            vehicle_clock: options.vehicle_clock || self.vehicle_clock,
+            ..options
+        };
         self.viz = Some(crate::viz::Logger::with_stream(
             rec,
             scene.clone(),

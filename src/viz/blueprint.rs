@@ -34,8 +34,10 @@ pub struct Layout {
     /// The area the overview frames, logged (viz-offset) metres: min and max corners. `None`
     /// before the first position.
     pub overview: Option<(Vec3, Vec3)>,
-    /// A span of `tlog_time` (UNIX seconds) to select on the time panel: the first collision.
+    /// A span of the time panel's timeline (seconds) to select: the first collision.
     pub focus_s: Option<(f64, f64)>,
+    /// The time panel shows `vehicle_time` (the vehicle's clock), else `tlog_time`.
+    pub vehicle_time: bool,
     /// The overview frames the scene alone (nothing flew): closely, not with a flight's margin.
     pub scene_only: bool,
 }
@@ -275,9 +277,14 @@ impl Writer<'_> {
                 &PanelBlueprint::new().with_state(PanelState::Collapsed),
             )?;
         }
+        let timeline = if layout.vehicle_time {
+            "vehicle_time"
+        } else {
+            "tlog_time"
+        };
         let mut time = TimePanelBlueprint::new()
             .with_state(PanelState::Collapsed)
-            .with_timeline("tlog_time");
+            .with_timeline(timeline);
         // The blueprint cannot place the time cursor: the viewer follows the end of the data
         // (where the overview still shows every collision marker), and the first collision's
         // span is selected on the time panel, to be played with the loop button.
@@ -327,6 +334,23 @@ mod tests {
         // 1000 * 1.5 / 0.52 * margin / 1.5.
         assert!((eye_height_m(area, 1.1) - 2115.4).abs() < 0.1);
         assert!((eye_height_m(area, 2.0) - 3846.2).abs() < 0.1);
+    }
+
+    #[test]
+    fn the_time_panel_shows_the_runs_clock() {
+        let sent = |vehicle_time: bool| {
+            let (rec, storage) = rerun::RecordingStreamBuilder::new("t").memory().unwrap();
+            let layout = Layout {
+                vehicle_time,
+                ..Layout::default()
+            };
+            send(&rec, &layout).unwrap();
+            rec.flush_blocking().unwrap();
+            format!("{:?}", storage.take())
+        };
+        let (vehicle, tlog) = (sent(true), sent(false));
+        assert!(vehicle.contains("vehicle_time") && !vehicle.contains("tlog_time"));
+        assert!(tlog.contains("tlog_time") && !tlog.contains("vehicle_time"));
     }
 
     #[test]

@@ -71,7 +71,10 @@ pub fn run(
         leaves,
         offset: viz_offset(scene),
         vehicles: BTreeMap::new(),
-        layout: Layout::default(),
+        layout: Layout {
+            vehicle_time: options.vehicle_clock,
+            ..Layout::default()
+        },
         markers: Markers::default(),
         traffic: BTreeMap::new(),
         rows: Rows::new(options.live),
@@ -236,6 +239,13 @@ fn log_tick(
                 now: position,
             },
         )? {
+            // On the vehicle's clock: the same span, seconds of its clock.
+            let shift_s = f64::from(f.time_boot_ms) / 1000.0 - f.t_s;
+            let focus = if state.layout.vehicle_time {
+                (focus.0 + shift_s, focus.1 + shift_s)
+            } else {
+                focus
+            };
             state.layout.focus_s.get_or_insert(focus);
         }
     }

@@ -173,6 +173,9 @@ pub struct VizOptions {
     /// 200 ms. Otherwise (a file, a memory sink) they are sent by count only, so a file is cut
     /// into the same chunks however fast the run was.
     pub live: bool,
+    /// The run is on the vehicle's clock (a study row): the time panel opens on
+    /// `vehicle_time`, else on `tlog_time`.
+    pub vehicle_clock: bool,
 }
 
 /// The running logger.
