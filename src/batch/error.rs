@@ -57,6 +57,9 @@ pub enum RowError {
     /// A panic caught while running the row: a bug.
     #[error("internal error, please report it: {0}")]
     Internal(String),
+    /// The row's recording could not be made (`--rerun-rows`).
+    #[error("recording: {0}")]
+    Recording(String),
 }
 
 /// Why a track (waypoints, a tlog or a trajectory file) could not be read.

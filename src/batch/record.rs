@@ -55,11 +55,11 @@ impl Recorder<'_> {
         let made = kept
             .parent()
             .map_or(Ok(()), std::fs::create_dir_all)
-            .map_err(|e| RowError::Internal(format!("{}: {e}", self.out.display())))
+            .map_err(|e| RowError::Recording(format!("{}: {e}", self.out.display())))
             .and_then(|()| record(row.index as usize, run, scenes, &part))
             .and_then(|()| {
                 keep(&part, self.out, row.index, &row.run_id)
-                    .map_err(|e| RowError::Internal(format!("{}: {e}", kept.display())))
+                    .map_err(|e| RowError::Recording(format!("{}: {e}", kept.display())))
             });
         Some(match made {
             Ok(path) => format!("batch: {}: recording {}", row.run_id, path.display()),
@@ -99,8 +99,21 @@ fn recording_session(
 ) -> Result<Session, RowError> {
     let mut session = Session::with_pipeline(scene, pipeline, None)?;
     session.set_approaches(Approaches::with_volume(volume));
-    session.record_to_file(path)?;
+    record_to(&mut session, path)?;
     Ok(session)
+}
+
+/// Record `session` to `path` for the rerun viewer.
+#[cfg(feature = "viz")]
+fn record_to(session: &mut Session, path: &Path) -> Result<(), RowError> {
+    Ok(session.record_to_file(path)?)
+}
+
+#[cfg(not(feature = "viz"))]
+fn record_to(_: &mut Session, _: &Path) -> Result<(), RowError> {
+    Err(RowError::Recording(
+        "--rerun-rows: this savsim was built without rerun (feature viz)".into(),
+    ))
 }
 
 /// The encounter flown through a recording session: its intruders pushed onto the scene as
@@ -114,7 +127,7 @@ fn fly_recorded(
     let mut with = scene.clone();
     for (id, track) in &encounter.intruders {
         if !with.push_track(id, encounter.intruder_kind, track.clone()) {
-            return Err(RowError::Internal(format!(
+            return Err(RowError::Recording(format!(
                 "the scene has a track named {id} already"
             )));
         }
@@ -122,7 +135,7 @@ fn fly_recorded(
     let mut session = Session::with_pipeline(Arc::new(with), pipeline, None)?;
     session.use_vehicle_clock();
     session.set_approaches(Approaches::with_volume(encounter.well_clear));
-    session.record_to_file(path)?;
+    record_to(&mut session, path)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let sender = SenderId {
         system_id: OWNSHIP,

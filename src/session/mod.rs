@@ -527,6 +527,19 @@ impl Session {
         }
         #[cfg(feature = "viz")]
         if let Some(viz) = &mut self.viz {
+            let approaches = self.approaches.pairs().into_iter().map(|(own, pair)| {
+                let a = pair.approach;
+                crate::viz::ApproachFrame {
+                    system_id: own,
+                    track: pair.id.to_string(),
+                    t_s: a.t_s,
+                    distance_m: a.distance_m,
+                    horizontal_m: a.horizontal_m,
+                    vertical_m: a.vertical_m,
+                    nmac: a.nmac,
+                }
+            });
+            viz.send(crate::viz::VizMsg::Approaches(approaches.collect()));
             viz.finish()?;
         }
         Ok(())

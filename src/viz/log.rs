@@ -15,7 +15,7 @@ use super::colliders::{obstacle_name, ColliderView};
 use super::draw::{
     box_of_geometry, boxes_of, kind_color, local, pose_of_static, see_through, viz_offset, LocalBox,
 };
-use super::markers::{Markers, Where};
+use super::markers::{Markers, Where, FOCUS_AFTER_S, FOCUS_BEFORE_S};
 use super::rows::Rows;
 use super::{paths, NoteFrame, TickFrame, VizMsg, VizOptions};
 use crate::collision::bodies::BodySource;
@@ -43,6 +43,9 @@ struct Vehicle {
     had_hits: bool,
     /// Which rays hit, as last logged (their colours).
     ray_hits: Option<Vec<bool>>,
+    /// Its last tick, and its clock less the samples' clock then, seconds.
+    last_tick: u64,
+    clock_shift_s: f64,
 }
 
 struct State<'s> {
@@ -55,6 +58,8 @@ struct State<'s> {
     markers: Markers,
     traffic: BTreeMap<String, bool>,
     rows: Rows,
+    /// The first message's time, seconds (labels say "+N s" from it).
+    t0_s: f64,
 }
 
 /// The thread's body: the scene, then every tick, then the final layout.
@@ -78,6 +83,7 @@ pub fn run(
         markers: Markers::default(),
         traffic: BTreeMap::new(),
         rows: Rows::new(options.live),
+        t0_s: 0.0,
     };
     let text = |e: rerun::RecordingStreamError| e.to_string();
     blueprint::send(&rec, &state.layout).map_err(text)?;
@@ -86,6 +92,7 @@ pub fn run(
         match msg {
             VizMsg::Tick(frame) => log_tick(&rec, &mut state, &frame).map_err(text)?,
             VizMsg::Note(note) => log_note(&rec, &mut state.rows, &note).map_err(text)?,
+            VizMsg::Approaches(list) => log_approaches(&rec, &mut state, &list).map_err(text)?,
         }
     }
     state.rows.flush(&rec).map_err(text)?;
@@ -209,6 +216,9 @@ fn log_tick(
     let Some(v) = state.vehicles.get_mut(&id) else {
         return Ok(());
     };
+    v.last_tick = f.tick;
+    v.clock_shift_s = f64::from(f.time_boot_ms) / 1000.0 - f.t_s;
+    state.t0_s = f.t0_s;
     let rows = &mut state.rows;
     log_body(rec, rows, v, scene, f, position)?;
     log_track(rec, rows, v, f, position)?;
@@ -462,6 +472,84 @@ fn log_adsb_sent(rec: &RecordingStream, offset: DVec3, f: &TickFrame) -> Recordi
                 .with_radii([rerun::Radius::new_ui_points(6.0)])
                 .with_colors([Color::from_rgb(255, 127, 14)]),
         )?;
+    }
+    Ok(())
+}
+
+/// Each vehicle's closest approach to each moving body, at the moment it happened: where the
+/// vehicle was (cyan; orange-red with the NMAC volume, 500 ft wide and 100 ft above and
+/// below, when the two came within NMAC), labelled with the separations. Only where the
+/// vehicle's kept positions reach back to that moment. Without a collision, the time panel
+/// selects the closest of them.
+fn log_approaches(
+    rec: &RecordingStream,
+    state: &mut State<'_>,
+    list: &[super::ApproachFrame],
+) -> RecordingStreamResult<()> {
+    let mut closest: Option<(f64, f64)> = None;
+    for a in list {
+        let Some(v) = state.vehicles.get(&a.system_id) else {
+            continue;
+        };
+        let nearest = v
+            .recent
+            .iter()
+            .min_by(|x, y| (x.0 - a.t_s).abs().total_cmp(&(y.0 - a.t_s).abs()));
+        let Some(&(t_s, at)) = nearest.filter(|(t, _)| (t - a.t_s).abs() <= 1.0) else {
+            continue;
+        };
+        let vehicle_s = t_s + v.clock_shift_s;
+        state.rows.set_time(v.last_tick, vehicle_s, t_s);
+        let label = format!(
+            "CPA v{} {} {:.0} m ({:.0} m / {:.0} m){} +{:.1} s",
+            a.system_id,
+            a.track,
+            a.distance_m,
+            a.horizontal_m,
+            a.vertical_m.abs(),
+            if a.nmac { " NMAC" } else { "" },
+            (a.t_s - state.t0_s).max(0.0)
+        );
+        let colour = if a.nmac {
+            Color::from_rgb(255, 80, 30)
+        } else {
+            Color::from_rgb(0, 210, 230)
+        };
+        let path = paths::closest_approach(a.system_id, &a.track);
+        state.rows.log(
+            rec,
+            path.clone(),
+            &Points3D::new([at.to_array()])
+                .with_radii([-8.0])
+                .with_colors([colour])
+                .with_labels([label])
+                .with_show_labels(true),
+        )?;
+        if a.nmac {
+            use crate::collision::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
+            state.rows.log(
+                rec,
+                format!("{path}/nmac"),
+                &rerun::Cylinders3D::from_lengths_and_radii(
+                    [2.0 * NMAC_VERTICAL_M as f32],
+                    [NMAC_HORIZONTAL_M as f32],
+                )
+                .with_centers([at.to_array()])
+                .with_colors([Color::from_unmultiplied_rgba(255, 80, 30, 160)])
+                .with_fill_mode(FillMode::MajorWireframe),
+            )?;
+        }
+        let on_panel = if state.layout.vehicle_time {
+            vehicle_s
+        } else {
+            t_s
+        };
+        if closest.is_none_or(|(d, _)| a.distance_m < d) {
+            closest = Some((a.distance_m, on_panel));
+        }
+    }
+    if let (None, Some((_, t))) = (state.layout.focus_s, closest) {
+        state.layout.focus_s = Some((t - FOCUS_BEFORE_S, t + FOCUS_AFTER_S));
     }
     Ok(())
 }

@@ -13,8 +13,8 @@ use super::{paths, TickFrame};
 use crate::collision::events::{Event, EventKind};
 
 /// The time selection around the first collision: seconds before and after.
-const FOCUS_BEFORE_S: f64 = 4.0;
-const FOCUS_AFTER_S: f64 = 2.0;
+pub(super) const FOCUS_BEFORE_S: f64 = 4.0;
+pub(super) const FOCUS_AFTER_S: f64 = 2.0;
 
 struct Marker {
     at: Vec3,

@@ -154,6 +154,25 @@ pub struct NoteFrame {
     pub text: String,
 }
 
+/// A vehicle's closest approach to a moving body over the run (sent when the run ends).
+#[derive(Debug, Clone)]
+pub struct ApproachFrame {
+    /// The vehicle's system id.
+    pub system_id: u8,
+    /// The body: a traffic id, a scripted track, another vehicle.
+    pub track: String,
+    /// When, seconds on the samples' clock (`tlog_time`).
+    pub t_s: f64,
+    /// Least 3D separation, metres.
+    pub distance_m: f64,
+    /// Horizontal and vertical separation then, metres.
+    pub horizontal_m: f64,
+    /// See `horizontal_m`.
+    pub vertical_m: f64,
+    /// Whether the two were ever within NMAC (500 ft and 100 ft at once).
+    pub nmac: bool,
+}
+
 /// What goes to the logger thread.
 #[derive(Debug)]
 pub enum VizMsg {
@@ -161,6 +180,8 @@ pub enum VizMsg {
     Tick(Box<TickFrame>),
     /// A line a vehicle said.
     Note(Box<NoteFrame>),
+    /// The closest approaches of the run, at its end.
+    Approaches(Vec<ApproachFrame>),
 }
 
 /// What the logger draws beyond the defaults.

@@ -14,6 +14,15 @@ pub const COLLISION_NORMALS: &str = "world/events/collision_normals";
 pub const NEAR_MISSES: &str = "world/events/near_misses";
 /// Loss-of-well-clear markers (all so far): where the vehicle was when it lost well clear.
 pub const WELL_CLEAR: &str = "world/events/well_clear";
+/// Vehicle `sysid`'s closest approach to body `track` over the run:
+/// `world/events/closest_approaches/{sysid}/{track}`, and its NMAC volume below it (`nmac`).
+pub fn closest_approach(system_id: u8, track: &str) -> String {
+    format!(
+        "world/events/closest_approaches/{system_id}/{}",
+        sanitize(track)
+    )
+}
+
 /// The well-clear volume around the vehicle where each loss of well clear happened.
 pub const WELL_CLEAR_VOLUMES: &str = "world/events/well_clear/volumes";
 /// Metrics root.

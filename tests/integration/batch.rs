@@ -419,9 +419,11 @@ fn failed_rows_are_recorded_and_linked() {
             let what = if collisions.value(*i) > 0 {
                 "world/events/collisions"
             } else {
-                // An encounter's NMAC: its intruder, and well clear lost.
+                // An encounter's NMAC: its intruder, well clear lost, the closest approach
+                // marked with the NMAC volume.
                 assert!(text.contains("world/traffic/intruder"), "{id}");
-                "world/events/well_clear"
+                assert!(text.contains("world/events/well_clear"), "{id}");
+                "world/events/closest_approaches/1/intruder/nmac"
             };
             assert!(text.contains(what), "{id}: no {what} in its recording");
         }

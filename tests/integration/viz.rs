@@ -85,9 +85,9 @@ fn a_replay_saves_a_recording_rerun_verifies() {
     crate::common::assert_ran(&out);
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    // 2025 ticks and 41 notes: the tlog's 38 STATUSTEXTs and 3 mode changes, as pymavlink
-    // counts them.
-    assert_eq!(s["rerun"]["sent"], 2025 + 41);
+    // 2025 ticks, 41 notes (the tlog's 38 STATUSTEXTs and 3 mode changes, as pymavlink counts
+    // them) and the closest approaches at the end.
+    assert_eq!(s["rerun"]["sent"], 2025 + 41 + 1);
     assert_rrd_verifies(&rrd);
     let printed = Command::new("rerun")
         .args(["rrd", "print", "-vv"])
@@ -434,6 +434,9 @@ fn what_a_vehicle_says_and_the_adsb_it_was_told_are_in_its_recording() {
         "world/events/well_clear",
         "world/events/well_clear/volumes",
         "Cylinders3D",
+        // Its closest approach to the airliner, marked when the run ended.
+        "world/events/closest_approaches/1/airliner",
+        "CPA v1 airliner",
     ] {
         assert!(text.contains(part), "{part} is not in the recording");
     }

@@ -5,6 +5,7 @@
 
 use std::collections::BTreeMap;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -96,6 +97,36 @@ fn category(names: &[String], y: f64) -> String {
         .unwrap_or_default()
 }
 
+/// A chart of one row per category (`names`, from the bottom) along a value axis from 0 to
+/// `x_max`, its caption and its axis drawn: the axis's description and its labels' decimals.
+fn category_chart<'a, 'b>(
+    root: &'a DrawingArea<SVGBackend<'b>, Shift>,
+    caption: &str,
+    names: &[String],
+    x_max: f64,
+    (x_desc, decimals): (&str, usize),
+) -> Result<ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
+    let n = names.len().max(1);
+    let mut chart = ChartBuilder::on(root)
+        .caption(caption, CAPTION)
+        .margin(10)
+        .x_label_area_size(32)
+        .y_label_area_size(label_width(names))
+        .build_cartesian_2d(0f64..x_max, -0.5f64..(n as f64 - 0.5))
+        .map_err(failed)?;
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .y_labels(n)
+        .y_label_formatter(&|y| category(names, *y))
+        .x_label_formatter(&|x| format!("{x:.decimals$}"))
+        .x_desc(x_desc)
+        .label_style(FONT)
+        .draw()
+        .map_err(failed)?;
+    Ok(chart)
+}
+
 /// Per variant one horizontal bar, stacked by outcome ([`OUTCOMES`]): rows counted.
 pub fn outcomes(counts: &BTreeMap<String, BTreeMap<String, u64>>) -> Result<String> {
     let names: Vec<String> = counts.keys().cloned().collect();
@@ -106,24 +137,15 @@ pub fn outcomes(counts: &BTreeMap<String, BTreeMap<String, u64>>) -> Result<Stri
         .unwrap_or(0);
     let n = names.len().max(1);
     svg(90 + 34 * n as u32, |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption("rows per variant, by outcome", CAPTION)
-            .margin(10)
-            .x_label_area_size(32)
-            .y_label_area_size(label_width(&names))
-            // Room on the right for the legend.
-            .build_cartesian_2d(0f64..(most.max(1) as f64 * 1.3), -0.5f64..(n as f64 - 0.5))
-            .map_err(failed)?;
-        chart
-            .configure_mesh()
-            .disable_y_mesh()
-            .y_labels(n)
-            .y_label_formatter(&|y| category(&names, *y))
-            .x_label_formatter(&|x| format!("{x:.0}"))
-            .x_desc("rows")
-            .label_style(FONT)
-            .draw()
-            .map_err(failed)?;
+        // Room on the right for the legend.
+        let x_max = most.max(1) as f64 * 1.3;
+        let mut chart = category_chart(
+            root,
+            "rows per variant, by outcome",
+            &names,
+            x_max,
+            ("rows", 0),
+        )?;
         for (name, colour) in OUTCOMES {
             let bars = counts.values().enumerate().filter_map(|(i, c)| {
                 let before: u64 = OUTCOMES
@@ -186,25 +208,9 @@ pub fn ratios(ratios: &[VariantRatios]) -> Result<Option<String>> {
     let names: Vec<String> = rows.iter().map(|(n, _)| n.clone()).collect();
     let n = rows.len();
     let chart = svg(90 + 30 * n as u32, |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption(
-                "risk ratios against the nominal variant, 95% intervals",
-                CAPTION,
-            )
-            .margin(10)
-            .x_label_area_size(32)
-            .y_label_area_size(label_width(&names))
-            .build_cartesian_2d(0f64..x_max, -0.5f64..(n as f64 - 0.5))
-            .map_err(failed)?;
-        chart
-            .configure_mesh()
-            .disable_y_mesh()
-            .y_labels(n)
-            .y_label_formatter(&|y| category(&names, *y))
-            .x_desc("ratio (1: no change)")
-            .label_style(FONT)
-            .draw()
-            .map_err(failed)?;
+        let caption = "risk ratios against the nominal variant, 95% intervals";
+        let x_desc = ("ratio (1: no change)", 2);
+        let mut chart = category_chart(root, caption, &names, x_max, x_desc)?;
         chart
             .draw_series(std::iter::once(PathElement::new(
                 vec![(1.0, -0.5), (1.0, n as f64 - 0.5)],
