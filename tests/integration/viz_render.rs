@@ -123,9 +123,10 @@ pub fn can_render() -> bool {
 }
 
 /// A row's recording as it opens: the pure red pixels (the collision marker and its label,
-/// `COLLISION v1 ...`) in its chase view (the top-left half of the window); a second
-/// picture when the first shows none (the viewer may take it before the file has loaded).
-pub fn collision_pixels_in_chase_view(rrd: &Path, name: &str) -> usize {
+/// `COLLISION v1 ...`, and the body's forward axis) in its chase view (the top-left half of
+/// the window); a second picture when the first shows fewer than `at_least` (the viewer may
+/// take it before the file has loaded).
+pub fn collision_pixels_in_chase_view(rrd: &Path, name: &str, at_least: usize) -> usize {
     let png = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}.png"));
     let mut found = 0;
     for _ in 0..2 {
@@ -141,7 +142,7 @@ pub fn collision_pixels_in_chase_view(rrd: &Path, name: &str) -> usize {
             |(x, y), (w, h)| x < w / 2 && y > h / 10 && y < h * 72 / 100,
             |[r, g, b]| r >= 235 && g <= 30 && b <= 30,
         );
-        if found > 0 {
+        if found >= at_least {
             break;
         }
     }

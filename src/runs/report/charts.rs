@@ -136,7 +136,8 @@ pub fn outcomes(counts: &BTreeMap<String, BTreeMap<String, u64>>) -> Result<Stri
         .max()
         .unwrap_or(0);
     let n = names.len().max(1);
-    svg(90 + 34 * n as u32, |root| {
+    // At least the legend's five lines high.
+    svg((90 + 34 * n as u32).max(200), |root| {
         // Room on the right for the legend.
         let x_max = most.max(1) as f64 * 1.3;
         let mut chart = category_chart(
