@@ -445,6 +445,7 @@ fn arducopter_study_nominal_rows_hit_their_box_and_mitigated_rows_stop() {
             "study_hit",
             missed + 800,
         );
+        eprintln!("collision-red pixels in the chase view: {hit} hit, {missed} missed");
         assert!(
             hit >= missed + 800,
             "collision-red pixels: {hit} hit, {missed} missed"
