@@ -244,7 +244,7 @@ impl Sender {
 /// The running link tasks.
 pub struct Network {
     sender: Sender,
-    stop: watch::Sender<bool>,
+    stop: watch::Sender<Phase>,
     tasks: Vec<JoinHandle<Result<()>>>,
     runtime: tokio::runtime::Handle,
     /// Their counters.
@@ -256,11 +256,25 @@ pub struct Network {
 /// What one link task owns.
 struct Task {
     link: LinkId,
-    chunks: SyncSender<Chunk>,
+    /// Where received chunks go; `None` once the task stopped receiving, so that the queue
+    /// disconnects when every task has.
+    chunks: Option<SyncSender<Chunk>>,
     outgoing: mpsc::Receiver<Outgoing>,
     counters: Arc<LinkCounters>,
     heard: Arc<[AtomicU64]>,
-    stop: watch::Receiver<bool>,
+    stop: watch::Receiver<Phase>,
+}
+
+/// Where a run's stop is. Stopping is in two steps so that nothing the session routed is
+/// lost: the links stop receiving first, the session processes what they had queued (and
+/// routes or answers it), then the links send what is queued for them and end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Running,
+    /// Receive no more; go on sending.
+    Closing,
+    /// Send what is queued, then end.
+    Stopped,
 }
 
 impl Network {
@@ -272,7 +286,7 @@ impl Network {
         queue_len: usize,
     ) -> (Network, Receiver<Chunk>) {
         let (chunks, received) = sync_channel(queue_len.max(1));
-        let (stop, stopped) = watch::channel(false);
+        let (stop, stopped) = watch::channel(Phase::Running);
         let counters = Arc::new(LinkCounters::default());
         let started = unix_now_s().to_bits();
         let heard: Arc<[AtomicU64]> = links.iter().map(|_| AtomicU64::new(started)).collect();
@@ -283,7 +297,7 @@ impl Network {
             outgoing.push(tx);
             let task = Task {
                 link: index as LinkId,
-                chunks: chunks.clone(),
+                chunks: Some(chunks.clone()),
                 outgoing: rx,
                 counters: counters.clone(),
                 heard: heard.clone(),
@@ -345,9 +359,17 @@ impl Network {
         self.tasks.iter().all(|t| !t.is_finished())
     }
 
-    /// Stop every link task and wait for them; the first error any of them had.
+    /// Stop receiving on every link; they go on sending until [`Network::stop`]. The chunk
+    /// queue disconnects once every task has stopped receiving (or ended), after the last
+    /// chunk any of them received.
+    pub fn stop_receiving(&self) {
+        let _ = self.stop.send(Phase::Closing);
+    }
+
+    /// Stop every link task and wait for them, each first sending what is queued for it (to a
+    /// connected peer); the first error any of them had.
     pub fn stop(self) -> Result<()> {
-        let _ = self.stop.send(true);
+        let _ = self.stop.send(Phase::Stopped);
         let mut result = Ok(());
         for task in self.tasks {
             let ended = self.runtime.block_on(task).unwrap_or_else(|e| {
@@ -376,13 +398,14 @@ impl Task {
             kind,
         };
         // Counted before the send, so the taker's decrement never comes first.
+        let Some(chunks) = &self.chunks else {
+            return;
+        };
         let queued = self.counters.queued.fetch_add(1, Ordering::Relaxed) + 1;
         self.counters
             .queue_peak
             .fetch_max(queued, Ordering::Relaxed);
-        if let Err(TrySendError::Full(c) | TrySendError::Disconnected(c)) =
-            self.chunks.try_send(chunk)
-        {
+        if let Err(TrySendError::Full(c) | TrySendError::Disconnected(c)) = chunks.try_send(chunk) {
             self.counters.queued.fetch_sub(1, Ordering::Relaxed);
             self.counters.dropped_chunks.fetch_add(1, Ordering::Relaxed);
             self.counters
@@ -398,9 +421,15 @@ impl Task {
     async fn udp(mut self, socket: UdpSocket, fixed_peer: Option<SocketAddr>) -> Result<()> {
         let mut buf = vec![0u8; 65_536];
         loop {
+            let receiving = self.chunks.is_some();
             tokio::select! {
-                _ = self.stop.changed() => return Ok(()),
-                received = socket.recv_from(&mut buf) => match received {
+                changed = self.stop.changed() => if self.stopped(changed) {
+                    while let Ok(out) = self.outgoing.try_recv() {
+                        self.send_udp(&socket, out, fixed_peer).await;
+                    }
+                    return Ok(());
+                },
+                received = socket.recv_from(&mut buf), if receiving => match received {
                     Ok((n, from)) => self.forward(Some(from), &buf[..n], ChunkKind::Datagram),
                     // ICMP port unreachable on udpout before the vehicle is up: keep going.
                     Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
@@ -408,15 +437,28 @@ impl Task {
                         return Err(Error::Net { what: format!("receive UDP on link {}", self.link), source })
                     }
                 },
-                Some(out) = self.outgoing.recv() => {
-                    match out.to.peer.or(fixed_peer) {
-                        // A lost GCS message is sent again by the supervisor.
-                        Some(to) => if socket.send_to(&out.bytes, to).await.is_err() { self.unsent() },
-                        None => self.unsent(),
-                    }
-                }
+                Some(out) = self.outgoing.recv() => self.send_udp(&socket, out, fixed_peer).await,
             }
         }
+    }
+
+    async fn send_udp(&self, socket: &UdpSocket, out: Outgoing, fixed_peer: Option<SocketAddr>) {
+        match out.to.peer.or(fixed_peer) {
+            // A lost GCS message is sent again by the supervisor.
+            Some(to) => {
+                if socket.send_to(&out.bytes, to).await.is_err() {
+                    self.unsent()
+                }
+            }
+            None => self.unsent(),
+        }
+    }
+
+    /// After the stop signal changed (or its sender went): stop receiving, and true once the
+    /// task is to send what is queued and end.
+    fn stopped(&mut self, changed: std::result::Result<(), watch::error::RecvError>) -> bool {
+        self.chunks = None;
+        changed.is_err() || *self.stop.borrow() == Phase::Stopped
     }
 
     async fn tcp_out(mut self, address: HostPort) -> Result<()> {
@@ -424,6 +466,7 @@ impl Task {
         let mut waiting_logged = false;
         loop {
             let connected = tokio::select! {
+                // Not connected: nothing queued can be sent.
                 _ = self.stop.changed() => return Ok(()),
                 c = async {
                     let at = address.resolve().await?;
@@ -505,9 +548,17 @@ impl Task {
         let _ = stream.set_nodelay(true);
         let mut buf = vec![0u8; 65_536];
         loop {
+            let receiving = self.chunks.is_some();
             tokio::select! {
-                _ = self.stop.changed() => return Ok(true),
-                received = stream.read(&mut buf) => match received {
+                changed = self.stop.changed() => if self.stopped(changed) {
+                    while let Ok(out) = self.outgoing.try_recv() {
+                        if stream.write_all(&out.bytes).await.is_err() {
+                            self.unsent();
+                        }
+                    }
+                    return Ok(true);
+                },
+                received = stream.read(&mut buf), if receiving => match received {
                     Ok(0) => break,
                     Ok(n) => self.forward(None, &buf[..n], ChunkKind::Stream),
                     Err(e) if peer_closed(&e) => break,

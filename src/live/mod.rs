@@ -230,8 +230,9 @@ pub fn run_links(
         );
     }
     let counters = network.counters.clone();
-    let stopped = network.stop();
+    network.stop_receiving();
     let unprocessed = drain(&mut thread, &chunks, shutdown.load(Ordering::Relaxed));
+    let stopped = network.stop();
     close_session(&mut thread, &counters, &shutdown);
     let ending = Ending {
         endpoints,
@@ -426,13 +427,24 @@ impl Chores {
     }
 }
 
-/// What the links had queued when they stopped is still processed: all of it, or after a
-/// signal what [`STOP_DRAIN`] allows. Returns the chunks and bytes left unprocessed.
+/// What the links had queued when they stopped receiving is still processed (routed,
+/// recorded, mirrored): all of it, or after a signal what [`STOP_DRAIN`] allows. The queue
+/// disconnects once every link has stopped receiving; a link that does not within
+/// [`STOP_DRAIN`] is not waited for. Returns the chunks and bytes left unprocessed.
 fn drain(thread: &mut LiveSession, chunks: &Receiver<Chunk>, signalled: bool) -> (u64, u64) {
-    let drain_until = signalled.then(|| Instant::now() + STOP_DRAIN);
+    let started = Instant::now();
     let (mut unprocessed_chunks, mut unprocessed_bytes) = (0u64, 0u64);
-    while let Ok(chunk) = chunks.try_recv() {
-        if drain_until.is_some_and(|d| Instant::now() >= d) {
+    loop {
+        let wait = STOP_DRAIN.saturating_sub(started.elapsed());
+        let chunk = match chunks.recv_timeout(wait) {
+            Ok(chunk) => chunk,
+            Err(RecvTimeoutError::Disconnected) => break,
+            Err(RecvTimeoutError::Timeout) => match chunks.try_recv() {
+                Ok(chunk) => chunk,
+                Err(_) => break,
+            },
+        };
+        if signalled && started.elapsed() >= STOP_DRAIN {
             unprocessed_chunks += 1;
             unprocessed_bytes += chunk.bytes.len() as u64;
         } else {
