@@ -221,6 +221,11 @@ pub enum StudyCommand {
         /// `mitigated/SET`, each against the same `nominal` row (docs/sensors.md).
         #[arg(long)]
         sensors: Vec<String>,
+        /// With `--kind encounters`: two ArduCopters per encounter, each on its own SITL, one
+        /// row per equipage in this list (`none,one,both`: which of them avoid; the variant is
+        /// its name), over the same drawn geometries (docs/study.md, "Two autopilots").
+        #[arg(long)]
+        equipage: Option<String>,
         /// Where the manifest and its scenes go (created).
         #[arg(long)]
         out: PathBuf,

@@ -175,15 +175,25 @@ impl Session {
     /// Vehicles' samples keep their own clock's time (`WorldConfig::vehicle_clock`) and the
     /// flight starts at the vehicle's boot (its `time_boot_ms` 0): scripted traffic then moves
     /// on the vehicle's clock from its boot, at any speedup, and times in events and the
-    /// summary are seconds of that clock. For one vehicle per session (`savsim study`). Set
-    /// before the first frame (it starts the world again).
+    /// summary are seconds of that clock (`savsim study`). With several vehicles, the clock of
+    /// the first heard is the timeline and the others are mapped onto it
+    /// ([`savsim_core::world::timeline`]). Set before the first frame (it starts the world
+    /// again).
     pub fn use_vehicle_clock(&mut self) {
+        self.use_vehicle_clock_of(None);
+    }
+
+    /// [`Session::use_vehicle_clock`], the timeline being the clock of the vehicle with
+    /// `system_id` (`None`: the first heard); other vehicles' positions before its first are
+    /// not applied.
+    pub fn use_vehicle_clock_of(&mut self, system_id: Option<u8>) {
         self.vehicle_clock = true;
         let origin = self.world.plane().origin();
         self.world = WorldStore::new(
             origin,
             WorldConfig {
                 vehicle_clock: true,
+                timeline_system_id: system_id,
                 ..WorldConfig::default()
             },
         );

@@ -40,12 +40,13 @@ pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
             seed,
             model,
             sensors,
+            equipage,
             out,
         }) => gen(
             *kind,
             autopilot,
             (*n, *seed),
-            model.as_deref(),
+            (model.as_deref(), equipage.as_deref()),
             sensors,
             out,
         ),
@@ -450,15 +451,40 @@ fn report(results: &[StudyResult], path: &Path) -> String {
     text
 }
 
+/// `--equipage none,one,both`: each named once at most.
+fn parse_equipage(text: &str) -> Result<Vec<crate::study::gen::Equipage>> {
+    let mut list = Vec::new();
+    for name in text.split(',') {
+        let e = crate::study::gen::Equipage::parse(name).ok_or_else(|| {
+            Error::Usage(format!(
+                "--equipage {text:?}: {name:?} is not none, one or both"
+            ))
+        })?;
+        if list.contains(&e) {
+            return Err(Error::Usage(format!("--equipage {text:?}: {name:?} twice")));
+        }
+        list.push(e);
+    }
+    Ok(list)
+}
+
 /// `study gen`: the manifest `study.csv` in `out`, and one scene per approach.
 fn gen(
     kind: StudyGenKind,
     autopilot: &str,
     (n, seed): (usize, u64),
-    model: Option<&Path>,
+    (model, equipage): (Option<&Path>, Option<&str>),
     sensors: &[String],
     out: &Path,
 ) -> Result<()> {
+    let equipage = equipage.map(parse_equipage).transpose()?;
+    if equipage.is_some() && (kind != StudyGenKind::Encounters || model.is_some()) {
+        return Err(Error::Usage(
+            "--equipage: only with --kind encounters and no --model (a model's aircraft fly \
+             at a manned aircraft's speeds, beyond a copter's)"
+                .into(),
+        ));
+    }
     for set in sensors {
         crate::feed::sensors_for(Some(set), None)?;
     }
@@ -492,6 +518,13 @@ fn gen(
                 std::fs::write(&path, &a.scene_toml).map_err(|e| Error::file(&path, e))?;
             }
             approaches.into_iter().flat_map(|a| a.rows).collect()
+        }
+        StudyGenKind::Encounters if equipage.is_some() => {
+            let equipage = equipage.unwrap_or_default();
+            crate::study::gen::cooperative_encounters(n, seed, &equipage)
+                .into_iter()
+                .flatten()
+                .collect()
         }
         StudyGenKind::Encounters => match model {
             None => crate::study::gen::encounters(n, seed),

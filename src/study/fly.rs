@@ -223,7 +223,7 @@ fn command_of(leg: &Leg, fix: &Fix) -> Option<DVec3> {
             Some(goto_velocity(fix.enu_m, DVec3::from(enu_m), speed_mps))
         }
         Leg::Velocity { enu_mps, .. } => Some(DVec3::from(enu_mps)),
-        Leg::Hold { .. } => Some(DVec3::ZERO),
+        Leg::Hold { .. } | Leg::Until { .. } => Some(DVec3::ZERO),
         Leg::Takeoff { .. } | Leg::Land => None,
     }
 }

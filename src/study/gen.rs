@@ -174,6 +174,128 @@ fn encounter_rows(id: String, seed: u64, intruder: String) -> [StudyRow; 2] {
     ]
 }
 
+/// **Cooperative encounters** ([`cooperative_encounters`]): two ArduCopters, each flown by its
+/// own SITL, cross in open air. The first takes off from home to [`HOVER_UP_M`], the second
+/// from its own home (`intruder_home`) to that height plus the vertical miss; both wait until
+/// [`COOP_START_S`] of the row's clock (`until`), then hold their velocity for
+/// [`COOP_RUN_S`] + 30 s: unavoided, they pass at [`COOP_START_S`] + [`COOP_RUN_S`] =
+/// [`ENCOUNTER_TCA_S`] + 10 s with the drawn miss. Both are fed ADS-B of the other. One row per
+/// equipage: `none` (neither avoids: [`ADSB_NOMINAL_PARAMS`] on both), `one` (the first
+/// avoids: [`ADSB_MITIGATED_PARAMS`]), `both`.
+///
+/// | drawn | range |
+/// |---|---|
+/// | first's heading | 0-360 degrees |
+/// | second's heading, from the first's | 60-300 degrees (crossing or head-on, not overtaking) |
+/// | speeds | 8-12 m/s each |
+/// | horizontal miss, across their relative velocity | 0-30 m |
+/// | vertical miss (second above positive) | -10 to +10 m |
+///
+/// ```
+/// use savsim::study::gen::{cooperative_encounters, Equipage};
+/// let e = cooperative_encounters(2, 5, &[Equipage::None, Equipage::Both]);
+/// assert_eq!(e[0].len(), 2);
+/// assert_eq!(e[0][1].variant.as_deref(), Some("both"));
+/// assert_eq!(e[0][1].intruder_autopilot.as_deref(), Some("arducopter"));
+/// assert!(e[0][1].intruder_params.as_deref().unwrap().contains("AVD_ENABLE=1"));
+/// assert_eq!(e, cooperative_encounters(2, 5, &[Equipage::None, Equipage::Both]));
+/// ```
+pub fn cooperative_encounters(n: usize, seed: u64, equipage: &[Equipage]) -> Vec<Vec<StudyRow>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|k| cooperative(k, seed, &mut rng, equipage))
+        .collect()
+}
+
+/// When a cooperative encounter's two vehicles start their run, seconds of the row's clock
+/// (ArduCopter SITL arms 42-43 s after its boot and climbs for another 15).
+pub const COOP_START_S: f64 = 85.0;
+/// How long their run lasts until the closest approach, seconds.
+pub const COOP_RUN_S: f64 = 35.0;
+
+/// Which of an encounter's two aircraft avoid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Equipage {
+    /// Neither.
+    None,
+    /// The first (the row's ownship).
+    One,
+    /// Both.
+    Both,
+}
+
+impl Equipage {
+    /// From its name: `none`, `one` or `both`.
+    pub fn parse(name: &str) -> Option<Self> {
+        match name.trim() {
+            "none" => Some(Equipage::None),
+            "one" => Some(Equipage::One),
+            "both" => Some(Equipage::Both),
+            _ => None,
+        }
+    }
+
+    /// Its name: the row's variant.
+    pub fn name(self) -> &'static str {
+        match self {
+            Equipage::None => "none",
+            Equipage::One => "one",
+            Equipage::Both => "both",
+        }
+    }
+}
+
+fn cooperative(k: usize, seed: u64, rng: &mut ChaCha8Rng, equipage: &[Equipage]) -> Vec<StudyRow> {
+    let heading = |deg: f64| {
+        let (s, c) = deg.to_radians().sin_cos();
+        DVec3::new(s, c, 0.0)
+    };
+    let own_deg: f64 = rng.random_range(0.0..360.0);
+    let other_deg = own_deg + rng.random_range(60.0..300.0);
+    let own_v = heading(own_deg) * rng.random_range(8.0..12.0);
+    let other_v = heading(other_deg) * rng.random_range(8.0..12.0);
+    let hmd_m: f64 = rng.random_range(0.0..30.0);
+    let vmd_m: f64 = rng.random_range(-10.0..10.0);
+    let across = (other_v - own_v).cross(DVec3::Z).normalize_or_zero();
+    // The first's closest approach point, and the second's start under its own.
+    let own_at_tca = own_v * COOP_RUN_S;
+    let other_home = own_at_tca + across * hmd_m - other_v * COOP_RUN_S;
+    let run_s = COOP_RUN_S + 30.0;
+    let plan = |up_m: f64, v: DVec3| {
+        format!(
+            "takeoff {up_m:.2}; until {COOP_START_S}; velocity {:.3} {:.3} 0 {run_s}",
+            v.x, v.y
+        )
+    };
+    let id = format!("coop-encounter-{k:05}");
+    equipage
+        .iter()
+        .map(|e| {
+            let (own, other) = match e {
+                Equipage::None => (ADSB_NOMINAL_PARAMS, ADSB_NOMINAL_PARAMS),
+                Equipage::One => (ADSB_MITIGATED_PARAMS, ADSB_NOMINAL_PARAMS),
+                Equipage::Both => (ADSB_MITIGATED_PARAMS, ADSB_MITIGATED_PARAMS),
+            };
+            StudyRow {
+                id: Some(format!("{id}-{}", e.name())),
+                autopilot: Some("arducopter".into()),
+                variant: Some(e.name().into()),
+                pair: Some(id.clone()),
+                params: Some(own.into()),
+                feed: Some("adsb".into()),
+                plan: Some(plan(HOVER_UP_M, own_v)),
+                duration_s: Some(COOP_START_S + run_s),
+                seed: Some(seed),
+                intruder_autopilot: Some("arducopter".into()),
+                intruder_plan: Some(plan(HOVER_UP_M + vmd_m, other_v)),
+                intruder_params: Some(other.into()),
+                intruder_home: Some(format!("{:.2} {:.2}", other_home.x, other_home.y)),
+                ..StudyRow::default()
+            }
+        })
+        .collect()
+}
+
 /// One generated approach: its scene's text and its two rows.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Approach {

@@ -58,6 +58,18 @@ pub struct StudyRow {
     pub stop_on_collision: Option<bool>,
     /// The encounter's importance weight (default 1).
     pub w: Option<f64>,
+    /// A second vehicle flown by its own autopilot (`arducopter` or `px4`) on its own SITL
+    /// instance, instead of a scripted `intruder`: it flies `intruder_plan` with
+    /// `intruder_params`, and the row's feed tells each vehicle of the other.
+    pub intruder_autopilot: Option<String>,
+    /// The second vehicle's flight plan (`study::plan`; `until T` legs are on the row's
+    /// clock, the first vehicle's).
+    pub intruder_plan: Option<String>,
+    /// The second vehicle's parameters, `NAME=VALUE;...`.
+    pub intruder_params: Option<String>,
+    /// The second vehicle's home, `E N` metres from the scene's origin (default `0 0`, the
+    /// first vehicle's), on the scene's ground there.
+    pub intruder_home: Option<String>,
 }
 
 impl StudyRow {

@@ -58,6 +58,28 @@ pub struct Fix {
     pub velocity_enu_mps: DVec3,
     /// Heading, degrees clockwise from north (`None` when the autopilot does not know it).
     pub heading_deg: Option<f64>,
+    /// The row's clock at this position, seconds: the vehicle's own from its boot, or the
+    /// row's first vehicle's ([`RowClock`]).
+    pub row_s: f64,
+}
+
+/// Another vehicle's clock as a pilot hears it: the clock the second and further vehicles of
+/// a row time their `until` legs by (its last position's time carried on at its speedup).
+#[derive(Debug, Clone)]
+pub struct RowClock {
+    /// What the first vehicle's pilot heard.
+    pub reference: std::sync::Arc<std::sync::Mutex<Heard>>,
+    /// Its speedup (asked of its SITL).
+    pub speedup: f64,
+}
+
+impl RowClock {
+    /// The first vehicle's clock now, seconds from its boot; `None` before its first position.
+    pub fn now_s(&self) -> Option<f64> {
+        let heard = self.reference.lock().ok()?;
+        let at = heard.position_at?;
+        Some(f64::from(heard.time_boot_ms) / 1000.0 + at.elapsed().as_secs_f64() * self.speedup)
+    }
 }
 
 /// What the autopilot said, and its positions sampled.
@@ -92,6 +114,11 @@ pub struct Heard {
     pub version: Option<String>,
     /// Its clock at the last position, ms.
     pub time_boot_ms: u32,
+    /// When the last position came (wall clock).
+    pub position_at: Option<Instant>,
+    /// Its clock (ms) in its last message that carries it (a position, with or without a
+    /// fix, or an attitude), and when that came (wall clock).
+    pub clock: Option<(u32, Instant)>,
     /// PARAM_VALUE: the last value and type heard of each parameter, by name (one entry a
     /// name: as many as the autopilot has parameters).
     pub params: std::collections::HashMap<String, (f32, u8)>,
@@ -184,6 +211,12 @@ pub struct Pilot {
     last_heartbeat_ms: Option<u32>,
     /// How long the autopilot may be silent before the row is an error (wall clock).
     pub silence_limit: Duration,
+    /// The row's clock when it is not this vehicle's own ([`Fix::row_s`]).
+    pub row_clock: Option<RowClock>,
+    /// The row's clock less the vehicle's at the last position, seconds (0 on its own).
+    pub row_offset_s: f64,
+    /// An ArduCopter's speedup kept to another vehicle's clock (`SIM_SPEEDUP`).
+    pub pace: Option<crate::study::pace::Pace>,
 }
 
 impl Pilot {
@@ -302,6 +335,9 @@ impl Pilot {
             fix: None,
             last_heartbeat_ms: None,
             silence_limit: Duration::from_secs(30),
+            row_clock: None,
+            row_offset_s: 0.0,
+            pace: None,
         })
     }
 
@@ -356,13 +392,22 @@ impl Pilot {
                 return Ok(None);
             }
             match self.news.recv_timeout(Duration::from_millis(50)) {
-                Ok(News::Fix(fix)) => {
+                Ok(News::Fix(mut fix)) => {
+                    if let Some(clock) = &self.row_clock {
+                        // Before the row's first vehicle is heard its clock is at its start.
+                        fix.row_s = clock.now_s().unwrap_or(0.0);
+                        self.row_offset_s = fix.row_s - f64::from(fix.time_boot_ms) / 1000.0;
+                    }
                     self.fix = Some(fix);
                     self.heartbeat_due(fix.time_boot_ms)?;
+                    self.keep_pace()?;
                     return Ok(Some(fix));
                 }
                 // Anything heard: not silent (before its GPS fix it sends no position).
-                Ok(News::Other) => started = Instant::now(),
+                Ok(News::Other) => {
+                    started = Instant::now();
+                    self.keep_pace()?;
+                }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
                     return Err(PilotError::Silent {
@@ -395,6 +440,25 @@ impl Pilot {
             MavCmd::MAV_CMD_REQUEST_MESSAGE,
             [148.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         )
+    }
+
+    /// Ask SITL for the speedup the pace calls for, if one is due.
+    fn keep_pace(&mut self) -> Result<(), PilotError> {
+        let Some(pace) = self.pace.as_mut() else {
+            return Ok(());
+        };
+        let own = self.heard.lock().ok().and_then(|h| h.clock);
+        let Some(speedup) = own.and_then(|own| pace.at(own, Instant::now())) else {
+            return Ok(());
+        };
+        let (target_system, target_component) = (self.target.system_id, self.target.component_id);
+        self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: speedup as f32,
+            target_system,
+            target_component,
+            param_id: "SIM_SPEEDUP".into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        }))
     }
 
     fn heartbeat_due(&mut self, now_ms: u32) -> Result<(), PilotError> {
@@ -661,6 +725,7 @@ pub fn leg_done(leg: &Leg, fix: &Fix, began: &Fix, armed: bool) -> bool {
         Leg::Takeoff { up_m } => fix.enu_m.z - began.enu_m.z >= up_m - TAKEOFF_DONE_M,
         Leg::Goto { enu_m, .. } => fix.enu_m.distance(DVec3::from(enu_m)) <= GOTO_DONE_M,
         Leg::Velocity { seconds, .. } | Leg::Hold { seconds } => elapsed_s >= seconds,
+        Leg::Until { t_s } => fix.row_s >= t_s,
         Leg::Land => !armed && elapsed_s > 1.0,
     }
 }
@@ -702,6 +767,16 @@ fn pass_on(
     if header.system_id != u32::from(target.system_id) {
         return true;
     }
+    let clock_ms = match &message {
+        MavMessage::GLOBAL_POSITION_INT(p) => Some(p.time_boot_ms),
+        MavMessage::ATTITUDE(a) => Some(a.time_boot_ms),
+        _ => None,
+    };
+    if let Some(ms) = clock_ms.filter(|_| header.component_id == target.component_id) {
+        if let Ok(mut h) = heard.lock() {
+            h.clock = Some((ms, Instant::now()));
+        }
+    }
     let news = match message {
         // ArduPilot sends 0, 0 until its EKF has an origin: no position yet.
         MavMessage::GLOBAL_POSITION_INT(p)
@@ -716,6 +791,7 @@ fn pass_on(
             let enu_m = plane.enu_m_from_geodetic(&at);
             if let Ok(mut h) = heard.lock() {
                 h.time_boot_ms = p.time_boot_ms;
+                h.position_at = Some(Instant::now());
                 h.take_position(p.time_boot_ms, enu_m);
             }
             News::Fix(Fix {
@@ -723,6 +799,7 @@ fn pass_on(
                 enu_m,
                 velocity_enu_mps: DVec3::new(ned.y, ned.x, -ned.z),
                 heading_deg: (p.hdg != u16::MAX).then(|| f64::from(p.hdg) / 100.0),
+                row_s: f64::from(p.time_boot_ms) / 1000.0,
             })
         }
         other => {
@@ -763,6 +840,11 @@ impl Heard {
     /// assert_eq!(heard.track_text().unwrap(), "1.000 0.0 10.0 20.0; 1.500 2.5 10.0 20.0; 1.700 3.0 10.0 20.0");
     /// ```
     pub fn track_text(&self) -> Option<String> {
+        self.track_text_shifted(0.0)
+    }
+
+    /// [`Heard::track_text`] with `offset_s` added to every time (onto the row's clock).
+    pub fn track_text_shifted(&self, offset_s: f64) -> Option<String> {
         let last = self.last_fix?;
         let mut points = self.track.clone();
         if points.last().is_none_or(|(t, _)| *t < last.0) {
@@ -771,7 +853,7 @@ impl Heard {
         let one = |(ms, p): &(u32, DVec3)| {
             format!(
                 "{:.3} {:.1} {:.1} {:.1}",
-                f64::from(*ms) / 1000.0,
+                f64::from(*ms) / 1000.0 + offset_s,
                 p.x,
                 p.y,
                 p.z

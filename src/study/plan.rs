@@ -7,6 +7,7 @@
 //! | `goto E N U [SPEED]` | fly to (E, N, U) at `SPEED` m/s (default 5); done within 1 m |
 //! | `velocity VE VN VU SECONDS` | hold that velocity for `SECONDS` of the vehicle's clock |
 //! | `hold SECONDS` | stay where it is |
+//! | `until T` | stay where it is until the row's clock reads `T` s (its first vehicle's clock from its boot) |
 //! | `land` | land where it is; done when disarmed |
 //!
 //! ```
@@ -53,6 +54,12 @@ pub enum Leg {
     Hold {
         /// For how long, seconds of the vehicle's clock.
         seconds: f64,
+    },
+    /// Stay in place until the row's clock reads `t_s`: a leg that starts the next at the
+    /// same moment for every vehicle of a row, whatever their take-off took.
+    Until {
+        /// Seconds of the row's clock (its first vehicle's, from its boot).
+        t_s: f64,
     },
     /// Land where it is.
     Land,
@@ -169,12 +176,18 @@ fn leg(text: &str) -> Result<Leg, String> {
                 seconds: seconds(numbers[0])?,
             })
         }
+        "until" => {
+            count(&[1], "until T (seconds of the row's clock)")?;
+            Ok(Leg::Until {
+                t_s: seconds(numbers[0])?,
+            })
+        }
         "land" => {
             count(&[0], "land (no numbers)")?;
             Ok(Leg::Land)
         }
         other => Err(format!(
-            "{other:?} is not a leg: takeoff, goto, velocity, hold or land"
+            "{other:?} is not a leg: takeoff, goto, velocity, hold, until or land"
         )),
     }
 }
@@ -222,8 +235,10 @@ mod tests {
 
     #[test]
     fn every_leg_reads_and_bad_ones_say_which() {
-        let legs = parse("takeoff 30;goto 10 20 30 4; hold 5 ;velocity 0 1 0 2;land;").unwrap();
-        assert_eq!(legs.len(), 5);
+        let legs =
+            parse("takeoff 30;goto 10 20 30 4; hold 5 ;velocity 0 1 0 2;until 80;land;").unwrap();
+        assert_eq!(legs.len(), 6);
+        assert_eq!(legs[4], Leg::Until { t_s: 80.0 });
         assert_eq!(
             legs[1],
             Leg::Goto {
@@ -239,6 +254,8 @@ mod tests {
             ("hold NaN", 1),
             ("velocity 100 0 0 5", 1),
             ("land 3", 1),
+            ("takeoff 30; until", 2),
+            ("until -4", 1),
             ("takeoff 30; hold 1e9", 2),
         ] {
             let e = parse(bad).unwrap_err();

@@ -70,6 +70,58 @@ pub struct AutopilotDid {
     pub version: Option<String>,
 }
 
+/// The second vehicle of a row flown by two autopilots (`intruder_autopilot`): its times are
+/// on the row's clock (the first vehicle's, from its boot).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SecondVehicle {
+    /// Its MAVLink system id.
+    pub system_id: u8,
+    /// Its positions, as `track` (times on the row's clock).
+    pub track: Option<String>,
+    /// Legs of its plan flown to their end.
+    pub legs_completed: u64,
+    /// Whether every leg was.
+    pub plan_completed: bool,
+    /// What its autopilot did (`first_acted_t_s` on the row's clock).
+    pub did: AutopilotDid,
+    /// Seconds of its clock per wall second, as savsim fitted them from its positions'
+    /// arrivals (measured).
+    pub clock_speedup: f64,
+}
+
+/// Which of a row's two vehicles acted first against the other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FirstToAct {
+    /// The row's first vehicle (its ownship).
+    Own,
+    /// The second vehicle.
+    Intruder,
+    /// Neither acted.
+    Neither,
+}
+
+impl FirstToAct {
+    /// Its name in the results.
+    pub fn name(self) -> &'static str {
+        match self {
+            FirstToAct::Own => "own",
+            FirstToAct::Intruder => "intruder",
+            FirstToAct::Neither => "neither",
+        }
+    }
+
+    /// From when each acted (seconds of the row's clock); a tie goes to the ownship.
+    pub fn of(own_s: Option<f64>, intruder_s: Option<f64>) -> Self {
+        match (own_s, intruder_s) {
+            (Some(o), Some(i)) if i < o => FirstToAct::Intruder,
+            (Some(_), _) => FirstToAct::Own,
+            (None, Some(_)) => FirstToAct::Intruder,
+            (None, None) => FirstToAct::Neither,
+        }
+    }
+}
+
 /// One row of a study's results.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StudyResult {
@@ -124,6 +176,14 @@ pub struct StudyResult {
     pub wall_s: f64,
     /// `sim_s` over the wall seconds it took (measured).
     pub achieved_speedup: f64,
+    /// The second vehicle, when the row flies two autopilots.
+    pub second: Option<SecondVehicle>,
+    /// With two autopilots: seconds of the first vehicle's clock per wall second, as savsim
+    /// fitted them from its positions' arrivals (measured).
+    pub clock_speedup: Option<f64>,
+    /// With two autopilots: the largest drift between their clocks over the row, seconds
+    /// (measured; the row is an error beyond [`crate::study::run::MAX_CLOCK_SKEW_S`]).
+    pub clock_skew_s: Option<f64>,
 }
 
 impl StudyResult {
@@ -152,7 +212,19 @@ impl StudyResult {
             sim_s: 0.0,
             wall_s: 0.0,
             achieved_speedup: 0.0,
+            second: None,
+            clock_speedup: None,
+            clock_skew_s: None,
         }
+    }
+
+    /// With two autopilots, which acted first.
+    pub fn first_to_act(&self) -> Option<FirstToAct> {
+        let second = self.second.as_ref()?;
+        Some(FirstToAct::of(
+            self.autopilot_did.first_acted_t_s,
+            second.did.first_acted_t_s,
+        ))
     }
 
     /// The closest approach to each obstacle, from every collision (0 m) and near miss of

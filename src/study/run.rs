@@ -26,13 +26,14 @@ use crate::scene::{Kind, Scene, Waypoint};
 use crate::session::Session;
 use crate::study::fly::{fly, fly_px4, Flown};
 use crate::study::manifest::StudyRow;
-use crate::study::pilot::{mode, Heard, Pilot, PilotError};
+use crate::study::pace::Pace;
+use crate::study::pilot::{mode, Heard, Pilot, PilotError, RowClock};
 use crate::study::plan::{self, Leg, PlanError};
-use crate::study::result::{AutopilotDid, Outcome, StudyResult};
+use crate::study::result::{AutopilotDid, Outcome, SecondVehicle, StudyResult};
 use crate::study::sitl::{
     px4_autopilot, px4_gcs_port, px4_onboard_ports, ArduCopter, Px4, Sitl, Start,
 };
-use savsim_core::bounds::MAX_DURATION_S;
+use savsim_core::bounds::{MAX_DURATION_S, MAX_ENU_M};
 
 /// A row's default length, seconds of the vehicle's clock.
 pub const DEFAULT_DURATION_S: f64 = 120.0;
@@ -43,14 +44,28 @@ pub const SPEEDUP_RANGE: (f64, f64) = (0.1, 1000.0);
 /// m/s within a frame or two of seeing the obstacle closer than its margin: at 20 Hz a frame is
 /// 0.25-0.4 m of travel, at 50 Hz 0.1-0.16 m.
 pub const FEED_HZ: f64 = 50.0;
+/// A row's second vehicle runs on SITL instance `instance + SECOND_INSTANCE_OFFSET` (its own
+/// ports): past the instances `--jobs` can take.
+pub const SECOND_INSTANCE_OFFSET: u16 = crate::study::command::MAX_JOBS as u16;
+/// A second ArduCopter's SYSID_THISMAV: no PX4 instance of a study has it (PX4 SITL's system id
+/// is its instance + 1, at most 2 x `MAX_JOBS`).
+pub const SECOND_ARDUCOPTER_SYSID: u8 = 201;
+/// The largest drift allowed between the clocks of a row's two vehicles, seconds: beyond it
+/// the row is an error. Each vehicle is placed in the world where it was when it sent its
+/// position, whatever its clock; but a clock ahead by 0.2 s has flown its physics 0.2 s
+/// further: two copters closing at 2 x 12 m/s (the fastest `study gen --equipage` draws) then
+/// meet up to 4.8 m off the encounter drawn (docs/study.md, "Two autopilots").
+pub const MAX_CLOCK_SKEW_S: f64 = 0.2;
+
 /// The autopilot's identity: ArduCopter SITL's default SYSID_THISMAV 1 (whatever its
-/// instance); PX4 SITL sets MAV_SYS_ID to its instance + 1. Component 1, the autopilot.
-fn autopilot_id(px4: bool, instance: u16) -> SenderId {
+/// instance; a row's second ArduCopter [`SECOND_ARDUCOPTER_SYSID`]); PX4 SITL sets MAV_SYS_ID
+/// to its instance + 1. Component 1, the autopilot.
+fn autopilot_id(px4: bool, instance: u16, second: bool) -> SenderId {
     if px4 {
         px4_autopilot(instance)
     } else {
         SenderId {
-            system_id: 1,
+            system_id: if second { SECOND_ARDUCOPTER_SYSID } else { 1 },
             component_id: 1,
         }
     }
@@ -85,6 +100,16 @@ pub enum RowError {
     /// savsim's side (the scene, the session, the link).
     #[error("savsim: {0}")]
     Savsim(String),
+    /// The clocks of the row's two vehicles drifted apart by more than
+    /// [`MAX_CLOCK_SKEW_S`]: where each was at a given moment is not known well enough.
+    #[error(
+        "the two vehicles' clocks drifted {skew_s:.3} s apart (at most {MAX_CLOCK_SKEW_S} s): \
+         not judged"
+    )]
+    ClockSkew {
+        /// The largest drift, seconds.
+        skew_s: f64,
+    },
     /// The row's wall-clock limit passed before its plan or its time on the vehicle's clock
     /// ended (SITL ran far below its speedup): what it flew is not judged.
     #[error(
@@ -159,11 +184,20 @@ impl Setup {
     }
 }
 
-/// A row's columns, checked.
-struct Checked {
+/// One vehicle of a row: its autopilot, plan and parameters, checked.
+#[derive(Debug, Clone)]
+struct Flier {
     px4: bool,
     legs: Vec<Leg>,
     params: Vec<(String, f64)>,
+    /// Home, scene ENU metres east and north (on the scene's ground there).
+    home_en_m: [f64; 2],
+}
+
+/// A row's columns, checked.
+struct Checked {
+    own: Flier,
+    second: Option<Flier>,
     feed: Option<FeedKinds>,
     intruder: Option<(Kind, Vec<Waypoint>)>,
     duration_s: f64,
@@ -171,20 +205,80 @@ struct Checked {
     stop_on_collision: bool,
 }
 
-fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
-    let px4 = match row.autopilot.as_deref().unwrap_or("arducopter") {
-        "arducopter" => false,
-        "px4" => true,
-        other => {
+/// Whether `name` (of `column`) is PX4.
+fn is_px4(column: &'static str, name: &str) -> Result<bool, RowError> {
+    match name {
+        "arducopter" => Ok(false),
+        "px4" => Ok(true),
+        other => Err(input(column, format!("{other:?}: give arducopter or px4"))),
+    }
+}
+
+/// The row's second vehicle (`intruder_autopilot` and its columns), when it has one.
+fn check_second(row: &StudyRow) -> Result<Option<Flier>, RowError> {
+    fn given(v: &Option<String>) -> Option<&str> {
+        v.as_deref().filter(|t| !t.trim().is_empty())
+    }
+    let Some(autopilot) = given(&row.intruder_autopilot) else {
+        if given(&row.intruder_plan).is_some() || given(&row.intruder_params).is_some() {
             return Err(input(
-                "autopilot",
-                format!("{other:?}: give arducopter or px4"),
-            ))
+                "intruder_autopilot",
+                "intruder_plan and intruder_params are for a second autopilot: name it",
+            ));
         }
+        return Ok(None);
     };
+    if given(&row.intruder).is_some() {
+        return Err(input(
+            "intruder_autopilot",
+            "give a scripted intruder or an autopilot, not both",
+        ));
+    }
+    let px4 = is_px4("intruder_autopilot", autopilot)?;
+    let legs = plan::parse(given(&row.intruder_plan).unwrap_or_default())
+        .map_err(|e| input("intruder_plan", e.to_string()))?;
+    let mut params = plan::parse_params(given(&row.intruder_params).unwrap_or_default())
+        .map_err(|why| input("intruder_params", why))?;
+    if !px4 {
+        // Last, so that it holds over the row's own: the session tells the two apart by it.
+        params.push(("SYSID_THISMAV".into(), f64::from(SECOND_ARDUCOPTER_SYSID)));
+    }
+    let home_en_m = match given(&row.intruder_home) {
+        None => [0.0, 0.0],
+        Some(text) => parse_home(text).map_err(|why| input("intruder_home", why))?,
+    };
+    Ok(Some(Flier {
+        px4,
+        legs,
+        params,
+        home_en_m,
+    }))
+}
+
+/// `E N`: metres east and north of the scene's origin, within the scene's bounds.
+fn parse_home(text: &str) -> Result<[f64; 2], String> {
+    let numbers: Vec<f64> = text
+        .split_whitespace()
+        .map(|w| w.parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("{text:?}: give E N in metres"))?;
+    match numbers[..] {
+        [e, n] if e.abs() <= MAX_ENU_M && n.abs() <= MAX_ENU_M => Ok([e, n]),
+        _ => Err(format!(
+            "{text:?}: give E N in metres, each within +/-{MAX_ENU_M}"
+        )),
+    }
+}
+
+fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
+    let px4 = is_px4(
+        "autopilot",
+        row.autopilot.as_deref().unwrap_or("arducopter"),
+    )?;
     let legs = plan::parse(row.plan.as_deref().unwrap_or_default())?;
     let params = plan::parse_params(row.params.as_deref().unwrap_or_default())
         .map_err(|why| input("params", why))?;
+    let second = check_second(row)?;
     let feed = row
         .feed
         .as_deref()
@@ -223,9 +317,13 @@ fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
         return Err(input("w", format!("{w}: give a finite weight >= 0")));
     }
     Ok(Checked {
-        px4,
-        legs,
-        params,
+        own: Flier {
+            px4,
+            legs,
+            params,
+            home_en_m: [0.0, 0.0],
+        },
+        second,
         feed,
         intruder,
         duration_s,
@@ -271,13 +369,15 @@ fn session_for(
     row: &StudyRow,
     scene: Arc<Scene>,
     feed: Option<FeedKinds>,
+    own: SenderId,
 ) -> Result<Session, RowError> {
     let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
     let sensors = crate::feed::sensors_for(row.sensors.as_deref(), Some(&scene))
         .map_err(|e| input("sensors", e.to_string()))?;
     let mut session =
         Session::new(Some(scene), CollisionConfig::default(), None).map_err(savsim)?;
-    session.use_vehicle_clock();
+    // The row's clock is its first vehicle's; a second one's is mapped onto it.
+    session.use_vehicle_clock_of(Some(own.system_id));
     session.set_approaches(Approaches::with_volume(Some(Volume::SMALL_UAS)));
     if let Some(kinds) = feed {
         session
@@ -328,10 +428,10 @@ fn scene_for(row: &StudyRow, checked: &Checked, setup: &Setup) -> Result<Arc<Sce
     Ok(Arc::new(with))
 }
 
-/// Home: the scene's origin, on its ground there.
-fn home_of(scene: &Scene) -> Geodetic {
-    let ground_m = scene.ground_height_enu_m(0.0, 0.0).unwrap_or(0.0);
-    LocalTangentPlane::new(scene.origin).geodetic_from_enu_m(glam::DVec3::new(0.0, 0.0, ground_m))
+/// Home: `en_m` east and north of the scene's origin, on its ground there.
+fn home_of(scene: &Scene, [e_m, n_m]: [f64; 2]) -> Geodetic {
+    let ground_m = scene.ground_height_enu_m(e_m, n_m).unwrap_or(0.0);
+    LocalTangentPlane::new(scene.origin).geodetic_from_enu_m(glam::DVec3::new(e_m, n_m, ground_m))
 }
 
 fn fly_row(
@@ -343,7 +443,8 @@ fn fly_row(
     let checked = check(row, setup.speedup)?;
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
-    let mut session = session_for(row, scene.clone(), checked.feed)?;
+    let own_id = autopilot_id(checked.own.px4, instance, false);
+    let mut session = session_for(row, scene.clone(), checked.feed, own_id)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -359,16 +460,28 @@ fn fly_row(
     {
         record_to(&mut session, &dir)?;
     }
-    let start = Start {
+    let mut vehicles = vec![Vehicle::start(
+        &runtime,
+        setup,
+        &checked,
+        &checked.own,
         instance,
-        home: home_of(&scene),
-        home_yaw_deg: 0.0,
-        speedup: checked.speedup,
-        serial0: "",
-        params: &checked.params,
-        dir: &dir,
-    };
-    let (link, mut sitl) = start_autopilot(&runtime, setup, &checked, &start)?;
+        &scene,
+        &dir,
+    )?];
+    if let Some(second) = &checked.second {
+        let at = instance + SECOND_INSTANCE_OFFSET;
+        let second_dir = dir.join("second");
+        vehicles.push(Vehicle::start(
+            &runtime,
+            setup,
+            &checked,
+            second,
+            at,
+            &scene,
+            &second_dir,
+        )?);
+    }
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
     let collided = Flag::default();
@@ -379,39 +492,45 @@ fn fly_row(
         feed_out: (setup.record_feed && checked.feed.is_some()).then(|| dir.join("feed.tlog")),
         ..LiveOptions::default()
     };
-    let live = SessionThread::spawn(runtime, link, options, session)?;
+    let links = vehicles.iter_mut().filter_map(|v| v.link.take()).collect();
+    let live = SessionThread::spawn(runtime, links, options, session)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let started = Instant::now();
+    let own_done = AtomicBool::new(false);
     let stop = || {
         setup.stop.load(Ordering::Relaxed)
             || (checked.stop_on_collision && collided.is_raised())
             || started.elapsed() > wall_limit
     };
+    // The second vehicle also stops when the first is done.
+    let second_stop = || stop() || own_done.load(Ordering::Relaxed);
     // Every exit from here on, `?` included, stops and joins the session thread (its drop).
-    let flight = connect_pilot(&mut sitl, plane, checked.px4, instance, &setup.stop)?.and_then(
-        |mut pilot| {
-            let flown = if checked.px4 {
-                fly_px4(
-                    &mut pilot,
-                    &checked.legs,
-                    &checked.params,
-                    checked.duration_s,
-                    &stop,
-                )
-            } else {
-                fly(&mut pilot, &checked.legs, checked.duration_s, &stop)
-            };
-            flown.map(|f| (f, pilot.heard()))
-        },
+    let mut pilots = Vec::new();
+    for v in &mut vehicles {
+        pilots.push(connect_pilot(v, plane, &setup.stop)?);
+    }
+    let flights = fly_all(
+        pilots,
+        &vehicles,
+        &checked,
+        (&stop, &second_stop),
+        &own_done,
     );
     let run = live.finish()?;
-    let exited = sitl.exited();
-    let tail = sitl.log_tail(5);
-    drop(sitl);
-    let (flown, heard) = flight.map_err(|e| match exited {
-        Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
-        None => RowError::Pilot(e),
-    })?;
+    let mut flown_all = Vec::new();
+    for (v, flight) in vehicles.iter_mut().zip(flights) {
+        let exited = v.sitl.exited();
+        let tail = v.sitl.log_tail(5);
+        flown_all.push(flight.map_err(|e| match exited {
+            Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
+            None => RowError::Pilot(e),
+        })?);
+    }
+    drop(vehicles);
+    let mut flown_all = flown_all.into_iter();
+    let (flown, heard, _) = flown_all
+        .next()
+        .ok_or_else(|| RowError::Savsim("no vehicle flew".into()))?;
     // Stopped by the wall limit alone (no signal, no collision): the row flew only part of its
     // time, and what it flew is not judged as if it were all of it.
     let cut_short = flown.stopped
@@ -428,16 +547,191 @@ fn fly_row(
             speedup: checked.speedup,
         });
     }
+    let second = flown_all.next().zip(checked.second.as_ref());
+    if let Some(((flown, heard, offset_s), flier)) = second {
+        let id = autopilot_id(flier.px4, instance + SECOND_INSTANCE_OFFSET, true);
+        record_second(result, &run, id, (&flown, &heard, offset_s), flier);
+    }
     record(
         result,
         &dir,
         run,
         &flown,
         &heard,
-        checked.px4,
-        checked.legs.len(),
+        checked.own.px4,
+        checked.own.legs.len(),
     )?;
-    Ok(())
+    // What was measured is kept; the row is not judged.
+    match result.clock_skew_s {
+        Some(skew_s) if skew_s > MAX_CLOCK_SKEW_S => Err(RowError::ClockSkew { skew_s }),
+        _ => Ok(()),
+    }
+}
+
+/// One vehicle of a row: its SITL, its identity, and its link for the session until the
+/// session takes it. Its SITL stops when it is dropped.
+struct Vehicle {
+    sitl: Sitl,
+    id: SenderId,
+    px4: bool,
+    instance: u16,
+    link: Option<Link>,
+}
+
+impl Vehicle {
+    /// Start `flier`'s SITL on `instance` in `dir`, at its home.
+    fn start(
+        runtime: &tokio::runtime::Runtime,
+        setup: &Setup,
+        checked: &Checked,
+        flier: &Flier,
+        instance: u16,
+        scene: &Scene,
+        dir: &Path,
+    ) -> Result<Self, RowError> {
+        let start = Start {
+            instance,
+            home: home_of(scene, flier.home_en_m),
+            home_yaw_deg: 0.0,
+            speedup: checked.speedup,
+            serial0: "",
+            params: &flier.params,
+            dir,
+        };
+        let (link, sitl) = start_autopilot(runtime, setup, flier.px4, &start)?;
+        let second = instance >= SECOND_INSTANCE_OFFSET;
+        Ok(Vehicle {
+            sitl,
+            id: autopilot_id(flier.px4, instance, second),
+            px4: flier.px4,
+            instance,
+            link: Some(link),
+        })
+    }
+}
+
+/// What one vehicle flew: how far, what it said, and the row's clock less its own (s).
+type FlownBy = (Flown, Heard, f64);
+
+/// Fly each vehicle's plan with its pilot, the second (if any) on a thread of its own timed
+/// by the first's clock; each vehicle's outcome, in order.
+fn fly_all(
+    pilots: Vec<Result<Pilot, PilotError>>,
+    vehicles: &[Vehicle],
+    checked: &Checked,
+    (stop, second_stop): (&(dyn Fn() -> bool + Sync), &(dyn Fn() -> bool + Sync)),
+    own_done: &AtomicBool,
+) -> Vec<Result<FlownBy, PilotError>> {
+    let mut pilots = pilots.into_iter();
+    let Some(mut own_pilot) = pilots.next() else {
+        return Vec::new();
+    };
+    let mut second_pilot = pilots.next();
+    let reference = own_pilot.as_ref().ok().map(|p| p.heard.clone());
+    pace(
+        &mut own_pilot,
+        second_pilot.as_mut(),
+        vehicles,
+        checked.speedup,
+    );
+    std::thread::scope(|scope| {
+        let second = second_pilot
+            .zip(checked.second.as_ref())
+            .map(|(pilot, flier)| {
+                let px4 = vehicles.get(1).is_some_and(|v| v.px4);
+                let clock = reference.clone().map(|reference| RowClock {
+                    reference,
+                    speedup: checked.speedup,
+                });
+                scope.spawn(move || {
+                    let mut pilot = pilot?;
+                    pilot.row_clock = clock;
+                    fly_vehicle(pilot, flier, px4, checked.duration_s, second_stop)
+                })
+            });
+        let own = own_pilot.and_then(|pilot| {
+            fly_vehicle(
+                pilot,
+                &checked.own,
+                checked.own.px4,
+                checked.duration_s,
+                stop,
+            )
+        });
+        own_done.store(true, Ordering::Relaxed);
+        let joined = second.map(|h| {
+            h.join()
+                .unwrap_or_else(|_| Err(PilotError::Send("the second pilot failed".into())))
+        });
+        std::iter::once(own).chain(joined).collect()
+    })
+}
+
+/// In a row of two: an ArduCopter's speedup kept to the other's clock ([`crate::study::pace`]):
+/// the second's when it is an ArduCopter, else the first's when it is one.
+fn pace(
+    own: &mut Result<Pilot, PilotError>,
+    second: Option<&mut Result<Pilot, PilotError>>,
+    vehicles: &[Vehicle],
+    speedup: f64,
+) {
+    let (Ok(own), Some(Ok(second))) = (own, second) else {
+        return;
+    };
+    let px4 = |k: usize| vehicles.get(k).is_none_or(|v| v.px4);
+    if !px4(1) {
+        second.pace = Some(Pace::new(own.heard.clone(), speedup));
+    } else if !px4(0) {
+        own.pace = Some(Pace::new(second.heard.clone(), speedup));
+    }
+}
+
+/// Fly `flier`'s plan with `pilot` until `duration_s` of its clock or `stop`.
+fn fly_vehicle(
+    mut pilot: Pilot,
+    flier: &Flier,
+    px4: bool,
+    duration_s: f64,
+    stop: &dyn Fn() -> bool,
+) -> Result<FlownBy, PilotError> {
+    let flown = if px4 {
+        fly_px4(&mut pilot, &flier.legs, &flier.params, duration_s, stop)
+    } else {
+        fly(&mut pilot, &flier.legs, duration_s, stop)
+    }?;
+    Ok((flown, pilot.heard(), pilot.row_offset_s))
+}
+
+/// The second vehicle's part of the row, and the skew between the two clocks.
+fn record_second(
+    result: &mut StudyResult,
+    run: &LiveRun,
+    id: SenderId,
+    (flown, heard, offset_s): (&Flown, &Heard, f64),
+    flier: &Flier,
+) {
+    let mut did = did(heard, flown, flier.px4);
+    did.first_acted_t_s = did.first_acted_t_s.map(|t| t + offset_s);
+    result.second = Some(SecondVehicle {
+        system_id: id.system_id,
+        track: heard.track_text_shifted(offset_s),
+        legs_completed: flown.legs_completed as u64,
+        plan_completed: flown.legs_completed == flier.legs.len(),
+        did,
+        clock_speedup: 0.0,
+    });
+    let seen = &run.session.world().seen;
+    let speedup = |id: &SenderId| seen.get(id).map_or(0.0, |s| s.clock_speedup);
+    let skew_s = seen.get(&id).map_or(0.0, |s| s.clock_skew_s);
+    if let Some(second) = result.second.as_mut() {
+        second.clock_speedup = speedup(&id);
+    }
+    result.clock_speedup = run
+        .session
+        .world()
+        .timeline_reference()
+        .map(|r| speedup(&r));
+    result.clock_skew_s = Some(skew_s);
 }
 
 /// A row's session on its own thread (with the row's network runtime), stopped and joined
@@ -450,7 +744,7 @@ struct SessionThread {
 impl SessionThread {
     fn spawn(
         runtime: tokio::runtime::Runtime,
-        link: Link,
+        links: Vec<Link>,
         options: LiveOptions,
         session: Session,
     ) -> Result<Self, RowError> {
@@ -461,7 +755,7 @@ impl SessionThread {
                 .name("savsim-study-session".into())
                 .spawn(move || {
                     let handle = runtime.handle().clone();
-                    let run = run_links(&handle, vec![link], &options, session, None, shutdown);
+                    let run = run_links(&handle, links, &options, session, None, shutdown);
                     drop(runtime);
                     run
                 })
@@ -501,12 +795,12 @@ impl Drop for SessionThread {
 fn start_autopilot(
     runtime: &tokio::runtime::Runtime,
     setup: &Setup,
-    checked: &Checked,
+    px4: bool,
     start: &Start<'_>,
 ) -> Result<(Link, Sitl), RowError> {
     let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
     let loopback = |port: u16| std::net::SocketAddr::from(([127, 0, 0, 1], port));
-    if checked.px4 {
+    if px4 {
         let px4 = setup.px4.as_ref().ok_or_else(|| {
             RowError::NoAutopilot("no PX4 SITL: give --px4 PATH or set SAVSIM_PX4".into())
         })?;
@@ -539,25 +833,19 @@ fn start_autopilot(
     Ok((link, sitl))
 }
 
-/// The pilot on `sitl`'s port, within a minute; an error at once if SITL ends first or a
-/// signal stops the study.
+/// The pilot on the vehicle's port, within a minute; an error at once if SITL ends first or
+/// a signal stops the study.
 fn connect_pilot(
-    sitl: &mut Sitl,
+    vehicle: &mut Vehicle,
     plane: LocalTangentPlane,
-    px4: bool,
-    instance: u16,
     stop: &AtomicBool,
 ) -> Result<Result<Pilot, PilotError>, RowError> {
-    if px4 {
+    if vehicle.px4 {
         // PX4's onboard link: the pilot listens where PX4 sends, and sends where it listens.
-        let (listens, sends) = px4_onboard_ports(instance);
-        return Ok(Pilot::udp(
-            sends,
-            listens,
-            autopilot_id(true, instance),
-            plane,
-        ));
+        let (listens, sends) = px4_onboard_ports(vehicle.instance);
+        return Ok(Pilot::udp(sends, listens, vehicle.id, plane));
     }
+    let sitl = &mut vehicle.sitl;
     let started = Instant::now();
     loop {
         if stop.load(Ordering::Relaxed) {
@@ -570,12 +858,7 @@ fn connect_pilot(
             )));
         }
         let within = Duration::from_millis(500);
-        match Pilot::connect(
-            sitl.pilot_port,
-            autopilot_id(false, instance),
-            plane,
-            within,
-        ) {
+        match Pilot::connect(sitl.pilot_port, vehicle.id, plane, within) {
             Ok(pilot) => return Ok(Ok(pilot)),
             Err(e) if started.elapsed() > Duration::from_secs(60) => return Ok(Err(e)),
             Err(_) => {}

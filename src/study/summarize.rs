@@ -44,6 +44,8 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
     let text = |name: &str| optional::<StringArray>(batch, name);
     let (error, version) = (text("error"), text("autopilot_version"));
     let (scene, track, intruder) = (text("scene"), text("vehicle_track"), text("intruder"));
+    // A second autopilot's track where the intruder was flown, not scripted.
+    let flown_intruder = text("intruder_track");
     let (cpa_t, collision_t) = (number("cpa_t_s"), number("first_collision_t_s"));
     let index = column::<UInt64Array>(batch, "index", path)?;
     for i in 0..batch.num_rows() {
@@ -62,7 +64,7 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
             autopilot_version: text_at(version, i),
             scene: text_at(scene, i),
             vehicle_track: text_at(track, i),
-            intruder: text_at(intruder, i),
+            intruder: text_at(intruder, i).or_else(|| text_at(flown_intruder, i)),
             cpa_t_s: float_at(cpa_t, i),
             first_collision_t_s: float_at(collision_t, i),
         };

@@ -10,7 +10,7 @@ use arrow_schema::{DataType, Field, Fields};
 
 use crate::error::Result;
 use crate::runs::table::{counts, floats, strings, struct_lists, Settings};
-use crate::study::result::StudyResult;
+use crate::study::result::{FirstToAct, StudyResult};
 
 type Rows<'a> = &'a [StudyResult];
 
@@ -67,6 +67,16 @@ fn input_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("speedup", floats(rows, |r| Some(r.speedup))),
         ("seed", counts(rows, |r| r.inputs.seed)),
         ("w", floats(rows, |r| r.inputs.w)),
+        (
+            "intruder_autopilot",
+            text(|r| r.inputs.intruder_autopilot.as_ref()),
+        ),
+        ("intruder_plan", text(|r| r.inputs.intruder_plan.as_ref())),
+        (
+            "intruder_params",
+            text(|r| r.inputs.intruder_params.as_ref()),
+        ),
+        ("intruder_home", text(|r| r.inputs.intruder_home.as_ref())),
     ]
 }
 
@@ -156,6 +166,46 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         (
             "feed_latency_max_us",
             counts(rows, |r| r.feed_latency_max_us),
+        ),
+        ("clock_skew_s", floats(rows, |r| r.clock_skew_s)),
+        ("clock_speedup", floats(rows, |r| r.clock_speedup)),
+        (
+            "intruder_clock_speedup",
+            floats(rows, |r| r.second.as_ref().map(|s| s.clock_speedup)),
+        ),
+        (
+            "first_to_act",
+            strings(rows, |r| r.first_to_act().map(FirstToAct::name)),
+        ),
+        (
+            "intruder_track",
+            strings(rows, |r| r.second.as_ref().and_then(|s| s.track.clone())),
+        ),
+        (
+            "intruder_plan_completed",
+            crate::runs::table::bools(rows, |r| r.second.as_ref().map(|s| s.plan_completed)),
+        ),
+        (
+            "intruder_modes",
+            strings(rows, |r| r.second.as_ref().map(|s| s.did.modes.join(","))),
+        ),
+        (
+            "intruder_avoidance_texts",
+            strings(rows, |r| {
+                r.second.as_ref().map(|s| s.did.avoidance_texts.join(" | "))
+            }),
+        ),
+        (
+            "intruder_first_acted_t_s",
+            floats(rows, |r| {
+                r.second.as_ref().and_then(|s| s.did.first_acted_t_s)
+            }),
+        ),
+        (
+            "intruder_autopilot_version",
+            strings(rows, |r| {
+                r.second.as_ref().and_then(|s| s.did.version.clone())
+            }),
         ),
         ("sim_s", floats(rows, |r| Some(r.sim_s))),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),

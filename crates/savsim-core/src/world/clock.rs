@@ -105,9 +105,14 @@ pub struct ClockMap {
     rate: f64,
     /// `t = offset + rate x vehicle_s`.
     offset_s: f64,
+    /// On the vehicle's own rate: `t = own_offset + vehicle_s` (the receive clock's fit is
+    /// still kept, for [`ClockMap::speedup`]).
+    own_offset_s: f64,
     bins: VecDeque<Bin>,
     /// Whether the map runs at the vehicle's own rate ([`ClockMap::own_rate`]).
     own_rate: bool,
+    /// Whether `rate` was fitted (not the prior).
+    fitted: bool,
 }
 
 impl ClockMap {
@@ -119,8 +124,10 @@ impl ClockMap {
             last_t_s: f64::NEG_INFINITY,
             rate: prior_rate.clamp(RATE_RANGE.0, RATE_RANGE.1),
             offset_s: f64::INFINITY,
+            own_offset_s: f64::INFINITY,
             bins: VecDeque::with_capacity(BINS + 1),
             own_rate: false,
+            fitted: false,
         }
     }
 
@@ -143,6 +150,21 @@ impl ClockMap {
             own_rate: true,
             ..Self::new(1.0)
         }
+    }
+
+    /// Fix an own-rate map that has mapped nothing yet so that `time_boot_ms` maps to `t_s`
+    /// (a later vehicle joining a timeline, [`super::timeline`]); a map already anchored, or
+    /// one that fits the receive clock, is left as it is.
+    pub fn anchor(&mut self, time_boot_ms: u32, t_s: f64) {
+        if self.own_rate && self.last_boot_ms.is_none() {
+            self.own_offset_s = t_s - f64::from(time_boot_ms) / 1000.0;
+        }
+    }
+
+    /// Receive seconds per second of the vehicle's clock as fitted from its arrivals (`None`
+    /// before a second of its clock was seen: the rate is the prior until then).
+    pub fn fitted_rate(&self) -> Option<f64> {
+        self.fitted.then_some(self.rate)
     }
 
     /// Whether this map keeps the vehicle's own time ([`ClockMap::own_rate`]).
@@ -171,10 +193,12 @@ impl ClockMap {
         self.last_boot_ms = Some((time_boot_ms, unwrapped_ms));
         let vehicle_s = unwrapped_ms as f64 / 1000.0;
         if self.own_rate {
-            if !self.offset_s.is_finite() {
-                self.offset_s = receive_t_s - vehicle_s;
+            if !self.own_offset_s.is_finite() {
+                self.own_offset_s = receive_t_s - vehicle_s;
             }
-            let t_s = (self.offset_s + vehicle_s).max(self.last_t_s + 1e-6);
+            // Its speedup is still measured.
+            self.observe(vehicle_s, receive_t_s);
+            let t_s = (self.own_offset_s + vehicle_s).max(self.last_t_s + 1e-6);
             self.last_t_s = t_s;
             return (t_s, false);
         }
@@ -254,6 +278,7 @@ impl ClockMap {
         let (_, median, _) = slopes.select_nth_unstable_by(mid, f64::total_cmp);
         if median.is_finite() {
             self.rate = median.clamp(RATE_RANGE.0, RATE_RANGE.1);
+            self.fitted = true;
         }
     }
 }

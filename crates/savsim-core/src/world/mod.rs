@@ -15,6 +15,7 @@ use crate::scene::Aabb64;
 pub mod clock;
 pub mod index;
 pub mod report;
+pub mod timeline;
 
 use index::{TrackIndex, TrackKey};
 use report::{AdsbReport, AttitudeReport, PositionReport, Report, SenderId};
@@ -32,8 +33,14 @@ pub struct WorldConfig {
     pub history_len: usize,
     /// Vehicles' samples keep their own clock's time ([`clock::ClockMap::own_rate`]) instead
     /// of being mapped onto the receive clock at the rate they arrive. Default false; `savsim
-    /// study` sets it (one vehicle per session, traffic on its clock).
+    /// study` sets it (traffic on the vehicle's clock). With several vehicles, their clocks
+    /// share one timeline, the reference's ([`timeline`]).
     pub vehicle_clock: bool,
+    /// On the vehicle's clock, the system id whose clock is the timeline: other vehicles'
+    /// positions before its pace is known (its first positions over
+    /// [`timeline::RATE_SPAN_S`] of its clock) are not applied
+    /// ([`VehicleSeen::before_timeline`]). `None` (the default): the first vehicle heard.
+    pub timeline_system_id: Option<u8>,
 }
 
 impl Default for WorldConfig {
@@ -42,6 +49,7 @@ impl Default for WorldConfig {
             stale_after_s: 10.0,
             history_len: 64,
             vehicle_clock: false,
+            timeline_system_id: None,
         }
     }
 }
@@ -261,6 +269,10 @@ pub struct VehicleTrack {
     pub clock: clock::ClockMap,
     /// Positions accepted.
     pub positions: u64,
+    /// On a timeline of several vehicles' clocks: its drift from the timeline's.
+    pub skew: timeline::SkewWindow,
+    /// On a timeline of several vehicles' clocks: its last readings, to place it.
+    pub recent: timeline::RecentClock,
 }
 
 /// An ADS-B aircraft.
@@ -312,6 +324,8 @@ pub struct WorldStore {
     next_generation: u32,
     /// Which tracks may be near a region ([`WorldStore::tracks_near`]).
     index: TrackIndex,
+    /// On the vehicle's clock: the reference vehicle and its clock ([`timeline`]).
+    timeline: (Option<SenderId>, timeline::Timeline),
 }
 
 /// A track found by [`WorldStore::tracks_near`].
@@ -340,6 +354,13 @@ pub struct VehicleSeen {
     pub reordered: u64,
     /// Seconds of the vehicle's clock per receive second, as last fitted (its speedup).
     pub clock_speedup: f64,
+    /// On the vehicle's clock with several vehicles: the largest drift of this vehicle's
+    /// clock from the timeline's (the reference's), seconds, either way (0 for the reference):
+    /// the largest median of [`timeline::SKEW_WINDOW`] readings in a row.
+    pub clock_skew_s: f64,
+    /// Positions that came before the timeline's reference vehicle's pace was known, not
+    /// applied.
+    pub before_timeline: u64,
 }
 
 impl WorldStore {
@@ -354,6 +375,7 @@ impl WorldStore {
             seen: BTreeMap::new(),
             next_generation: 1,
             index: TrackIndex::default(),
+            timeline: (None, timeline::Timeline::default()),
         }
     }
 
@@ -519,6 +541,8 @@ impl WorldStore {
                     clock::ClockMap::new(1.0)
                 },
                 positions: 0,
+                skew: timeline::SkewWindow::default(),
+                recent: timeline::RecentClock::default(),
             }
         })
     }
@@ -547,10 +571,23 @@ impl WorldStore {
 
     /// Take a position; false when it was not applied (older than the newest: reordered).
     fn apply_position(&mut self, receive_t_s: f64, sender: SenderId, p: &PositionReport) -> bool {
+        let on_timeline = self.config.vehicle_clock;
+        let is_reference = on_timeline && self.is_reference(sender);
+        if on_timeline && !is_reference && self.timeline.1.rate().is_none() {
+            // The reference is not heard yet, or not long enough to know its pace.
+            self.seen.entry(sender).or_default().before_timeline += 1;
+            return false;
+        }
+        let placed_by_timeline = on_timeline && !is_reference;
+        let timeline = self.timeline.1;
         let plane = self.plane;
         let capacity = self.config.history_len;
         let generation = self.next_generation;
         let track = self.vehicle(sender, receive_t_s);
+        if placed_by_timeline && track.clock.is_own_rate() {
+            // Placed by when its positions were sent: its clock fitted to the receive clock.
+            track.clock = clock::ClockMap::new(timeline.rate().unwrap_or(1.0));
+        }
         let step = track
             .history
             .latest()
@@ -566,13 +603,37 @@ impl WorldStore {
             track.boot_resets += 1;
             track.history.clear();
             track.generation = generation;
+            track.skew.restart();
+            track.recent.clear();
             track.clock = if track.clock.is_own_rate() {
                 clock::ClockMap::own_rate()
             } else {
                 clock::ClockMap::new(track.clock.rate())
             };
         }
-        let (t_s, reanchored) = track.clock.map(p.time_boot_ms, receive_t_s);
+        if let Some(now_s) = timeline.at(receive_t_s).filter(|_| is_reference) {
+            // The reference's clock after a reboot goes on where the timeline is.
+            track.clock.anchor(p.time_boot_ms, now_s);
+        }
+        let (mapped_s, reanchored) = track.clock.map(p.time_boot_ms, receive_t_s);
+        let t_s = if placed_by_timeline {
+            // When its clock read this position's time, and the timeline then.
+            let vehicle_s = f64::from(p.time_boot_ms) / 1000.0;
+            track.recent.push(vehicle_s, receive_t_s);
+            let rate = track
+                .clock
+                .fitted_rate()
+                .or_else(|| track.recent.rate())
+                .or(timeline.rate())
+                .unwrap_or(1.0);
+            let sent_s = track.recent.sent_at(vehicle_s, rate).unwrap_or(receive_t_s);
+            let last_s = track.history.latest().map_or(f64::NEG_INFINITY, |s| s.t_s);
+            let t_s = timeline.at(sent_s).unwrap_or(mapped_s).max(last_s + 1e-6);
+            track.skew.take(vehicle_s, t_s);
+            t_s
+        } else {
+            mapped_s
+        };
         let velocity_enu_mps = plane.enu_vector_from_ned_at(&p.position, p.velocity_ned_mps);
         let attitude = track.latest_attitude.unwrap_or_else(|| {
             let yaw_rad = p
@@ -591,6 +652,8 @@ impl WorldStore {
         track.history.push(sample, capacity);
         track.positions += 1;
         let speedup = track.clock.speedup();
+        let skew_s = track.skew.largest_s;
+        let reference_rate = track.clock.fitted_rate();
         self.index
             .moved(TrackKey::Vehicle(sender), &self.vehicles[&sender].history);
         if rebooted {
@@ -601,7 +664,33 @@ impl WorldStore {
         seen.boot_resets += u64::from(rebooted);
         seen.clock_reanchors += u64::from(reanchored);
         seen.clock_speedup = speedup;
+        seen.clock_skew_s = seen.clock_skew_s.max(skew_s);
+        if is_reference {
+            self.timeline
+                .1
+                .reference_at(t_s, receive_t_s, reference_rate);
+        }
         true
+    }
+
+    /// Whether `sender` is (or now becomes) the timeline's reference vehicle.
+    fn is_reference(&mut self, sender: SenderId) -> bool {
+        match self.timeline.0 {
+            Some(reference) => reference == sender,
+            None => {
+                let named = self.config.timeline_system_id;
+                let becomes = named.is_none_or(|id| id == sender.system_id);
+                if becomes {
+                    self.timeline.0 = Some(sender);
+                }
+                becomes
+            }
+        }
+    }
+
+    /// The timeline's reference vehicle, once heard (on the vehicle's clock).
+    pub fn timeline_reference(&self) -> Option<SenderId> {
+        self.timeline.0
     }
 
     fn apply_adsb(&mut self, t_s: f64, a: &AdsbReport) {
