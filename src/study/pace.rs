@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use crate::study::pilot::Heard;
 
 /// The drift is brought back within this many seconds of the vehicle's clock.
-pub const SETTLE_S: f64 = 5.0;
+pub const SETTLE_S: f64 = 2.0;
 /// The other's pace is measured over this much wall time.
 const PACE_WINDOW: Duration = Duration::from_millis(500);
 /// A new speedup is sent when it differs from the last sent by more than this fraction, or
@@ -107,8 +107,8 @@ fn carried(ms: u32, at: Instant, now: Instant, speedup: f64) -> f64 {
 /// ```
 /// use savsim::study::pace::paced;
 /// assert_eq!(paced(4.7, 0.0), 4.7);
-/// // 0.5 s ahead: slower, by a tenth over SETTLE_S = 5 s.
-/// assert!((paced(4.7, 0.5) - 4.7 * 0.9).abs() < 1e-12);
+/// // 0.2 s ahead: slower, by a tenth over SETTLE_S = 2 s.
+/// assert!((paced(4.7, 0.2) - 4.7 * 0.9).abs() < 1e-12);
 /// assert!((paced(4.7, -30.0) - 4.7 * 1.2).abs() < 1e-12);
 /// ```
 pub fn paced(other_pace: f64, drift_s: f64) -> f64 {

@@ -12,7 +12,7 @@
 
 use std::io::Write;
 use std::net::TcpStream;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -61,6 +61,8 @@ pub(crate) enum Need {
     Python(&'static str),
     /// A program on the PATH that answers `NAME --version`.
     Program(&'static str),
+    /// The other autopilot too (a row of two): its variable names its binary.
+    Autopilot(Autopilot),
 }
 
 /// A SITL test's turn: its autopilot's binary, and the turn held while it flies.
@@ -205,6 +207,11 @@ fn missing(need: Need) -> Option<String> {
         }
         Need::Program(name) => (!runs(Command::new(name).arg("--version")))
             .then(|| format!("{name} is not on the PATH (.ci/run installs it)")),
+        Need::Autopilot(other) => {
+            let variable = other.variable();
+            let there = std::env::var_os(variable).is_some_and(|b| Path::new(&b).is_file());
+            (!there).then(|| format!("set {variable} to its SITL binary too (docs/live.md)"))
+        }
     }
 }
 

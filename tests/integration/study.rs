@@ -155,19 +155,135 @@ fn study_gen_model_encounters_pass_the_copter_at_tca_within_the_drawn_misses() {
     );
 }
 
+/// `study gen --equipage`: every pair's rows fly the same two plans from the same homes, each
+/// equipage with its parameters; read back from the manifest's text, the two straight runs
+/// cross at the closest approach the generator says, within the drawn misses.
+#[test]
+fn study_gen_equipage_rows_share_their_geometry_and_cross_at_the_drawn_miss() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = savsim()
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "30",
+            "--seed",
+            "8",
+        ])
+        .args(["--equipage", "none,one,both", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_ran(&out);
+    let rows = savsim::study::manifest::load(&dir.path().join("study.csv")).unwrap();
+    assert_eq!(rows.len(), 90);
+    let numbers = |text: &str, leg: &str| -> Vec<f64> {
+        let leg = text
+            .split(';')
+            .map(str::trim)
+            .find(|l| l.starts_with(leg))
+            .unwrap_or_else(|| panic!("{leg} in {text}"));
+        leg.split_whitespace()
+            .skip(1)
+            .map(|v| v.parse().unwrap())
+            .collect()
+    };
+    let avoids = |params: &Option<String>| params.as_deref().unwrap().contains("AVD_ENABLE=1");
+    let tca_s = savsim::study::gen::COOP_START_S + savsim::study::gen::COOP_RUN_S;
+    for pair in rows.chunks(3) {
+        let variants: Vec<_> = pair.iter().map(|r| r.variant.clone().unwrap()).collect();
+        assert_eq!(variants, ["none", "one", "both"]);
+        let equipped: Vec<_> = pair
+            .iter()
+            .map(|r| (avoids(&r.params), avoids(&r.intruder_params)))
+            .collect();
+        assert_eq!(equipped, [(false, false), (true, false), (true, true)]);
+        for r in &pair[1..] {
+            assert_eq!(
+                (&r.plan, &r.intruder_plan),
+                (&pair[0].plan, &pair[0].intruder_plan)
+            );
+            assert_eq!(r.intruder_home, pair[0].intruder_home);
+            assert_eq!(r.pair, pair[0].pair);
+        }
+        let r = &pair[0];
+        assert_eq!(r.intruder_autopilot.as_deref(), Some("arducopter"));
+        assert!(r.intruder.is_none());
+        let (own, other) = (
+            r.plan.as_deref().unwrap(),
+            r.intruder_plan.as_deref().unwrap(),
+        );
+        assert_eq!(numbers(own, "until"), [savsim::study::gen::COOP_START_S]);
+        assert_eq!(numbers(other, "until"), [savsim::study::gen::COOP_START_S]);
+        let (own_v, other_v) = (numbers(own, "velocity"), numbers(other, "velocity"));
+        let home: Vec<f64> = r
+            .intruder_home
+            .as_deref()
+            .unwrap()
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let run_s = tca_s - savsim::study::gen::COOP_START_S;
+        // At the closest approach: the first from home, the second from its own.
+        let own_at = [own_v[0] * run_s, own_v[1] * run_s];
+        let other_at = [home[0] + other_v[0] * run_s, home[1] + other_v[1] * run_s];
+        let apart = [other_at[0] - own_at[0], other_at[1] - own_at[1]];
+        let closing = [other_v[0] - own_v[0], other_v[1] - own_v[1]];
+        let miss_m = apart[0].hypot(apart[1]);
+        assert!(miss_m <= 30.01, "{miss_m} m");
+        // The closest approach is then: they are not closing any more (the manifest's
+        // numbers are rounded to centimetres and mm/s).
+        let along_m =
+            (apart[0] * closing[0] + apart[1] * closing[1]) / closing[0].hypot(closing[1]);
+        assert!(along_m.abs() <= 0.1, "{along_m} m");
+        let vertical_m = numbers(other, "takeoff")[0] - numbers(own, "takeoff")[0];
+        assert!((-10.01..=10.01).contains(&vertical_m), "{vertical_m} m");
+        for v in [&own_v, &other_v] {
+            let speed = v[0].hypot(v[1]);
+            assert!((7.99..=12.01).contains(&speed), "{speed} m/s");
+        }
+        // Crossing or head-on, never overtaking: 60-300 degrees apart.
+        let cos = (own_v[0] * other_v[0] + own_v[1] * other_v[1])
+            / (own_v[0].hypot(own_v[1]) * other_v[0].hypot(other_v[1]));
+        assert!(cos <= 0.5 + 1e-3, "{cos}");
+    }
+    for bad in [
+        vec!["--equipage", "none,twice,both"],
+        vec!["--equipage", "one,one"],
+        vec!["--equipage", "one", "--kind", "approaches"],
+    ] {
+        let out = savsim()
+            .args(["study", "gen", "--kind", "encounters", "--n", "2"])
+            .args(&bad)
+            .arg("--out")
+            .arg(dir.path().join("bad"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+    }
+}
+
 #[test]
 fn a_study_without_sitl_writes_each_row_with_its_error() {
     let dir = tempfile::tempdir().unwrap();
     let manifest = dir.path().join("m.csv");
     std::fs::write(
         &manifest,
-        "id,autopilot,plan,duration_s,params,feed\n\
-         good,arducopter,takeoff 20; hold 5,60,AVOID_ENABLE=0,\n\
-         badplan,,takeoff 20; jump 3,,,\n\
-         who,inav,takeoff 20,,,\n\
-         long,,takeoff 20,1e300,,\n\
-         badparam,,takeoff 20,,AVOID ENABLE=1,\n\
-         badfeed,,takeoff 20,,,sonar\n",
+        "id,autopilot,plan,duration_s,params,feed,intruder,intruder_autopilot,intruder_plan,intruder_home\n\
+         good,arducopter,takeoff 20; hold 5,60,AVOID_ENABLE=0,,,,,\n\
+         badplan,,takeoff 20; jump 3,,,,,,,\n\
+         who,inav,takeoff 20,,,,,,,\n\
+         long,,takeoff 20,1e300,,,,,,\n\
+         badparam,,takeoff 20,,AVOID ENABLE=1,,,,,\n\
+         badfeed,,takeoff 20,,,sonar,,,,\n\
+         two,,takeoff 20,,,,,px4,takeoff 20; until 60,40 -30\n\
+         both,,takeoff 20,,,,0 0 0 30; 9 90 0 30,arducopter,takeoff 20,\n\
+         orphan,,takeoff 20,,,,,,takeoff 20,\n\
+         secondwho,,takeoff 20,,,,,inav,takeoff 20,\n\
+         secondplan,,takeoff 20,,,,,arducopter,takeoff 20; until -1,\n\
+         secondhome,,takeoff 20,,,,,arducopter,takeoff 20,1e9 0\n",
     )
     .unwrap();
     let out_dir = dir.path().join("out");
@@ -185,9 +301,26 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(
-        stdout.contains("6 rows: 0 collision, 0 nmac, 0 soft_fail, 0 pass, 6 error"),
+        stdout.contains("12 rows: 0 collision, 0 nmac, 0 soft_fail, 0 pass, 12 error"),
         "{stdout}"
     );
+    let errors: std::collections::BTreeMap<String, String> = {
+        use arrow_array::{Array, StringArray};
+        let batch = crate::batch::read(&out_dir.join("part-00000-of-00001.parquet"));
+        let text = |name: &str| {
+            let column = batch.column_by_name(name).unwrap();
+            column
+                .as_any()
+                .downcast_ref::<StringArray>()
+                .unwrap()
+                .clone()
+        };
+        let (ids, errors) = (text("row_id"), text("error"));
+        (0..batch.num_rows())
+            .filter(|&i| errors.is_valid(i))
+            .map(|i| (ids.value(i).to_string(), errors.value(i).to_string()))
+            .collect()
+    };
     for (id, says) in [
         ("good", "no ArduCopter SITL"),
         ("badplan", "plan leg 2"),
@@ -195,11 +328,22 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
         ("long", "duration_s"),
         ("badparam", "params"),
         ("badfeed", "feed"),
+        // A second vehicle, each column checked before any SITL starts.
+        ("two", "no ArduCopter SITL"),
+        (
+            "both",
+            "intruder_autopilot: give a scripted intruder or an autopilot",
+        ),
+        (
+            "orphan",
+            "intruder_autopilot: intruder_plan and intruder_params",
+        ),
+        ("secondwho", "intruder_autopilot: \"inav\""),
+        ("secondplan", "intruder_plan: plan leg 2"),
+        ("secondhome", "intruder_home"),
     ] {
-        let line = stdout
-            .lines()
-            .find(|l| l.trim_start().starts_with(&format!("{id}:")));
-        assert!(line.is_some_and(|l| l.contains(says)), "{id}: {stdout}");
+        let error = errors.get(id).map(String::as_str).unwrap_or_default();
+        assert!(error.contains(says), "{id}: {error:?}");
     }
     let summary = savsim()
         .args(["study", "summarize", "--json"])
@@ -208,7 +352,7 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
         .unwrap();
     let json: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
     assert_eq!(json["rows"], 0);
-    assert_eq!(json["outcomes"]["nominal"]["error"], 6);
+    assert_eq!(json["outcomes"]["nominal"]["error"], 12);
     // A finished shard is skipped; an unknown column is an error that names it.
     let again = savsim()
         .args(["study", "--no-netns", "--out"])
@@ -925,4 +1069,195 @@ fn arducopter_is_told_the_same_adsb_reports_at_speedup_1_and_10() {
         at_1.len(),
         at_10.len()
     );
+}
+
+/// One row of a study's results by row id: its string, number and flag columns (a column a
+/// row leaves empty is absent from its map; counts as numbers).
+fn result_rows(
+    dir: &Path,
+) -> std::collections::BTreeMap<String, serde_json::Map<String, serde_json::Value>> {
+    use arrow_array::{Array, BooleanArray, Float64Array, StringArray, UInt64Array};
+    let batch = crate::batch::read(&dir.join("part-00000-of-00001.parquet"));
+    let mut rows = std::collections::BTreeMap::new();
+    let ids = batch.column_by_name("row_id").unwrap();
+    let ids = ids.as_any().downcast_ref::<StringArray>().unwrap();
+    for i in 0..batch.num_rows() {
+        let mut row = serde_json::Map::new();
+        for (field, column) in batch.schema().fields().iter().zip(batch.columns()) {
+            if !column.is_valid(i) {
+                continue;
+            }
+            let any = column.as_any();
+            let value = if let Some(a) = any.downcast_ref::<StringArray>() {
+                serde_json::Value::from(a.value(i))
+            } else if let Some(a) = any.downcast_ref::<Float64Array>() {
+                serde_json::Value::from(a.value(i))
+            } else if let Some(a) = any.downcast_ref::<BooleanArray>() {
+                serde_json::Value::from(a.value(i))
+            } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
+                serde_json::Value::from(a.value(i) as f64)
+            } else {
+                continue;
+            };
+            row.insert(field.name().clone(), value);
+        }
+        rows.insert(ids.value(i).to_string(), row);
+    }
+    rows
+}
+
+/// Two ArduCopters in each row (`study gen --equipage none,both`, at `SAVSIM_COOP_SPEEDUP`,
+/// default 10): unequipped they fly through the drawn encounter (an NMAC, the closest
+/// approach near the drawn miss, neither acts); both equipped, both enter AVOID_ADSB on the
+/// other's ADS-B reports and they pass wide. Every row records the clocks' skew within the
+/// bound and the second vehicle's track and version. Needs `SAVSIM_ARDUCOPTER`.
+#[test]
+fn two_arducopters_meet_unequipped_and_both_turn_away_equipped() {
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let speedup = std::env::var("SAVSIM_COOP_SPEEDUP").unwrap_or_else(|_| "10".into());
+    let dir = tempfile::tempdir().unwrap();
+    let gen = savsim()
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "1",
+            "--seed",
+            "3",
+        ])
+        .args(["--equipage", "none,both", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_ran(&gen);
+    let out_dir = dir.path().join("out");
+    let run = savsim()
+        .args(["study", "--speedup", &speedup, "--out"])
+        .arg(&out_dir)
+        .arg(dir.path().join("study.csv"))
+        .output()
+        .unwrap();
+    assert_ran(&run);
+    let rows = result_rows(&out_dir);
+    for (id, row) in &rows {
+        eprintln!("{id}: {}", brief(row));
+        let skew = row["clock_skew_s"].as_f64().unwrap();
+        assert!(
+            skew <= savsim::study::run::MAX_CLOCK_SKEW_S,
+            "{id}: skew {skew} s"
+        );
+        assert!(row["intruder_track"].as_str().unwrap().split(';').count() > 100);
+        assert!(row["intruder_autopilot_version"]
+            .as_str()
+            .unwrap()
+            .starts_with("4."));
+    }
+    let none = &rows["coop-encounter-00000-none"];
+    assert_eq!(none["outcome"], "nmac");
+    // The drawn miss: 0-30 m across, within 10 m up or down; flown within a few metres.
+    let cpa = none["cpa_m"].as_f64().unwrap();
+    assert!(cpa < 40.0, "unequipped closest approach {cpa} m");
+    // Both vehicles' legs up to the run were flown (take-off, until).
+    assert!(none["legs_completed"].as_f64().unwrap() >= 2.0);
+    assert_eq!(none["first_to_act"], "neither");
+    let both = &rows["coop-encounter-00000-both"];
+    assert_eq!(both["outcome"], "pass");
+    assert!(both["cpa_m"].as_f64().unwrap() > 152.4, "{}", brief(both));
+    for modes in ["modes", "intruder_modes"] {
+        assert!(
+            both[modes].as_str().unwrap().contains("AVOID_ADSB"),
+            "{modes}: {}",
+            brief(both)
+        );
+    }
+    assert!(
+        both["first_acted_t_s"].as_f64().is_some()
+            && both["intruder_first_acted_t_s"].as_f64().is_some()
+    );
+    assert_ne!(both["first_to_act"], "neither");
+    // The report draws the second vehicle's track as the row's intruder.
+    let report = savsim()
+        .args(["study", "report", "--nominal", "none"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert_ran(&report);
+    let html = std::fs::read_to_string(out_dir.join("report.html")).unwrap();
+    assert!(html.contains("coop-encounter-00000-none"));
+}
+
+/// ArduCopter against PX4 SIH in one row at `SAVSIM_MIXED_SPEEDUP` (default 2): PX4 keeps to
+/// its speedup only roughly (1.94-1.96x asked 2x), so the ArduCopter's speedup is paced to
+/// PX4's clock; the row is judged (its skew within the bound) and the unequipped pair flies
+/// through its encounter. Needs `SAVSIM_ARDUCOPTER` and `SAVSIM_PX4`.
+#[test]
+fn arducopter_and_px4_in_one_row_keep_one_clock() {
+    let needs = [Need::Autopilot(Autopilot::ArduCopter)];
+    let Some(_turn) = sitl_test(Autopilot::Px4, Netns::Study, &needs) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let gen = savsim()
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "1",
+            "--seed",
+            "3",
+        ])
+        .args(["--equipage", "none", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_ran(&gen);
+    let manifest = dir.path().join("study.csv");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let mut rows = savsim::study::manifest::parse_csv(text.as_bytes()).unwrap();
+    rows[0].intruder_autopilot = Some("px4".into());
+    rows[0].intruder_params = Some("MPC_POS_MODE=3".into());
+    let file = std::fs::File::create(&manifest).unwrap();
+    savsim::study::manifest::write_csv(&rows, file).unwrap();
+    let out_dir = dir.path().join("out");
+    let speedup = std::env::var("SAVSIM_MIXED_SPEEDUP").unwrap_or_else(|_| "2".into());
+    let run = savsim()
+        .args(["study", "--speedup", &speedup, "--out"])
+        .arg(&out_dir)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert_ran(&run);
+    let rows = result_rows(&out_dir);
+    let row = &rows["coop-encounter-00000-none"];
+    eprintln!("{}", brief(row));
+    assert_eq!(row["outcome"], "nmac", "{}", brief(row));
+    let skew = row["clock_skew_s"].as_f64().unwrap();
+    assert!(
+        skew <= savsim::study::run::MAX_CLOCK_SKEW_S,
+        "skew {skew} s"
+    );
+    // Paced: the ArduCopter ran at PX4's pace, both short of the 5x asked.
+    let (own, px4) = (
+        row["clock_speedup"].as_f64().unwrap(),
+        row["intruder_clock_speedup"].as_f64().unwrap(),
+    );
+    assert!((own - px4).abs() < 0.05 * px4, "{own}x and {px4}x");
+    assert!(
+        row["intruder_modes"].as_str().unwrap().contains("POSCTL"),
+        "{}",
+        brief(row)
+    );
+}
+
+/// A result row without its tracks, for a message.
+fn brief(row: &serde_json::Map<String, serde_json::Value>) -> serde_json::Value {
+    let mut row = row.clone();
+    row.retain(|k, _| !k.ends_with("track"));
+    serde_json::Value::Object(row)
 }
