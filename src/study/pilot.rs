@@ -78,7 +78,13 @@ impl RowClock {
     pub fn now_s(&self) -> Option<f64> {
         let heard = self.reference.lock().ok()?;
         let at = heard.position_at?;
-        Some(f64::from(heard.time_boot_ms) / 1000.0 + at.elapsed().as_secs_f64() * self.speedup)
+        let now = Instant::now();
+        Some(crate::study::pace::carried(
+            heard.time_boot_ms,
+            at,
+            now,
+            self.speedup,
+        ))
     }
 }
 

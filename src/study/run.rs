@@ -460,28 +460,7 @@ fn fly_row(
     {
         record_to(&mut session, &dir)?;
     }
-    let mut vehicles = vec![Vehicle::start(
-        &runtime,
-        setup,
-        &checked,
-        &checked.own,
-        instance,
-        &scene,
-        &dir,
-    )?];
-    if let Some(second) = &checked.second {
-        let at = instance + SECOND_INSTANCE_OFFSET;
-        let second_dir = dir.join("second");
-        vehicles.push(Vehicle::start(
-            &runtime,
-            setup,
-            &checked,
-            second,
-            at,
-            &scene,
-            &second_dir,
-        )?);
-    }
+    let mut vehicles = start_vehicles(&runtime, setup, &checked, (instance, &scene, &dir))?;
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
     let collided = Flag::default();
@@ -517,17 +496,8 @@ fn fly_row(
         &own_done,
     );
     let run = live.finish()?;
-    let mut flown_all = Vec::new();
-    for (v, flight) in vehicles.iter_mut().zip(flights) {
-        let exited = v.sitl.exited();
-        let tail = v.sitl.log_tail(5);
-        flown_all.push(flight.map_err(|e| match exited {
-            Some(status) => RowError::Sitl(format!("ended by itself ({status}): {tail}")),
-            None => RowError::Pilot(e),
-        })?);
-    }
-    drop(vehicles);
-    let mut flown_all = flown_all.into_iter();
+    let ids: Vec<SenderId> = vehicles.iter().map(|v| v.id).collect();
+    let mut flown_all = flown_by_each(vehicles, flights)?.into_iter();
     let (flown, heard, _) = flown_all
         .next()
         .ok_or_else(|| RowError::Savsim("no vehicle flew".into()))?;
@@ -538,19 +508,14 @@ fn fly_row(
         && !collided.is_raised()
         && started.elapsed() > wall_limit;
     if cut_short {
-        let flown_s = f64::from(flown.last_ms) / 1000.0;
-        return Err(RowError::WallLimit {
-            limit_s: wall_limit.as_secs_f64(),
-            flown_s,
-            duration_s: checked.duration_s,
-            achieved: flown_s / started.elapsed().as_secs_f64(),
-            speedup: checked.speedup,
-        });
+        return Err(wall_limit_error(&flown, started, wall_limit, &checked));
     }
-    let second = flown_all.next().zip(checked.second.as_ref());
-    if let Some(((flown, heard, offset_s), flier)) = second {
-        let id = autopilot_id(flier.px4, instance + SECOND_INSTANCE_OFFSET, true);
-        record_second(result, &run, id, (&flown, &heard, offset_s), flier);
+    let second = flown_all
+        .next()
+        .zip(checked.second.as_ref())
+        .zip(ids.get(1));
+    if let Some((((flown, heard, offset_s), flier), id)) = second {
+        record_second(result, &run, *id, (&flown, &heard, offset_s), flier);
     }
     record(
         result,
@@ -568,6 +533,75 @@ fn fly_row(
     }
 }
 
+/// The row's vehicles started: the first on `instance` in `dir`, a second (if any) on
+/// `instance + SECOND_INSTANCE_OFFSET` in `dir/second`.
+fn start_vehicles(
+    runtime: &tokio::runtime::Runtime,
+    setup: &Setup,
+    checked: &Checked,
+    (instance, scene, dir): (u16, &Scene, &Path),
+) -> Result<Vec<Vehicle>, RowError> {
+    let speedup = checked.speedup;
+    let mut vehicles = vec![Vehicle::start(
+        runtime,
+        setup,
+        (&checked.own, instance, speedup),
+        scene,
+        dir,
+    )?];
+    if let Some(second) = &checked.second {
+        let at = instance + SECOND_INSTANCE_OFFSET;
+        let dir = dir.join("second");
+        vehicles.push(Vehicle::start(
+            runtime,
+            setup,
+            (second, at, speedup),
+            scene,
+            &dir,
+        )?);
+    }
+    Ok(vehicles)
+}
+
+/// What each vehicle flew; the first failure, as SITL's when its SITL had ended. The SITLs
+/// are stopped.
+fn flown_by_each(
+    vehicles: Vec<Vehicle>,
+    flights: Vec<Result<FlownBy, PilotError>>,
+) -> Result<Vec<FlownBy>, RowError> {
+    vehicles
+        .into_iter()
+        .zip(flights)
+        .map(|(mut v, flight)| {
+            let exited = v.sitl.exited();
+            flight.map_err(|e| match exited {
+                Some(status) => RowError::Sitl(format!(
+                    "ended by itself ({status}): {}",
+                    v.sitl.log_tail(5)
+                )),
+                None => RowError::Pilot(e),
+            })
+        })
+        .collect()
+}
+
+/// The error of a row its wall-clock limit cut short.
+fn wall_limit_error(
+    flown: &Flown,
+    started: Instant,
+    wall_limit: Duration,
+    checked: &Checked,
+) -> RowError {
+    let flown_s = f64::from(flown.last_ms) / 1000.0;
+    RowError::WallLimit {
+        limit_s: wall_limit.as_secs_f64(),
+        flown_s,
+        duration_s: checked.duration_s,
+        achieved: flown_s / started.elapsed().as_secs_f64(),
+        speedup: checked.speedup,
+    }
+}
+
 /// One vehicle of a row: its SITL, its identity, and its link for the session until the
 /// session takes it. Its SITL stops when it is dropped.
 struct Vehicle {
@@ -579,13 +613,11 @@ struct Vehicle {
 }
 
 impl Vehicle {
-    /// Start `flier`'s SITL on `instance` in `dir`, at its home.
+    /// Start `flier`'s SITL on `instance` at `speedup` in `dir`, at its home.
     fn start(
         runtime: &tokio::runtime::Runtime,
         setup: &Setup,
-        checked: &Checked,
-        flier: &Flier,
-        instance: u16,
+        (flier, instance, speedup): (&Flier, u16, f64),
         scene: &Scene,
         dir: &Path,
     ) -> Result<Self, RowError> {
@@ -593,7 +625,7 @@ impl Vehicle {
             instance,
             home: home_of(scene, flier.home_en_m),
             home_yaw_deg: 0.0,
-            speedup: checked.speedup,
+            speedup,
             serial0: "",
             params: &flier.params,
             dir,

@@ -182,6 +182,10 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             strings(rows, |r| r.second.as_ref().and_then(|s| s.track.clone())),
         ),
         (
+            "intruder_legs_completed",
+            counts(rows, |r| r.second.as_ref().map(|s| s.legs_completed)),
+        ),
+        (
             "intruder_plan_completed",
             crate::runs::table::bools(rows, |r| r.second.as_ref().map(|s| s.plan_completed)),
         ),

@@ -275,6 +275,35 @@ pub struct VehicleTrack {
     pub recent: timeline::RecentClock,
 }
 
+impl VehicleTrack {
+    /// Where a position of this vehicle (not the timeline's reference) stamped
+    /// `time_boot_ms` and arrived at `receive_t_s` lies on `timeline`: when its clock read
+    /// that time ([`timeline::RecentClock::sent_at`]), and the timeline then; never before
+    /// its last sample (`mapped_s`, its receive-clock time, until the timeline has a pace).
+    /// Its skew takes the reading.
+    fn on_timeline(
+        &mut self,
+        time_boot_ms: u32,
+        receive_t_s: f64,
+        timeline: &timeline::Timeline,
+        mapped_s: f64,
+    ) -> f64 {
+        let vehicle_s = f64::from(time_boot_ms) / 1000.0;
+        self.recent.push(vehicle_s, receive_t_s);
+        let rate = self
+            .clock
+            .fitted_rate()
+            .or_else(|| self.recent.rate())
+            .or(timeline.rate())
+            .unwrap_or(1.0);
+        let sent_s = self.recent.sent_at(vehicle_s, rate).unwrap_or(receive_t_s);
+        let last_s = self.history.latest().map_or(f64::NEG_INFINITY, |s| s.t_s);
+        let t_s = timeline.at(sent_s).unwrap_or(mapped_s).max(last_s + 1e-6);
+        self.skew.take(vehicle_s, t_s);
+        t_s
+    }
+}
+
 /// An ADS-B aircraft.
 #[derive(Debug, Clone)]
 pub struct TrafficTrack {
@@ -617,20 +646,7 @@ impl WorldStore {
         }
         let (mapped_s, reanchored) = track.clock.map(p.time_boot_ms, receive_t_s);
         let t_s = if placed_by_timeline {
-            // When its clock read this position's time, and the timeline then.
-            let vehicle_s = f64::from(p.time_boot_ms) / 1000.0;
-            track.recent.push(vehicle_s, receive_t_s);
-            let rate = track
-                .clock
-                .fitted_rate()
-                .or_else(|| track.recent.rate())
-                .or(timeline.rate())
-                .unwrap_or(1.0);
-            let sent_s = track.recent.sent_at(vehicle_s, rate).unwrap_or(receive_t_s);
-            let last_s = track.history.latest().map_or(f64::NEG_INFINITY, |s| s.t_s);
-            let t_s = timeline.at(sent_s).unwrap_or(mapped_s).max(last_s + 1e-6);
-            track.skew.take(vehicle_s, t_s);
-            t_s
+            track.on_timeline(p.time_boot_ms, receive_t_s, &timeline, mapped_s)
         } else {
             mapped_s
         };
