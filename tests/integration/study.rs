@@ -1120,22 +1120,7 @@ fn two_arducopters_meet_unequipped_and_both_turn_away_equipped() {
     // others 0.011-0.092 s: a stall of the same wall time is less of the vehicles' clocks at 4x.
     let speedup = std::env::var("SAVSIM_COOP_SPEEDUP").unwrap_or_else(|_| "4".into());
     let dir = tempfile::tempdir().unwrap();
-    let gen = savsim()
-        .args([
-            "study",
-            "gen",
-            "--kind",
-            "encounters",
-            "--n",
-            "1",
-            "--seed",
-            "3",
-        ])
-        .args(["--equipage", "none,both", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert_ran(&gen);
+    coop_manifest(dir.path(), "none,both");
     let out_dir = dir.path().join("out");
     let run = savsim()
         .args(["study", "--speedup", &speedup, "--out"])
@@ -1203,22 +1188,7 @@ fn arducopter_and_px4_in_one_row_keep_one_clock() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let gen = savsim()
-        .args([
-            "study",
-            "gen",
-            "--kind",
-            "encounters",
-            "--n",
-            "1",
-            "--seed",
-            "3",
-        ])
-        .args(["--equipage", "none", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert_ran(&gen);
+    coop_manifest(dir.path(), "none");
     let manifest = dir.path().join("study.csv");
     let text = std::fs::read_to_string(&manifest).unwrap();
     let mut rows = savsim::study::manifest::parse_csv(text.as_bytes()).unwrap();
@@ -1267,6 +1237,27 @@ fn arducopter_and_px4_in_one_row_keep_one_clock() {
         "{}",
         brief(row)
     );
+}
+
+/// `study gen --kind encounters --equipage EQUIPAGE` for one pair (seed 3: an unavoided miss of
+/// about 17 m) into `dir`.
+fn coop_manifest(dir: &Path, equipage: &str) {
+    let gen = savsim()
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "1",
+            "--seed",
+            "3",
+        ])
+        .args(["--equipage", equipage, "--out"])
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert_ran(&gen);
 }
 
 /// A result row without its tracks, for a message.
