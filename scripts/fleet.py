@@ -14,13 +14,16 @@ own phase in the period), so the sender's cost does not limit the rate.
 
 It prints the frames and datagrams it sent and how late its sends ran; savsim's summary says
 what it took in (`ingest`), and its link report the receive -> processed latency.
-docs/performance.md has the figures. Needs pymavlink.
+With --tlog PATH the datagrams are written to a tlog instead, for `savsim replay` at full speed
+(the session's throughput without the network). docs/performance.md has the figures. Needs
+pymavlink.
 """
 
 import argparse
 import math
 import os
 import socket
+import struct
 import time
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -110,6 +113,28 @@ def frames_of(n, count, args):
     return out
 
 
+def write_tlog(path, schedule):
+    """Each frame of each datagram after its stamp: microseconds since the Unix epoch,
+    big-endian, as MAVProxy writes a tlog."""
+    epoch_us = 1_767_225_600_000_000  # 2026-01-01T00:00:00Z
+    with open(path, "wb") as out:
+        for t, datagram, _ in schedule:
+            stamp = struct.pack(">Q", epoch_us + int(round(t * 1e6)))
+            for frame in split_frames(datagram):
+                out.write(stamp + frame)
+
+
+def split_frames(datagram):
+    """The MAVLink 2 frames packed one after another in `datagram` (unsigned: 12 bytes of
+    header and checksum around the payload)."""
+    i = 0
+    while i < len(datagram):
+        length = datagram[i + 1]
+        end = i + 12 + length
+        yield datagram[i:end]
+        i = end
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("port", type=int)
@@ -124,6 +149,13 @@ def main():
         default=None,
         help="circle centres this far apart on a square grid around the origin (a drone-show "
         "block); default: spread over the whole city",
+    )
+    p.add_argument(
+        "--tlog",
+        default=None,
+        help="write the fleet's datagrams to this tlog (each frame after its 8-byte microsecond "
+        "stamp, the schedule's time from 2026-01-01) instead of sending them, for "
+        "`savsim replay` at full speed",
     )
     p.add_argument(
         "--altitude-m",
@@ -149,6 +181,10 @@ def main():
     schedule.sort(key=lambda x: x[0])
     frames = sum(f for _, _, f in schedule)
     print(f"encoded {len(schedule)} datagrams in {time.perf_counter() - built:.1f} s")
+    if args.tlog is not None:
+        write_tlog(args.tlog, schedule)
+        print(f"wrote {len(schedule)} datagrams ({frames} frames) to {args.tlog}")
+        return
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 22)
     to = ("127.0.0.1", args.port)

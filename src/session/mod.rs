@@ -62,6 +62,8 @@ pub struct Session {
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     approaches: Approaches,
     dynamic: MovingBodies,
+    /// Whether each of `dynamic`'s bodies is within the approach reach (session::traffic).
+    approached: Vec<bool>,
     /// The largest model radius in the scene (the watch range's margin), metres.
     max_model_radius_m: f64,
     /// Scratch: the well-clear changes of the tick.
@@ -151,6 +153,7 @@ impl Session {
             approaches: Approaches::default(),
             well_clear_changes: Vec::new(),
             dynamic: MovingBodies::default(),
+            approached: Vec::new(),
             max_model_radius_m,
             flight_start_t_s: None,
             last_expire_t_s: f64::NEG_INFINITY,

@@ -98,19 +98,37 @@ impl Session {
             previous: tick.previous.as_ref(),
             current: &tick.current,
             flight_start_t_s: tick.flight_start_t_s,
+            sensing: pipeline.senses_at(tick.key, tick.current.t_s) || self.draws_traffic(),
         };
-        traffic::fill_dynamic(&mut self.dynamic, scene, &mut self.world, &watch, &interval);
+        traffic::fill_dynamic(
+            &mut self.dynamic,
+            &mut self.approached,
+            scene,
+            &mut self.world,
+            &watch,
+            &interval,
+        );
     }
 
-    /// Closest approaches and well clear against the moving bodies; each change of well clear
-    /// an event.
+    /// Whether the viewer draws this run: it draws the traffic and the colliders of every
+    /// tick's bodies, so every tick takes them all (the answers are the same either way).
+    fn draws_traffic(&self) -> bool {
+        #[cfg(feature = "viz")]
+        return self.viz.is_some();
+        #[cfg(not(feature = "viz"))]
+        false
+    }
+
+    /// Closest approaches and well clear against the moving bodies within the approach reach;
+    /// each change of well clear an event.
     fn judge_well_clear(&mut self, tick: &TickInput) {
         let (sender, current) = (tick.sender, &tick.current);
+        let approached = self.dynamic.as_slice().iter().zip(&self.approached);
         self.approaches.observe(
             sender.system_id,
             tick.previous.as_ref(),
             current,
-            self.dynamic.as_slice(),
+            approached.filter_map(|(body, &near)| near.then_some(body)),
             &mut self.well_clear_changes,
         );
         for c in &self.well_clear_changes {

@@ -3,11 +3,15 @@
 //! (no scan of every track).
 //!
 //! The range a body is taken within (its *watch range*, from the vehicle's interval to the
-//! body's, both as boxes) is the largest of what any stage can use: the sensing region and its
-//! look-ahead, the collider swaps' `box_beyond_m`, the near-miss band, NMAC, the well-clear
+//! body's, both as boxes) is the largest of what any stage of the tick can use. Two reaches
+//! make it up. The *approach reach*: the contact layer's near-miss band, NMAC, the well-clear
 //! volume's DTHR + TTHR x closing speed, and the feed's ADS-B radius, COLLISION horizon and
-//! sensor range; plus both models' radii. A body beyond it can change nothing the tick
-//! computes, so leaving it out changes no answer.
+//! sensor range; closest approaches and well clear are judged within it. The *sensing reach*,
+//! only at ticks with a sensing frame: its region and look-ahead, and the collider swaps'
+//! `box_beyond_m` (a mesh far away turns back into a box). Both grow by the models' radii. A
+//! body beyond a tick's range can change nothing the tick computes, so leaving it out changes
+//! no answer: with `--sensor-hz` below the vehicles' position rate, most ticks take only the
+//! bodies within the approach reach (a drone-show block: some 150 of its 1000 vehicles).
 
 use std::sync::Arc;
 
@@ -60,23 +64,38 @@ impl Watch {
     }
 
     /// How far apart (box to box) a vehicle at `own_mps` and a body at `body_mps` can be and
-    /// still matter to the tick, metres, not counting their models' size.
-    fn range_m(&self, own_mps: f64, body_mps: f64) -> f64 {
+    /// still matter to closest approaches, NMAC, well clear, contacts or the feed, metres, not
+    /// counting their models' size.
+    fn approach_range_m(&self, own_mps: f64, body_mps: f64) -> f64 {
         let c = &self.collision;
         let closing_mps = own_mps + body_mps;
-        let sensed = 1.5 * c.ray_length_m.max(own_mps * c.look_ahead_s) + 10.0;
-        let pipeline = sensed
-            .max(c.box_beyond_m)
-            .max(c.mesh_within_m)
-            .max(c.near_miss_m)
-            + closing_mps * c.look_ahead_s;
+        let contact = c.near_miss_m + closing_mps * c.look_ahead_s;
         let well_clear = self
             .volume
             .map_or(0.0, |v| v.dthr_m + v.tthr_s * closing_mps);
         let feed = self.feed.map_or(0.0, |(adsb, h, horizon, sensor)| {
             adsb.max(h + horizon * closing_mps).max(sensor)
         });
-        pipeline.max(well_clear).max(feed).max(NMAC_M) + 1.0
+        contact.max(well_clear).max(feed).max(NMAC_M) + 1.0
+    }
+
+    /// As [`Self::approach_range_m`], at a tick with a sensing frame: also its region and
+    /// look-ahead and the collider swaps' reach.
+    fn sensing_range_m(&self, own_mps: f64, body_mps: f64) -> f64 {
+        let c = &self.collision;
+        let sensed = 1.5 * c.ray_length_m.max(own_mps * c.look_ahead_s) + 10.0;
+        let swaps =
+            sensed.max(c.box_beyond_m).max(c.mesh_within_m) + (own_mps + body_mps) * c.look_ahead_s;
+        (swaps + 1.0).max(self.approach_range_m(own_mps, body_mps))
+    }
+
+    /// The tick's range: with or without its sensing frame.
+    fn range_m(&self, sensing: bool, own_mps: f64, body_mps: f64) -> f64 {
+        if sensing {
+            self.sensing_range_m(own_mps, body_mps)
+        } else {
+            self.approach_range_m(own_mps, body_mps)
+        }
     }
 }
 
@@ -87,6 +106,8 @@ pub(crate) struct Interval<'a> {
     pub current: &'a TrackSample,
     /// Receive time of the run's first vehicle sample (scripted tracks' zero).
     pub flight_start_t_s: f64,
+    /// Whether the tick runs a sensing frame (`Pipeline::senses_at`).
+    pub sensing: bool,
 }
 
 impl Interval<'_> {
@@ -98,17 +119,21 @@ impl Interval<'_> {
 
 /// The moving obstacles seen by vehicle `interval.own` over its interval, into `out`, in the
 /// order of their keys (the scene's tracks, then the vehicles, then the traffic, as
-/// [`BodyKey`] orders them). Ids are shared (`Arc<str>`).
+/// [`BodyKey`] orders them); `approached[i]` says whether `out`'s body `i` is within the
+/// approach reach (the scene's tracks always are). Ids are shared (`Arc<str>`).
 pub(crate) fn fill_dynamic(
     out: &mut MovingBodies,
+    approached: &mut Vec<bool>,
     scene: &Scene,
     world: &mut WorldStore,
     watch: &Watch,
     interval: &Interval<'_>,
 ) {
     out.clear();
+    approached.clear();
     let claims = fill_scripted(out, scene, world, interval);
-    fill_nearby(out, scene, world, watch, interval, &claims);
+    approached.resize(out.len(), true);
+    fill_nearby(out, approached, scene, world, watch, interval, &claims);
     debug_assert!(
         out.as_slice().is_sorted_by_key(|b| b.key),
         "bodies out of key order"
@@ -178,9 +203,11 @@ fn fill_scripted(
 }
 
 /// The other vehicles and the ADS-B traffic within the watch range of the interval, into
-/// `out`, in the order of their keys (the order the world visits them in).
+/// `out` (and whether each is within the approach reach, into `approached`), in the order of
+/// their keys (the order the world visits them in).
 fn fill_nearby(
     out: &mut MovingBodies,
+    approached: &mut Vec<bool>,
     scene: &Scene,
     world: &mut WorldStore,
     watch: &Watch,
@@ -194,32 +221,44 @@ fn fill_nearby(
         Aabb64::new(before.position_enu_m, before.position_enu_m).including(current.position_enu_m);
     let own_mps = current.velocity_enu_mps.length();
     let own_radius_m = model_radius_m(scene, scene.vehicle_model(interval.own.system_id));
-    let reach_m =
-        watch.range_m(own_mps, world.max_speed_mps()) + own_radius_m + watch.max_model_radius_m;
+    let sensing = interval.sensing;
+    let reach_m = watch.range_m(sensing, own_mps, world.max_speed_mps())
+        + own_radius_m
+        + watch.max_model_radius_m;
     world.tracks_near(&own_box.inflated(reach_m), times.0, times.1, |track| {
-        let Some(body) = body_of(scene, track, interval.own, claims, times) else {
+        let Some((who, history)) = identity_of(scene, track, interval.own, claims) else {
             return;
         };
-        let body_box = Aabb64::new(body.previous.position_enu_m, body.previous.position_enu_m)
-            .including(body.current.position_enu_m);
-        let within_m = watch.range_m(own_mps, body.speed_mps)
-            + own_radius_m
-            + model_radius_m(scene, body.geometry_index);
-        if own_box.distance_to_box(&body_box) <= within_m {
+        // Whether it is near from its positions alone: the whole state (the attitude's
+        // interpolation) is made only for a body taken.
+        let Some(((before_m, _), (now_m, now_mps))) = history
+            .predict_motion(times.0, PREDICT_MAX_S)
+            .zip(history.predict_motion(times.1, PREDICT_MAX_S))
+        else {
+            return;
+        };
+        let body_mps = now_mps.length();
+        let body_box = Aabb64::new(before_m, before_m).including(now_m);
+        let radii_m = own_radius_m + model_radius_m(scene, who.geometry_index);
+        let apart_m = own_box.distance_to_box(&body_box);
+        let near = apart_m <= watch.approach_range_m(own_mps, body_mps) + radii_m;
+        let taken =
+            near || (sensing && apart_m <= watch.sensing_range_m(own_mps, body_mps) + radii_m);
+        if let Some(body) = predicted(history, who, times).filter(|_| taken) {
             out.push(body);
+            approached.push(near);
         }
     });
 }
 
-/// A track as a moving body over `times`: `None` for the vehicle itself, a track the scene's
-/// tracks claim, or one with no sample.
-fn body_of(
+/// Who a track is as a moving body, and its history: `None` for the vehicle itself or a track
+/// the scene's tracks claim.
+fn identity_of<'t>(
     scene: &Scene,
-    track: Track<'_>,
+    track: Track<'t>,
     own: SenderId,
     claims: &Claims,
-    times: (f64, f64),
-) -> Option<DynamicBody> {
+) -> Option<(Identity<'t>, &'t crate::world::History)> {
     match track {
         Track::Vehicle(v) => {
             if v.id.system_id == own.system_id || claims.system_ids[usize::from(v.id.system_id)] {
@@ -238,7 +277,7 @@ fn body_of(
                 threat: scene.threat_of(Kind::Dji),
                 geometry_index: scene.vehicle_model(v.id.system_id),
             };
-            predicted(&v.history, who, times)
+            Some((who, &v.history))
         }
         Track::Traffic(tr) => {
             if claims.icao.contains(&tr.icao_address) {
@@ -255,7 +294,7 @@ fn body_of(
                 threat: scene.threat_of(kind),
                 geometry_index: scene.kind_model(kind),
             };
-            predicted(&tr.history, who, times)
+            Some((who, &tr.history))
         }
     }
 }

@@ -468,6 +468,48 @@ fn near_miss_zero_still_reports_an_overlap_at_the_first_sample() {
 /// by the eight-ray ring's second ray (forward, then clockwise) and by none of the paper's six
 /// axes; a levelled ring does not see the ground when the vehicle pitches down.
 #[test]
+fn a_tick_says_beforehand_whether_it_senses() {
+    // Exact mode at 20 Hz: a frame at the first sample, none 0.03 s later, one 0.05 s after
+    // the first; a new generation is a new vehicle (a frame is due); box mode never senses.
+    let s = scene("");
+    let mut p = Pipeline::new(&s, CollisionConfig::default());
+    let key = VehicleKey::new(1);
+    let first = sample(ORIGIN, 1000.0, DVec3::new(0.0, 0.0, 20.0), DVec3::X);
+    assert!(p.senses_at(key, first.t_s));
+    let mut events = Vec::new();
+    let report = p.step(&s, key, None, &first, &Default::default(), &mut events);
+    assert!(report.sensed);
+    for (dt, due) in [(0.03, false), (0.0499, false), (0.05, true), (-0.1, true)] {
+        assert_eq!(p.senses_at(key, first.t_s + dt), due, "{dt}");
+        let mut later = first;
+        later.t_s += dt;
+        let mut q = p.clone();
+        let report = q.step(
+            &s,
+            key,
+            Some(&first),
+            &later,
+            &Default::default(),
+            &mut events,
+        );
+        assert_eq!(report.sensed, due, "{dt}");
+    }
+    let reborn = VehicleKey {
+        generation: key.generation + 1,
+        ..key
+    };
+    assert!(p.senses_at(reborn, first.t_s + 0.01));
+    let boxes = Pipeline::new(
+        &s,
+        CollisionConfig {
+            mode: Mode::Box,
+            ..CollisionConfig::default()
+        },
+    );
+    assert!(!boxes.senses_at(key, first.t_s));
+}
+
+#[test]
 fn the_sensing_fan_is_configurable() {
     use savsim::pipeline::{MovingBodies, SensorFan};
     let s = scene(

@@ -172,12 +172,12 @@ impl Approaches {
     /// regains of well clear within it, in `changes` (cleared first). Allocates only the first
     /// time a pair is seen. Fastest with `bodies` in the order of their keys, as a session's
     /// tick has them; any order gives the same answer.
-    pub fn observe(
+    pub fn observe<'b>(
         &mut self,
         own: u8,
         previous: Option<&TrackSample>,
         current: &TrackSample,
-        bodies: &[DynamicBody],
+        bodies: impl IntoIterator<Item = &'b DynamicBody>,
         changes: &mut Vec<WellClearChange>,
     ) {
         changes.clear();

@@ -229,6 +229,21 @@ impl Pipeline {
         self.has_terrain
     }
 
+    /// Whether `vehicle`'s tick at `t_s` would run a sensing frame (the only stage that looks
+    /// at moving bodies beyond the contact layer's and the well-clear reach): the session
+    /// fills a tick without one with the bodies near enough to matter to the rest.
+    pub fn senses_at(&self, vehicle: VehicleKey, t_s: f64) -> bool {
+        let Some(rules) = sensing_rules(self.config.mode) else {
+            return false;
+        };
+        match self.vehicles.get(&(vehicle.vehicle, vehicle.component_id)) {
+            Some(state) if state.generation == vehicle.generation => {
+                stages::frame_due(&self.config, rules, state.sensing.last_frame_t_s, t_s)
+            }
+            _ => true,
+        }
+    }
+
     /// The collision state of `vehicle` (component 1 when only a number is known), if it ever
     /// ticked.
     pub fn vehicle(&self, vehicle: u16, component_id: u8) -> Option<&VehicleCollision> {
@@ -413,12 +428,7 @@ impl Pipeline {
             event: &event,
         };
         // The sensing layer: every sample in `paper`, at the sensor rate in `exact`.
-        let rules = match cfg.mode {
-            Mode::Paper => Some(Rules::Paper),
-            Mode::Exact => Some(Rules::Sensor),
-            _ => None,
-        };
-        if let Some(rules) = rules {
+        if let Some(rules) = sensing_rules(cfg.mode) {
             let frame = tick.frame(rules);
             stages::sense(
                 &mut self.sensing,
@@ -459,5 +469,14 @@ impl Pipeline {
             }
             _ => {}
         }
+    }
+}
+
+/// The rules the sensing layer follows in `mode`, if it runs there.
+fn sensing_rules(mode: Mode) -> Option<Rules> {
+    match mode {
+        Mode::Paper => Some(Rules::Paper),
+        Mode::Exact => Some(Rules::Sensor),
+        _ => None,
     }
 }

@@ -81,16 +81,12 @@ pub(super) fn sense(
     events: &mut Vec<Event>,
     report: &mut TickReport,
 ) {
-    let (cfg, t) = (frame.cfg, frame.current.t_s);
-    let period_s = if frame.rules == Rules::Paper || cfg.sensor_hz <= 0.0 {
-        0.0
-    } else {
-        1.0 / cfg.sensor_hz
-    };
-    let due = state
-        .last_frame_t_s
-        .is_none_or(|last| t - last >= period_s - 1e-9 || t < last);
-    if due {
+    if frame_due(
+        frame.cfg,
+        frame.rules,
+        state.last_frame_t_s,
+        frame.current.t_s,
+    ) {
         let started = Instant::now();
         // What the last frame asked the mesh worker for is resident from here on.
         meshes.install_requested();
@@ -103,6 +99,22 @@ pub(super) fn sense(
     report.active_box = counts.active_box;
     report.active_mesh = counts.active_mesh;
     report.active_triangles = counts.active_triangles;
+}
+
+/// Whether a sensing frame is due at `t_s` after the last one at `last_frame_t_s`: always in
+/// `paper`, at `sensor_hz` in `exact`, and whenever the clock went back.
+pub(super) fn frame_due(
+    cfg: &CollisionConfig,
+    rules: Rules,
+    last_frame_t_s: Option<f64>,
+    t_s: f64,
+) -> bool {
+    let period_s = if rules == Rules::Paper || cfg.sensor_hz <= 0.0 {
+        0.0
+    } else {
+        1.0 / cfg.sensor_hz
+    };
+    last_frame_t_s.is_none_or(|last| t_s - last >= period_s - 1e-9 || t_s < last)
 }
 
 /// The contact layer over the interval from `tick.previous` (or at the sample alone), then

@@ -225,6 +225,39 @@ impl History {
         })
     }
 
+    /// The position and velocity [`History::predict`] gives at `t_s`, without the rest of the
+    /// state (no attitude interpolated): the same numbers, for deciding whether a track is
+    /// near before its whole state is made.
+    pub fn predict_motion(&self, t_s: f64, max_ahead_s: f64) -> Option<(DVec3, DVec3)> {
+        let latest = self.samples.back()?;
+        if t_s > latest.t_s {
+            let ahead_s = (t_s - latest.t_s).min(max_ahead_s);
+            let position = latest.position_enu_m + latest.velocity_enu_mps * ahead_s;
+            return Some((position, latest.velocity_enu_mps));
+        }
+        let first = self.samples.front()?;
+        let (a, b) = if t_s <= first.t_s {
+            (first, first)
+        } else {
+            let i = self.after(t_s);
+            if i >= self.samples.len() {
+                (latest, latest)
+            } else {
+                (&self.samples[i - 1], &self.samples[i])
+            }
+        };
+        let span = b.t_s - a.t_s;
+        Some(if span > 0.0 {
+            let u = ((t_s - a.t_s) / span).clamp(0.0, 1.0);
+            (
+                a.position_enu_m.lerp(b.position_enu_m, u),
+                a.velocity_enu_mps.lerp(b.velocity_enu_mps, u),
+            )
+        } else {
+            (b.position_enu_m, b.velocity_enu_mps)
+        })
+    }
+
     /// The samples, oldest first.
     pub fn samples(&self) -> impl DoubleEndedIterator<Item = &TrackSample> {
         self.samples.iter()
@@ -796,5 +829,51 @@ fn course_rad(velocity_ned_mps: DVec3) -> f64 {
         0.0
     } else {
         velocity_ned_mps.y.atan2(velocity_ned_mps.x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A track that turns and speeds up, sampled unevenly (two samples at one instant too).
+    fn history() -> History {
+        let mut h = History::default();
+        for (k, t_s) in [0.0, 0.1, 0.25, 0.25, 0.3, 0.72].into_iter().enumerate() {
+            let k = k as f64;
+            let attitude = Attitude {
+                time_boot_ms: 0,
+                enu_from_frd: DQuat::from_rotation_z(0.3 * k),
+                body_rates_radps: DVec3::ZERO,
+            };
+            h.push(
+                TrackSample {
+                    t_s,
+                    time_boot_ms: (t_s * 1000.0) as u32,
+                    position: Geodetic::new(0.0, 0.0, 0.0),
+                    position_enu_m: DVec3::new(3.0 * k * k, -2.0 * k, 0.5 * k),
+                    velocity_enu_mps: DVec3::new(6.0 * k, -2.0, 0.1 * k),
+                    attitude,
+                },
+                64,
+            );
+        }
+        h
+    }
+
+    #[test]
+    fn predict_motion_is_predicts_position_and_velocity_bit_for_bit() {
+        let h = history();
+        for i in -20..120 {
+            let t_s = f64::from(i) * 0.0137;
+            let full = h.predict(t_s, 0.5).unwrap();
+            let motion = h.predict_motion(t_s, 0.5).unwrap();
+            assert_eq!(
+                motion,
+                (full.position_enu_m, full.velocity_enu_mps),
+                "at {t_s}"
+            );
+        }
+        assert_eq!(History::default().predict_motion(1.0, 0.5), None);
     }
 }
