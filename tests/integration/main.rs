@@ -84,6 +84,8 @@
 //!   read whole.
 //! - `batch`: `savsim batch` (encounters against their construction, jobs and shards, bad
 //!   rows, schedulers) and the Python package and its Ray example against the CLI.
+//! - `swarm`: a dense block judged within the approach reach gives the answers of the whole
+//!   watch range.
 //! - `viz`: the rerun logger (rerun-sdk's CLI verifies the recording; the memory sink); the
 //!   default layout; SIGTERM during a recorded replay.
 //! - `viz_render`: the demo's recording rendered headless by rerun's own viewer, the vehicle
@@ -134,6 +136,7 @@ mod sitl_px4_feed;
 mod solids;
 mod study;
 mod supervisor;
+mod swarm;
 mod sweeps;
 mod terrain;
 #[cfg(feature = "viz")]
