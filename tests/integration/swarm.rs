@@ -12,13 +12,38 @@ use crate::common::{assert_ran, frame_v2, pose_messages};
 /// The bundled city's origin (scenes/city.toml).
 const ORIGIN: Geodetic = Geodetic::new(-35.363261, 149.16523, 584.0);
 
+/// The tlog's first instant, microseconds since the Unix epoch (2026-01-01).
+const EPOCH_US: u64 = 1_767_225_600_000_000;
+
+/// Vehicle `sysid`'s positions and attitudes at 10 Hz for 3 s from `phase_s`, each
+/// `motion(t_s)` (ENU position and velocity), into `records` as (stamp, frame).
+fn fly(
+    records: &mut Vec<(u64, Vec<u8>)>,
+    plane: &LocalTangentPlane,
+    sysid: u8,
+    phase_s: f64,
+    motion: impl Fn(f64) -> (DVec3, DVec3),
+) {
+    let mut seq = 0u8;
+    for k in 0..30 {
+        let t_s = phase_s + f64::from(k) / 10.0;
+        let (p, v) = motion(t_s);
+        let ms = 1000 + (t_s * 1000.0).round() as u32;
+        for m in pose_messages(plane, ms, p, v, [0.0, 0.0, v.x.atan2(v.y)]) {
+            let stamp_us = EPOCH_US + (t_s * 1e6).round() as u64;
+            records.push((stamp_us, frame_v2(sysid, 1, seq, &m)));
+            seq = seq.wrapping_add(1);
+        }
+    }
+}
+
 /// A 6 x 6 block 20 m apart, 300 m over the city's origin, each vehicle circling 12 m at
-/// 8 m/s (neighbours' circles overlap: they meet), positions and attitudes at 10 Hz for 3 s,
-/// each vehicle at its own phase, two flying head on through its middle, and one hovering 400 m
-/// east of the block (within the sensing reach, beyond the approach reach): a tlog.
+/// 8 m/s (neighbours' circles overlap: they meet), each at its own phase; two flying head on
+/// through its middle (they meet at 2.5 s); one hovering 400 m east of the block (within the
+/// sensing reach, beyond the approach reach): a tlog.
 fn block_tlog() -> Vec<u8> {
     let plane = LocalTangentPlane::new(ORIGIN);
-    let (side, spacing_m, radius_m, speed_mps, hz) = (6, 20.0, 12.0, 8.0, 10.0);
+    let (side, spacing_m, radius_m, speed_mps) = (6u8, 20.0, 12.0, 8.0);
     let mut records = Vec::new();
     for n in 0..side * side {
         let centre = DVec3::new(
@@ -26,36 +51,18 @@ fn block_tlog() -> Vec<u8> {
             f64::from(n / side) * spacing_m,
             300.0,
         );
-        let phase_s = f64::from(n) / f64::from(side * side) / hz;
-        let mut seq = 0u8;
-        for k in 0..30 {
-            let t_s = phase_s + f64::from(k) / hz;
+        let phase_s = f64::from(n) / f64::from(side * side) / 10.0;
+        fly(&mut records, &plane, n + 1, phase_s, |t_s| {
             let a = speed_mps / radius_m * t_s + f64::from(n);
             let p = centre + radius_m * DVec3::new(a.cos(), a.sin(), 0.0);
-            let v = speed_mps * DVec3::new(-a.sin(), a.cos(), 0.0);
-            let yaw = v.x.atan2(v.y);
-            let ms = 1000 + (t_s * 1000.0).round() as u32;
-            for m in pose_messages(&plane, ms, p, v, [0.0, 0.0, yaw]) {
-                let stamp_us = 1_767_225_600_000_000 + (t_s * 1e6).round() as u64;
-                records.push((stamp_us, frame_v2(n as u8 + 1, 1, seq, &m)));
-                seq = seq.wrapping_add(1);
-            }
-        }
+            (p, speed_mps * DVec3::new(-a.sin(), a.cos(), 0.0))
+        });
     }
-    // Two more meet head on in the block's middle at 2.5 s; one hovers 400 m east of it.
-    for (n, from_x, v_x) in [(36u8, 30.0, 8.0), (37, 70.0, -8.0), (38, 500.0, 0.0)] {
-        let mut seq = 0u8;
-        for k in 0..30 {
-            let t_s = f64::from(k) / hz;
+    for (sysid, from_x, v_x) in [(37u8, 30.0, 8.0), (38, 70.0, -8.0), (39, 500.0, 0.0)] {
+        fly(&mut records, &plane, sysid, 0.0, |t_s| {
             let p = DVec3::new(from_x + v_x * t_s, 50.0, 300.0);
-            let v = DVec3::new(v_x, 0.0, 0.0);
-            let ms = 1000 + (t_s * 1000.0).round() as u32;
-            for m in pose_messages(&plane, ms, p, v, [0.0, 0.0, v.x.atan2(v.y)]) {
-                let stamp_us = 1_767_225_600_000_000 + (t_s * 1e6).round() as u64;
-                records.push((stamp_us, frame_v2(n + 1, 1, seq, &m)));
-                seq = seq.wrapping_add(1);
-            }
-        }
+            (p, DVec3::new(v_x, 0.0, 0.0))
+        });
     }
     records.sort_by_key(|r| r.0);
     let mut out = Vec::new();
