@@ -155,6 +155,20 @@ impl TrackSample {
     }
 }
 
+/// Where an instant falls in a [`History`].
+enum Bracket<'a> {
+    /// On this sample.
+    At(&'a TrackSample),
+    /// Between these two, at this fraction of the way (`TrackSample::lerp`'s `u`).
+    Between(&'a TrackSample, &'a TrackSample, f64),
+}
+
+/// `latest`'s position carried along its velocity to `t_s`, at most `max_ahead_s` ahead.
+fn carried_m(latest: &TrackSample, t_s: f64, max_ahead_s: f64) -> DVec3 {
+    let ahead_s = (t_s - latest.t_s).min(max_ahead_s);
+    latest.position_enu_m + latest.velocity_enu_mps * ahead_s
+}
+
 /// A track's history: latest samples in time order.
 #[derive(Debug, Clone, Default)]
 pub struct History {
@@ -181,20 +195,29 @@ impl History {
 
     /// The state at `t_s`: interpolated inside the history, held at its ends.
     pub fn at(&self, t_s: f64) -> Option<TrackSample> {
+        Some(match self.bracket(t_s)? {
+            Bracket::At(s) => *s,
+            Bracket::Between(a, b, u) => a.lerp(b, u),
+        })
+    }
+
+    /// Where `t_s` falls in the history: on a sample (before the first, after the newest, or
+    /// between two of one instant), or between two at `u` (0 at the earlier).
+    fn bracket(&self, t_s: f64) -> Option<Bracket<'_>> {
         let first = self.samples.front()?;
         if t_s <= first.t_s {
-            return Some(*first);
+            return Some(Bracket::At(first));
         }
         let i = self.after(t_s);
         if i >= self.samples.len() {
-            return self.samples.back().copied();
+            return self.samples.back().map(Bracket::At);
         }
         let (a, b) = (&self.samples[i - 1], &self.samples[i]);
         let span = b.t_s - a.t_s;
         Some(if span > 0.0 {
-            a.lerp(b, (t_s - a.t_s) / span)
+            Bracket::Between(a, b, (t_s - a.t_s) / span)
         } else {
-            *b
+            Bracket::At(b)
         })
     }
 
@@ -217,10 +240,9 @@ impl History {
         if t_s <= latest.t_s {
             return self.at(t_s);
         }
-        let ahead_s = (t_s - latest.t_s).min(max_ahead_s);
         Some(TrackSample {
             t_s,
-            position_enu_m: latest.position_enu_m + latest.velocity_enu_mps * ahead_s,
+            position_enu_m: carried_m(latest, t_s, max_ahead_s),
             ..*latest
         })
     }
@@ -231,30 +253,17 @@ impl History {
     pub fn predict_motion(&self, t_s: f64, max_ahead_s: f64) -> Option<(DVec3, DVec3)> {
         let latest = self.samples.back()?;
         if t_s > latest.t_s {
-            let ahead_s = (t_s - latest.t_s).min(max_ahead_s);
-            let position = latest.position_enu_m + latest.velocity_enu_mps * ahead_s;
-            return Some((position, latest.velocity_enu_mps));
+            return Some((carried_m(latest, t_s, max_ahead_s), latest.velocity_enu_mps));
         }
-        let first = self.samples.front()?;
-        let (a, b) = if t_s <= first.t_s {
-            (first, first)
-        } else {
-            let i = self.after(t_s);
-            if i >= self.samples.len() {
-                (latest, latest)
-            } else {
-                (&self.samples[i - 1], &self.samples[i])
+        Some(match self.bracket(t_s)? {
+            Bracket::At(s) => (s.position_enu_m, s.velocity_enu_mps),
+            Bracket::Between(a, b, u) => {
+                let u = u.clamp(0.0, 1.0);
+                (
+                    a.position_enu_m.lerp(b.position_enu_m, u),
+                    a.velocity_enu_mps.lerp(b.velocity_enu_mps, u),
+                )
             }
-        };
-        let span = b.t_s - a.t_s;
-        Some(if span > 0.0 {
-            let u = ((t_s - a.t_s) / span).clamp(0.0, 1.0);
-            (
-                a.position_enu_m.lerp(b.position_enu_m, u),
-                a.velocity_enu_mps.lerp(b.velocity_enu_mps, u),
-            )
-        } else {
-            (b.position_enu_m, b.velocity_enu_mps)
         })
     }
 
