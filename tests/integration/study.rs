@@ -983,22 +983,7 @@ fn arducopter_is_told_the_same_adsb_reports_at_speedup_1_and_10() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let gen = savsim()
-        .args([
-            "study",
-            "gen",
-            "--kind",
-            "encounters",
-            "--n",
-            "1",
-            "--seed",
-            "11",
-        ])
-        .args(["--sensors", "adsb-1090es:nacp=7", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(gen.status.success(), "{gen:?}");
+    encounter_manifest(dir.path(), "11", &["--sensors", "adsb-1090es:nacp=7"]);
     // The mitigated row alone, 60 s long.
     let mut manifest = csv::Reader::from_path(dir.path().join("study.csv")).unwrap();
     let header = manifest.headers().unwrap().clone();
@@ -1239,25 +1224,23 @@ fn arducopter_and_px4_in_one_row_keep_one_clock() {
     );
 }
 
-/// `study gen --kind encounters --equipage EQUIPAGE` for one pair (seed 3: an unavoided miss of
-/// about 17 m) into `dir`.
-fn coop_manifest(dir: &Path, equipage: &str) {
+/// `study gen --kind encounters` for one pair drawn with `seed`, with `more` of its options,
+/// into `dir`.
+fn encounter_manifest(dir: &Path, seed: &str, more: &[&str]) {
     let gen = savsim()
-        .args([
-            "study",
-            "gen",
-            "--kind",
-            "encounters",
-            "--n",
-            "1",
-            "--seed",
-            "3",
-        ])
-        .args(["--equipage", equipage, "--out"])
+        .args(["study", "gen", "--kind", "encounters", "--n", "1"])
+        .args(["--seed", seed])
+        .args(more)
+        .arg("--out")
         .arg(dir)
         .output()
         .unwrap();
     assert_ran(&gen);
+}
+
+/// The encounter of seed 3 (an unavoided miss of about 17 m) under `equipage`, into `dir`.
+fn coop_manifest(dir: &Path, equipage: &str) {
+    encounter_manifest(dir, "3", &["--equipage", equipage]);
 }
 
 /// A result row without its tracks, for a message.
