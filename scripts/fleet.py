@@ -182,7 +182,10 @@ def main():
     frames = sum(f for _, _, f in schedule)
     print(f"encoded {len(schedule)} datagrams in {time.perf_counter() - built:.1f} s")
     if args.tlog is not None:
-        write_tlog(args.tlog, schedule)
+        try:
+            write_tlog(args.tlog, schedule)
+        except OSError as e:
+            p.error(f"--tlog {args.tlog}: {e.strerror}")
         print(f"wrote {len(schedule)} datagrams ({frames} frames) to {args.tlog}")
         return
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
