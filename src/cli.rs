@@ -223,7 +223,7 @@ pub enum StudyCommand {
         sensors: Vec<String>,
         /// With `--kind encounters`: two ArduCopters per encounter, each on its own SITL, one
         /// row per equipage in this list (`none,one,both`: which of them avoid; the variant is
-        /// its name), over the same drawn geometries (docs/study.md, "Two autopilots").
+        /// its name), over the same drawn geometries (docs/study.md, "Several autopilots").
         #[arg(long)]
         equipage: Option<String>,
         /// Where the manifest and its scenes go (created).

@@ -25,6 +25,8 @@ pub struct ApproachRow {
     pub t_s: f64,
     /// Ever within 500 ft horizontally and 100 ft vertically at once.
     pub nmac: bool,
+    /// Well clear with this track ever lost (false when it is not judged).
+    pub lowc: bool,
 }
 
 /// One row of the results table. Every field but the three measured costs
@@ -195,6 +197,7 @@ impl RunRow {
                 vertical_m: pair.approach.vertical_m,
                 t_s: pair.approach.t_s - t0_s,
                 nmac: pair.approach.nmac,
+                lowc: !pair.well_clear.episodes.is_empty(),
             })
             .collect();
         self.nmac = self.approaches.iter().any(|a| a.nmac);

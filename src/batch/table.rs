@@ -22,11 +22,19 @@ fn approach_fields() -> Fields {
         Field::new("vertical_m", DataType::Float64, false),
         Field::new("t_s", DataType::Float64, false),
         Field::new("nmac", DataType::Boolean, false),
+        Field::new("lowc", DataType::Boolean, false),
     ])
 }
 
 fn approaches(rows: &[RunRow]) -> ArrayRef {
-    let all: Vec<&ApproachRow> = rows.iter().flat_map(|r| &r.approaches).collect();
+    approach_lists(rows.iter().map(|r| r.approaches.as_slice()))
+}
+
+/// Each row's approaches, as a list of structs (`approaches` in batch and study results).
+pub(crate) fn approach_lists<'a>(
+    rows: impl Iterator<Item = &'a [ApproachRow]> + Clone,
+) -> ArrayRef {
+    let all: Vec<&ApproachRow> = rows.clone().flatten().collect();
     let float = |f: fn(&ApproachRow) -> f64| -> ArrayRef {
         Arc::new(all.iter().map(|a| f(a)).collect::<Float64Array>())
     };
@@ -42,12 +50,9 @@ fn approaches(rows: &[RunRow]) -> ArrayRef {
         float(|a| a.vertical_m),
         float(|a| a.t_s),
         Arc::new(all.iter().map(|a| Some(a.nmac)).collect::<BooleanArray>()),
+        Arc::new(all.iter().map(|a| Some(a.lowc)).collect::<BooleanArray>()),
     ];
-    struct_lists(
-        approach_fields(),
-        children,
-        rows.iter().map(|r| r.approaches.len()),
-    )
+    struct_lists(approach_fields(), children, rows.map(<[ApproachRow]>::len))
 }
 
 /// The results as one Arrow record batch (an empty batch with the full schema when there are

@@ -60,7 +60,9 @@ pub struct StudyRow {
     pub w: Option<f64>,
     /// A second vehicle flown by its own autopilot (`arducopter` or `px4`) on its own SITL
     /// instance, instead of a scripted `intruder`: it flies `intruder_plan` with
-    /// `intruder_params`, and the row's feed tells each vehicle of the other.
+    /// `intruder_params`, and the row's feed tells each vehicle of the other. A third follows a
+    /// `|` (`arducopter|px4`), and so do its entries in the columns below (one entry there is
+    /// for both).
     pub intruder_autopilot: Option<String>,
     /// The second vehicle's flight plan (`study::plan`; `until T` legs are on the row's
     /// clock, the first vehicle's).

@@ -6,7 +6,7 @@
 //! - [`plan`]: a row's flight plan and parameters.
 //! - [`sitl`]: starting and stopping one SITL.
 //! - [`pilot`]: the ground station that flies the plan, on the vehicle's clock.
-//! - [`pace`]: an ArduCopter's speedup kept to another vehicle's clock (rows of two).
+//! - [`pace`]: an ArduCopter's speedup kept to another vehicle's clock (rows of several).
 //! - [`fly`]: the plan, leg by leg.
 //! - [`run`](mod@run): one row, its failure kept as its row's error.
 //! - [`result`]: what a row's result holds; [`table`]: results as Parquet.

@@ -70,12 +70,16 @@ pub struct AutopilotDid {
     pub version: Option<String>,
 }
 
-/// The second vehicle of a row flown by two autopilots (`intruder_autopilot`): its times are
-/// on the row's clock (the first vehicle's, from its boot).
+/// One vehicle of a row, as the `vehicles` column gives it: its times are on the row's clock
+/// (the first vehicle's, from its boot).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct SecondVehicle {
+pub struct VehicleResult {
+    /// Its [`role`].
+    pub role: String,
     /// Its MAVLink system id.
     pub system_id: u8,
+    /// Its autopilot (`arducopter` or `px4`).
+    pub autopilot: String,
     /// Its positions, as `track` (times on the row's clock).
     pub track: Option<String>,
     /// Legs of its plan flown to their end.
@@ -87,39 +91,44 @@ pub struct SecondVehicle {
     /// Seconds of its clock per wall second, as savsim fitted them from its positions'
     /// arrivals (measured).
     pub clock_speedup: f64,
+    /// The largest drift of its clock from the row's (the first vehicle's), seconds
+    /// (measured; 0 for the first).
+    pub clock_skew_s: f64,
 }
 
-/// Which of a row's two vehicles acted first against the other.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FirstToAct {
-    /// The row's first vehicle (its ownship).
-    Own,
-    /// The second vehicle.
-    Intruder,
-    /// Neither acted.
-    Neither,
+/// The name of a row's vehicle `k` (from 0, in the manifest's order) in the results: `own`,
+/// `intruder` (the second), `intruder3`, ... (the third and on, by their place in the row).
+///
+/// ```
+/// use savsim::study::result::role;
+/// assert_eq!([role(0), role(1), role(2)], ["own", "intruder", "intruder3"]);
+/// ```
+pub fn role(k: usize) -> String {
+    match k {
+        0 => "own".into(),
+        1 => "intruder".into(),
+        k => format!("intruder{}", k + 1),
+    }
 }
 
-impl FirstToAct {
-    /// Its name in the results.
-    pub fn name(self) -> &'static str {
-        match self {
-            FirstToAct::Own => "own",
-            FirstToAct::Intruder => "intruder",
-            FirstToAct::Neither => "neither",
-        }
-    }
-
-    /// From when each acted (seconds of the row's clock); a tie goes to the ownship.
-    pub fn of(own_s: Option<f64>, intruder_s: Option<f64>) -> Self {
-        match (own_s, intruder_s) {
-            (Some(o), Some(i)) if i < o => FirstToAct::Intruder,
-            (Some(_), _) => FirstToAct::Own,
-            (None, Some(_)) => FirstToAct::Intruder,
-            (None, None) => FirstToAct::Neither,
-        }
-    }
+/// Which of a row's vehicles acted first (by [`AutopilotDid::first_acted_t_s`] on the row's
+/// clock, in the manifest's order): its [`role`]; `neither` when none did. A tie goes to the
+/// vehicle listed first.
+///
+/// ```
+/// use savsim::study::result::first_to_act;
+/// assert_eq!(first_to_act(&[Some(3.0), Some(2.0)]), "intruder");
+/// assert_eq!(first_to_act(&[Some(2.0), Some(2.0), None]), "own");
+/// assert_eq!(first_to_act(&[None, None, Some(9.0)]), "intruder3");
+/// assert_eq!(first_to_act(&[None, None]), "neither");
+/// ```
+pub fn first_to_act(acted_t_s: &[Option<f64>]) -> String {
+    let first = acted_t_s
+        .iter()
+        .enumerate()
+        .filter_map(|(k, t)| Some((k, (*t)?)))
+        .reduce(|a, b| if b.1 < a.1 { b } else { a });
+    first.map_or_else(|| "neither".into(), |(k, _)| role(k))
 }
 
 /// One row of a study's results.
@@ -133,6 +142,8 @@ pub struct StudyResult {
     pub inputs: StudyRow,
     /// The autopilot flown.
     pub autopilot: String,
+    /// Its MAVLink system id, once its SITL started.
+    pub system_id: Option<u8>,
     /// The speedup asked of SITL.
     pub speedup: f64,
     /// How it ended.
@@ -176,13 +187,15 @@ pub struct StudyResult {
     pub wall_s: f64,
     /// `sim_s` over the wall seconds it took (measured).
     pub achieved_speedup: f64,
-    /// The second vehicle, when the row flies two autopilots.
-    pub second: Option<SecondVehicle>,
-    /// With two autopilots: seconds of the first vehicle's clock per wall second, as savsim
-    /// fitted them from its positions' arrivals (measured).
+    /// The row's vehicles after its first, in the manifest's order, when it flies several
+    /// autopilots.
+    pub others: Vec<VehicleResult>,
+    /// With several autopilots: seconds of the first vehicle's clock per wall second, as
+    /// savsim fitted them from its positions' arrivals (measured).
     pub clock_speedup: Option<f64>,
-    /// With two autopilots: the largest drift between their clocks over the row, seconds
-    /// (measured; the row is an error beyond [`crate::study::run::MAX_CLOCK_SKEW_S`]).
+    /// With several autopilots: the largest drift of another vehicle's clock from the row's
+    /// (the first's) over the row, seconds (measured; the row is an error beyond
+    /// [`crate::study::run::MAX_CLOCK_SKEW_S`]).
     pub clock_skew_s: Option<f64>,
 }
 
@@ -194,6 +207,7 @@ impl StudyResult {
             row_id: row.id_or(index),
             inputs: row.clone(),
             autopilot: row.autopilot.clone().unwrap_or_else(|| "arducopter".into()),
+            system_id: None,
             speedup: 0.0,
             outcome: Outcome::Error,
             error: None,
@@ -212,19 +226,43 @@ impl StudyResult {
             sim_s: 0.0,
             wall_s: 0.0,
             achieved_speedup: 0.0,
-            second: None,
+            others: Vec::new(),
             clock_speedup: None,
             clock_skew_s: None,
         }
     }
 
-    /// With two autopilots, which acted first.
-    pub fn first_to_act(&self) -> Option<FirstToAct> {
-        let second = self.second.as_ref()?;
-        Some(FirstToAct::of(
-            self.autopilot_did.first_acted_t_s,
-            second.did.first_acted_t_s,
-        ))
+    /// Every vehicle the row flew, the first and [`Self::others`] (none before the first's SITL
+    /// started).
+    pub fn vehicles(&self) -> Vec<VehicleResult> {
+        let Some(system_id) = self.system_id else {
+            return Vec::new();
+        };
+        let own = VehicleResult {
+            role: role(0),
+            system_id,
+            autopilot: self.autopilot.clone(),
+            track: self.track.clone(),
+            legs_completed: self.legs_completed,
+            plan_completed: self.plan_completed,
+            did: self.autopilot_did.clone(),
+            clock_speedup: self.clock_speedup.unwrap_or(0.0),
+            clock_skew_s: 0.0,
+        };
+        std::iter::once(own)
+            .chain(self.others.iter().cloned())
+            .collect()
+    }
+
+    /// With several autopilots, which acted first ([`first_to_act`]).
+    pub fn first_to_act(&self) -> Option<String> {
+        if self.others.is_empty() {
+            return None;
+        }
+        let acted: Vec<Option<f64>> = std::iter::once(self.autopilot_did.first_acted_t_s)
+            .chain(self.others.iter().map(|o| o.did.first_acted_t_s))
+            .collect();
+        Some(first_to_act(&acted))
     }
 
     /// The closest approach to each obstacle, from every collision (0 m) and near miss of

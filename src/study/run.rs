@@ -29,7 +29,7 @@ use crate::study::manifest::StudyRow;
 use crate::study::pace::Pace;
 use crate::study::pilot::{mode, Heard, Pilot, PilotError, RowClock};
 use crate::study::plan::{self, Leg, PlanError};
-use crate::study::result::{AutopilotDid, Outcome, SecondVehicle, StudyResult};
+use crate::study::result::{AutopilotDid, Outcome, StudyResult, VehicleResult};
 use crate::study::sitl::{
     px4_autopilot, px4_gcs_port, px4_onboard_ports, ArduCopter, Px4, Sitl, Start,
 };
@@ -44,28 +44,35 @@ pub const SPEEDUP_RANGE: (f64, f64) = (0.1, 1000.0);
 /// m/s within a frame or two of seeing the obstacle closer than its margin: at 20 Hz a frame is
 /// 0.25-0.4 m of travel, at 50 Hz 0.1-0.16 m.
 pub const FEED_HZ: f64 = 50.0;
-/// A row's second vehicle runs on SITL instance `instance + SECOND_INSTANCE_OFFSET` (its own
-/// ports): past the instances `--jobs` can take.
-pub const SECOND_INSTANCE_OFFSET: u16 = crate::study::command::MAX_JOBS as u16;
-/// A second ArduCopter's SYSID_THISMAV: no PX4 instance of a study has it (PX4 SITL's system id
-/// is its instance + 1, at most 2 x `MAX_JOBS`).
-pub const SECOND_ARDUCOPTER_SYSID: u8 = 201;
-/// The largest drift allowed between the clocks of a row's two vehicles, seconds: beyond it
+/// A row's vehicle `k` (from 0) runs on SITL instance `instance + k x INSTANCE_OFFSET` (its
+/// own ports): past the instances `--jobs` can take.
+pub const INSTANCE_OFFSET: u16 = crate::study::command::MAX_JOBS as u16;
+/// The most vehicles a row may fly: PX4 SITL's system id is its instance + 1, so a third
+/// vehicle's (instance under `3 x INSTANCE_OFFSET`) is at most 192, and a fourth's would not
+/// fit in MAVLink's 255 beside the ArduCopters' ([`arducopter_sysid`]).
+pub const MAX_VEHICLES: usize = 3;
+/// The SYSID_THISMAV of a row's vehicle `k` (from 1) after its first when it is an
+/// ArduCopter: 200 + k (201 for the second). No PX4 vehicle of a row has it (PX4 SITL's system
+/// id is its instance + 1, at most `MAX_VEHICLES x INSTANCE_OFFSET`).
+pub fn arducopter_sysid(k: usize) -> u8 {
+    200 + k.min(MAX_VEHICLES) as u8
+}
+/// The largest drift allowed between the clocks of a row's vehicles, seconds: beyond it
 /// the row is an error. Each vehicle is placed in the world where it was when it sent its
 /// position, whatever its clock; but a clock ahead by 0.2 s has flown its physics 0.2 s
 /// further: two copters closing at 2 x 12 m/s (the fastest `study gen --equipage` draws) then
-/// meet up to 4.8 m off the encounter drawn (docs/study.md, "Two autopilots").
+/// meet up to 4.8 m off the encounter drawn (docs/study.md, "Several autopilots").
 pub const MAX_CLOCK_SKEW_S: f64 = 0.2;
 
-/// The autopilot's identity: ArduCopter SITL's default SYSID_THISMAV 1 (whatever its
-/// instance; a row's second ArduCopter [`SECOND_ARDUCOPTER_SYSID`]); PX4 SITL sets MAV_SYS_ID
-/// to its instance + 1. Component 1, the autopilot.
-fn autopilot_id(px4: bool, instance: u16, second: bool) -> SenderId {
+/// The identity of a row's vehicle `k` (from 0): ArduCopter SITL's default SYSID_THISMAV 1
+/// for the first (whatever its instance), [`arducopter_sysid`] for the others; PX4 SITL sets
+/// MAV_SYS_ID to its instance + 1. Component 1, the autopilot.
+fn autopilot_id(px4: bool, instance: u16, k: usize) -> SenderId {
     if px4 {
         px4_autopilot(instance)
     } else {
         SenderId {
-            system_id: if second { SECOND_ARDUCOPTER_SYSID } else { 1 },
+            system_id: if k == 0 { 1 } else { arducopter_sysid(k) },
             component_id: 1,
         }
     }
@@ -100,10 +107,10 @@ pub enum RowError {
     /// savsim's side (the scene, the session, the link).
     #[error("savsim: {0}")]
     Savsim(String),
-    /// The clocks of the row's two vehicles drifted apart by more than
-    /// [`MAX_CLOCK_SKEW_S`]: where each was at a given moment is not known well enough.
+    /// The clocks of the row's vehicles drifted apart by more than [`MAX_CLOCK_SKEW_S`]:
+    /// where each was at a given moment is not known well enough.
     #[error(
-        "the two vehicles' clocks drifted {skew_s:.3} s apart (at most {MAX_CLOCK_SKEW_S} s): \
+        "the vehicles' clocks drifted {skew_s:.3} s apart (at most {MAX_CLOCK_SKEW_S} s): \
          not judged"
     )]
     ClockSkew {
@@ -197,7 +204,8 @@ struct Flier {
 /// A row's columns, checked.
 struct Checked {
     own: Flier,
-    second: Option<Flier>,
+    /// The vehicles after the first, in the manifest's order.
+    others: Vec<Flier>,
     feed: Option<FeedKinds>,
     intruder: Option<(Kind, Vec<Waypoint>)>,
     duration_s: f64,
@@ -214,19 +222,21 @@ fn is_px4(column: &'static str, name: &str) -> Result<bool, RowError> {
     }
 }
 
-/// The row's second vehicle (`intruder_autopilot` and its columns), when it has one.
-fn check_second(row: &StudyRow) -> Result<Option<Flier>, RowError> {
+/// The row's vehicles after its first (`intruder_autopilot` and its columns): one for each
+/// name in `intruder_autopilot`, separated by `|` (`arducopter|px4`); `intruder_plan`,
+/// `intruder_params` and `intruder_home` give one entry for every vehicle, or one for all.
+fn check_others(row: &StudyRow) -> Result<Vec<Flier>, RowError> {
     fn given(v: &Option<String>) -> Option<&str> {
         v.as_deref().filter(|t| !t.trim().is_empty())
     }
-    let Some(autopilot) = given(&row.intruder_autopilot) else {
+    let Some(autopilots) = given(&row.intruder_autopilot) else {
         if given(&row.intruder_plan).is_some() || given(&row.intruder_params).is_some() {
             return Err(input(
                 "intruder_autopilot",
                 "intruder_plan and intruder_params are for a second autopilot: name it",
             ));
         }
-        return Ok(None);
+        return Ok(Vec::new());
     };
     if given(&row.intruder).is_some() {
         return Err(input(
@@ -234,25 +244,77 @@ fn check_second(row: &StudyRow) -> Result<Option<Flier>, RowError> {
             "give a scripted intruder or an autopilot, not both",
         ));
     }
-    let px4 = is_px4("intruder_autopilot", autopilot)?;
-    let legs = plan::parse(given(&row.intruder_plan).unwrap_or_default())
-        .map_err(|e| input("intruder_plan", e.to_string()))?;
-    let mut params = plan::parse_params(given(&row.intruder_params).unwrap_or_default())
-        .map_err(|why| input("intruder_params", why))?;
-    if !px4 {
-        // Last, so that it holds over the row's own: the session tells the two apart by it.
-        params.push(("SYSID_THISMAV".into(), f64::from(SECOND_ARDUCOPTER_SYSID)));
+    let autopilots: Vec<&str> = autopilots.split('|').map(str::trim).collect();
+    if autopilots.len() >= MAX_VEHICLES {
+        return Err(input(
+            "intruder_autopilot",
+            format!(
+                "{} vehicles after the first: a row flies at most {MAX_VEHICLES} in all",
+                autopilots.len()
+            ),
+        ));
     }
-    let home_en_m = match given(&row.intruder_home) {
-        None => [0.0, 0.0],
-        Some(text) => parse_home(text).map_err(|why| input("intruder_home", why))?,
+    let n = autopilots.len();
+    let plans = per_vehicle("intruder_plan", given(&row.intruder_plan), n)?;
+    let params = per_vehicle("intruder_params", given(&row.intruder_params), n)?;
+    let homes = per_vehicle("intruder_home", given(&row.intruder_home), n)?;
+    let mut others = Vec::with_capacity(n);
+    for (k, autopilot) in autopilots.into_iter().enumerate() {
+        others.push(check_other(
+            k + 1,
+            autopilot,
+            [plans[k], params[k], homes[k]],
+        )?);
+    }
+    Ok(others)
+}
+
+/// A column's entries for `n` vehicles: none given (each `""`), one for all, or one each
+/// (separated by `|`).
+fn per_vehicle<'a>(
+    column: &'static str,
+    text: Option<&'a str>,
+    n: usize,
+) -> Result<Vec<&'a str>, RowError> {
+    let Some(text) = text else {
+        return Ok(vec![""; n]);
     };
-    Ok(Some(Flier {
+    let entries: Vec<&str> = text.split('|').map(str::trim).collect();
+    match entries.len() {
+        1 => Ok(vec![entries[0]; n]),
+        k if k == n => Ok(entries),
+        k => Err(input(
+            column,
+            format!("{k} entries for {n} vehicles: give one for all, or one each, separated by |"),
+        )),
+    }
+}
+
+/// The row's vehicle `k` (from 1) after its first: `autopilot`, and its plan, parameters and
+/// home as given.
+fn check_other(
+    k: usize,
+    autopilot: &str,
+    [plan_text, params_text, home]: [&str; 3],
+) -> Result<Flier, RowError> {
+    let px4 = is_px4("intruder_autopilot", autopilot)?;
+    let legs = plan::parse(plan_text).map_err(|e| input("intruder_plan", e.to_string()))?;
+    let mut params =
+        plan::parse_params(params_text).map_err(|why| input("intruder_params", why))?;
+    if !px4 {
+        // Last, so that it holds over the row's own: the session tells the vehicles apart by it.
+        params.push(("SYSID_THISMAV".into(), f64::from(arducopter_sysid(k))));
+    }
+    let home_en_m = match home {
+        "" => [0.0, 0.0],
+        text => parse_home(text).map_err(|why| input("intruder_home", why))?,
+    };
+    Ok(Flier {
         px4,
         legs,
         params,
         home_en_m,
-    }))
+    })
 }
 
 /// `E N`: metres east and north of the scene's origin, within the scene's bounds.
@@ -278,7 +340,7 @@ fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
     let legs = plan::parse(row.plan.as_deref().unwrap_or_default())?;
     let params = plan::parse_params(row.params.as_deref().unwrap_or_default())
         .map_err(|why| input("params", why))?;
-    let second = check_second(row)?;
+    let others = check_others(row)?;
     let feed = row
         .feed
         .as_deref()
@@ -323,7 +385,7 @@ fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, RowError> {
             params,
             home_en_m: [0.0, 0.0],
         },
-        second,
+        others,
         feed,
         intruder,
         duration_s,
@@ -376,7 +438,7 @@ fn session_for(
         .map_err(|e| input("sensors", e.to_string()))?;
     let mut session =
         Session::new(Some(scene), CollisionConfig::default(), None).map_err(savsim)?;
-    // The row's clock is its first vehicle's; a second one's is mapped onto it.
+    // The row's clock is its first vehicle's; the others' are mapped onto it.
     session.use_vehicle_clock_of(Some(own.system_id));
     session.set_approaches(Approaches::with_volume(Some(Volume::SMALL_UAS)));
     if let Some(kinds) = feed {
@@ -443,8 +505,9 @@ fn fly_row(
     let checked = check(row, setup.speedup)?;
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
-    let own_id = autopilot_id(checked.own.px4, instance, false);
+    let own_id = autopilot_id(checked.own.px4, instance, 0);
     let mut session = session_for(row, scene.clone(), checked.feed, own_id)?;
+    result.system_id = Some(own_id.system_id);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -481,8 +544,8 @@ fn fly_row(
             || (checked.stop_on_collision && collided.is_raised())
             || started.elapsed() > wall_limit
     };
-    // The second vehicle also stops when the first is done.
-    let second_stop = || stop() || own_done.load(Ordering::Relaxed);
+    // The other vehicles also stop when the first is done.
+    let others_stop = || stop() || own_done.load(Ordering::Relaxed);
     // Every exit from here on, `?` included, stops and joins the session thread (its drop).
     let mut pilots = Vec::new();
     for v in &mut vehicles {
@@ -492,7 +555,7 @@ fn fly_row(
         pilots,
         &vehicles,
         &checked,
-        (&stop, &second_stop),
+        (&stop, &others_stop),
         &own_done,
     );
     let run = live.finish()?;
@@ -510,13 +573,10 @@ fn fly_row(
     if cut_short {
         return Err(wall_limit_error(&flown, started, wall_limit, &checked));
     }
-    let second = flown_all
-        .next()
-        .zip(checked.second.as_ref())
-        .zip(ids.get(1));
-    if let Some((((flown, heard, offset_s), flier), id)) = second {
-        record_second(result, &run, *id, (&flown, &heard, offset_s), flier);
+    for ((by, flier), id) in flown_all.zip(&checked.others).zip(&ids[1..]) {
+        record_other(result, &run, *id, &by, flier);
     }
+    record_clocks(result, &run);
     record(
         result,
         &dir,
@@ -533,32 +593,24 @@ fn fly_row(
     }
 }
 
-/// The row's vehicles started: the first on `instance` in `dir`, a second (if any) on
-/// `instance + SECOND_INSTANCE_OFFSET` in `dir/second`.
+/// The row's vehicles started: vehicle `k` (from 0) on `instance + k x INSTANCE_OFFSET`, the
+/// first in `dir`, the others in `dir/vehicle-K` (K from 2).
 fn start_vehicles(
     runtime: &tokio::runtime::Runtime,
     setup: &Setup,
     checked: &Checked,
     (instance, scene, dir): (u16, &Scene, &Path),
 ) -> Result<Vec<Vehicle>, RowError> {
-    let speedup = checked.speedup;
-    let mut vehicles = vec![Vehicle::start(
-        runtime,
-        setup,
-        (&checked.own, instance, speedup),
-        scene,
-        dir,
-    )?];
-    if let Some(second) = &checked.second {
-        let at = instance + SECOND_INSTANCE_OFFSET;
-        let dir = dir.join("second");
-        vehicles.push(Vehicle::start(
-            runtime,
-            setup,
-            (second, at, speedup),
-            scene,
-            &dir,
-        )?);
+    let fliers = std::iter::once(&checked.own).chain(&checked.others);
+    let mut vehicles = Vec::with_capacity(1 + checked.others.len());
+    for (k, flier) in fliers.enumerate() {
+        let dir = match k {
+            0 => dir.to_path_buf(),
+            k => dir.join(format!("vehicle-{}", k + 1)),
+        };
+        let at = instance + k as u16 * INSTANCE_OFFSET;
+        let start = (flier, k, at, checked.speedup);
+        vehicles.push(Vehicle::start(runtime, setup, start, scene, &dir)?);
     }
     Ok(vehicles)
 }
@@ -613,11 +665,12 @@ struct Vehicle {
 }
 
 impl Vehicle {
-    /// Start `flier`'s SITL on `instance` at `speedup` in `dir`, at its home.
+    /// Start `flier`'s SITL (the row's vehicle `k`) on `instance` at `speedup` in `dir`, at its
+    /// home.
     fn start(
         runtime: &tokio::runtime::Runtime,
         setup: &Setup,
-        (flier, instance, speedup): (&Flier, u16, f64),
+        (flier, k, instance, speedup): (&Flier, usize, u16, f64),
         scene: &Scene,
         dir: &Path,
     ) -> Result<Self, RowError> {
@@ -631,10 +684,9 @@ impl Vehicle {
             dir,
         };
         let (link, sitl) = start_autopilot(runtime, setup, flier.px4, &start)?;
-        let second = instance >= SECOND_INSTANCE_OFFSET;
         Ok(Vehicle {
             sitl,
-            id: autopilot_id(flier.px4, instance, second),
+            id: autopilot_id(flier.px4, instance, k),
             px4: flier.px4,
             instance,
             link: Some(link),
@@ -645,42 +697,38 @@ impl Vehicle {
 /// What one vehicle flew: how far, what it said, and the row's clock less its own (s).
 type FlownBy = (Flown, Heard, f64);
 
-/// Fly each vehicle's plan with its pilot, the second (if any) on a thread of its own timed
-/// by the first's clock; each vehicle's outcome, in order.
+/// Fly each vehicle's plan with its pilot, the others on threads of their own timed by the
+/// first's clock; each vehicle's outcome, in order.
 fn fly_all(
-    pilots: Vec<Result<Pilot, PilotError>>,
+    mut pilots: Vec<Result<Pilot, PilotError>>,
     vehicles: &[Vehicle],
     checked: &Checked,
-    (stop, second_stop): (&(dyn Fn() -> bool + Sync), &(dyn Fn() -> bool + Sync)),
+    (stop, others_stop): (&(dyn Fn() -> bool + Sync), &(dyn Fn() -> bool + Sync)),
     own_done: &AtomicBool,
 ) -> Vec<Result<FlownBy, PilotError>> {
+    pace(&mut pilots, vehicles, checked.speedup);
     let mut pilots = pilots.into_iter();
-    let Some(mut own_pilot) = pilots.next() else {
+    let Some(own_pilot) = pilots.next() else {
         return Vec::new();
     };
-    let mut second_pilot = pilots.next();
     let reference = own_pilot.as_ref().ok().map(|p| p.heard.clone());
-    pace(
-        &mut own_pilot,
-        second_pilot.as_mut(),
-        vehicles,
-        checked.speedup,
-    );
     std::thread::scope(|scope| {
-        let second = second_pilot
-            .zip(checked.second.as_ref())
-            .map(|(pilot, flier)| {
-                let px4 = vehicles.get(1).is_some_and(|v| v.px4);
+        let others: Vec<_> = pilots
+            .zip(&checked.others)
+            .zip(vehicles.iter().skip(1))
+            .map(|((pilot, flier), vehicle)| {
                 let clock = reference.clone().map(|reference| RowClock {
                     reference,
                     speedup: checked.speedup,
                 });
+                let px4 = vehicle.px4;
                 scope.spawn(move || {
                     let mut pilot = pilot?;
                     pilot.row_clock = clock;
-                    fly_vehicle(pilot, flier, px4, checked.duration_s, second_stop)
+                    fly_vehicle(pilot, flier, px4, checked.duration_s, others_stop)
                 })
-            });
+            })
+            .collect();
         let own = own_pilot.and_then(|pilot| {
             fly_vehicle(
                 pilot,
@@ -691,30 +739,32 @@ fn fly_all(
             )
         });
         own_done.store(true, Ordering::Relaxed);
-        let joined = second.map(|h| {
+        let joined = others.into_iter().map(|h| {
             h.join()
-                .unwrap_or_else(|_| Err(PilotError::Send("the second pilot failed".into())))
+                .unwrap_or_else(|_| Err(PilotError::Send("a vehicle's pilot failed".into())))
         });
         std::iter::once(own).chain(joined).collect()
     })
 }
 
-/// In a row of two: an ArduCopter's speedup kept to the other's clock ([`crate::study::pace`]):
-/// the second's when it is an ArduCopter, else the first's when it is one.
-fn pace(
-    own: &mut Result<Pilot, PilotError>,
-    second: Option<&mut Result<Pilot, PilotError>>,
-    vehicles: &[Vehicle],
-    speedup: f64,
-) {
-    let (Ok(own), Some(Ok(second))) = (own, second) else {
+/// In a row of several: each ArduCopter's speedup kept to one clock ([`crate::study::pace`]):
+/// the first PX4's (PX4 SIH's pace cannot be set while it flies), else the first vehicle's.
+fn pace(pilots: &mut [Result<Pilot, PilotError>], vehicles: &[Vehicle], speedup: f64) {
+    if pilots.len() < 2 {
+        return;
+    }
+    let reference = vehicles.iter().position(|v| v.px4).unwrap_or(0);
+    let Some(Ok(heard)) = pilots
+        .get(reference)
+        .map(|p| p.as_ref().map(|p| p.heard.clone()))
+    else {
         return;
     };
-    let px4 = |k: usize| vehicles.get(k).is_none_or(|v| v.px4);
-    if !px4(1) {
-        second.pace = Some(Pace::new(own.heard.clone(), speedup));
-    } else if !px4(0) {
-        own.pace = Some(Pace::new(second.heard.clone(), speedup));
+    for (k, pilot) in pilots.iter_mut().enumerate() {
+        let arducopter = vehicles.get(k).is_some_and(|v| !v.px4);
+        if let (true, true, Ok(pilot)) = (k != reference, arducopter, pilot) {
+            pilot.pace = Some(Pace::new(heard.clone(), speedup));
+        }
     }
 }
 
@@ -734,36 +784,47 @@ fn fly_vehicle(
     Ok((flown, pilot.heard(), pilot.row_offset_s))
 }
 
-/// The second vehicle's part of the row, and the skew between the two clocks.
-fn record_second(
+/// A vehicle's part of the row after its first (`by`: what it flew and heard, and the row's
+/// clock less its own).
+fn record_other(
     result: &mut StudyResult,
     run: &LiveRun,
     id: SenderId,
-    (flown, heard, offset_s): (&Flown, &Heard, f64),
+    (flown, heard, offset_s): &FlownBy,
     flier: &Flier,
 ) {
     let mut did = did(heard, flown, flier.px4);
     did.first_acted_t_s = did.first_acted_t_s.map(|t| t + offset_s);
-    result.second = Some(SecondVehicle {
+    let seen = run.session.world().seen.get(&id);
+    result.others.push(VehicleResult {
+        role: crate::study::result::role(result.others.len() + 1),
         system_id: id.system_id,
-        track: heard.track_text_shifted(offset_s),
+        autopilot: if flier.px4 { "px4" } else { "arducopter" }.into(),
+        track: heard.track_text_shifted(*offset_s),
         legs_completed: flown.legs_completed as u64,
         plan_completed: flown.legs_completed == flier.legs.len(),
         did,
-        clock_speedup: 0.0,
+        clock_speedup: seen.map_or(0.0, |s| s.clock_speedup),
+        clock_skew_s: seen.map_or(0.0, |s| s.clock_skew_s),
     });
-    let seen = &run.session.world().seen;
-    let speedup = |id: &SenderId| seen.get(id).map_or(0.0, |s| s.clock_speedup);
-    let skew_s = seen.get(&id).map_or(0.0, |s| s.clock_skew_s);
-    if let Some(second) = result.second.as_mut() {
-        second.clock_speedup = speedup(&id);
+}
+
+/// In a row of several: the first vehicle's clock's speedup, and the largest skew of another's
+/// from it.
+fn record_clocks(result: &mut StudyResult, run: &LiveRun) {
+    if result.others.is_empty() {
+        return;
     }
-    result.clock_speedup = run
-        .session
-        .world()
+    let world = run.session.world();
+    result.clock_speedup = world
         .timeline_reference()
-        .map(|r| speedup(&r));
-    result.clock_skew_s = Some(skew_s);
+        .and_then(|r| world.seen.get(&r))
+        .map(|s| s.clock_speedup);
+    result.clock_skew_s = result
+        .others
+        .iter()
+        .map(|o| o.clock_skew_s)
+        .reduce(f64::max);
 }
 
 /// A row's session on its own thread (with the row's network runtime), stopped and joined
@@ -997,6 +1058,94 @@ mod tests {
                     .count()
             })
             .unwrap_or(0)
+    }
+
+    fn others_of(autopilots: &str, plans: &str, params: &str, homes: &str) -> Vec<Flier> {
+        let some = |t: &str| (!t.is_empty()).then(|| t.to_string());
+        let row = StudyRow {
+            intruder_autopilot: some(autopilots),
+            intruder_plan: some(plans),
+            intruder_params: some(params),
+            intruder_home: some(homes),
+            ..StudyRow::default()
+        };
+        check_others(&row).unwrap_or_else(|e| panic!("{autopilots}: {e}"))
+    }
+
+    fn others_error(autopilots: &str, plans: &str, homes: &str) -> String {
+        let row = StudyRow {
+            intruder_autopilot: Some(autopilots.into()),
+            intruder_plan: Some(plans.into()),
+            intruder_home: Some(homes.into()),
+            ..StudyRow::default()
+        };
+        check_others(&row)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    }
+
+    /// A row's vehicles after its first, one per name in `intruder_autopilot`: each column one
+    /// entry for all or one each; each ArduCopter its own system id after the row's params.
+    #[test]
+    fn each_vehicle_after_the_first_takes_its_own_entry_or_the_one_for_all() {
+        let two = others_of(
+            "arducopter | px4",
+            "takeoff 20|takeoff 30; hold 5",
+            "AVD_ENABLE=1",
+            "0 100|-50 0",
+        );
+        assert_eq!(two.len(), 2);
+        assert!(!two[0].px4 && two[1].px4);
+        assert_eq!((two[0].legs.len(), two[1].legs.len()), (1, 2));
+        assert_eq!(
+            (two[0].home_en_m, two[1].home_en_m),
+            ([0.0, 100.0], [-50.0, 0.0])
+        );
+        // The one entry of params for both; the ArduCopter's system id last, PX4 none.
+        assert_eq!(
+            two[0].params,
+            [
+                ("AVD_ENABLE".to_string(), 1.0),
+                ("SYSID_THISMAV".to_string(), 201.0)
+            ]
+        );
+        assert_eq!(two[1].params, [("AVD_ENABLE".to_string(), 1.0)]);
+        let both_copters = others_of("arducopter|arducopter", "takeoff 20", "", "");
+        let sysids: Vec<f64> = both_copters
+            .iter()
+            .map(|f| f.params.last().unwrap().1)
+            .collect();
+        assert_eq!(sysids, [201.0, 202.0]);
+        assert_eq!(both_copters[1].home_en_m, [0.0, 0.0]);
+        // Counts that do not match, too many vehicles, a bad name: the column says so.
+        let three_plans = others_error("arducopter|px4", "takeoff 1|takeoff 2|takeoff 3", "");
+        assert!(
+            three_plans.contains("intruder_plan: 3 entries for 2 vehicles"),
+            "{three_plans}"
+        );
+        let homes = others_error("arducopter|px4", "takeoff 1", "0 0|1 1|2 2");
+        assert!(homes.contains("intruder_home"), "{homes}");
+        let four = others_error("arducopter|px4|arducopter", "takeoff 1", "");
+        assert!(four.contains("at most 3 in all"), "{four}");
+        let empty = others_error("arducopter|", "takeoff 1", "");
+        assert!(empty.contains("intruder_autopilot: \"\""), "{empty}");
+        // The identities a row of three gives: no two alike, whatever the job's instance.
+        for instance in [0u16, 63] {
+            for px4 in [
+                [false, false, false],
+                [true, true, true],
+                [false, true, false],
+            ] {
+                let ids: std::collections::BTreeSet<u8> = (0..MAX_VEHICLES)
+                    .map(|k| {
+                        let at = instance + k as u16 * INSTANCE_OFFSET;
+                        autopilot_id(px4[k], at, k).system_id
+                    })
+                    .collect();
+                assert_eq!(ids.len(), MAX_VEHICLES, "{instance} {px4:?}");
+            }
+        }
     }
 
     /// 20 rows whose SITL dies at boot: each ends as an error row, and none leaves its session

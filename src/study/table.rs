@@ -1,16 +1,18 @@
 //! A study's results as Parquet (snappy), one row per study row, in manifest order; each
-//! shard one file, written whole or not at all. `obstacles` is a list of structs; the rest is
-//! flat. The file's metadata holds savsim's version and the study's configuration.
+//! shard one file, written whole or not at all. `obstacles`, `approaches` and `vehicles` are
+//! lists of structs; the rest is flat. The file's metadata holds savsim's version and the study's configuration.
 
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow_array::{ArrayRef, Float64Array, RecordBatch, StringArray};
+use arrow_array::{
+    ArrayRef, BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array, UInt8Array,
+};
 use arrow_schema::{DataType, Field, Fields};
 
 use crate::error::Result;
 use crate::runs::table::{counts, floats, strings, struct_lists, Settings};
-use crate::study::result::{FirstToAct, StudyResult};
+use crate::study::result::{StudyResult, VehicleResult};
 
 type Rows<'a> = &'a [StudyResult];
 
@@ -44,6 +46,63 @@ fn obstacles(rows: Rows<'_>) -> ArrayRef {
         children,
         rows.iter().map(|r| r.obstacles.len()),
     )
+}
+
+fn vehicle_fields() -> Fields {
+    let field = |name: &str, kind: DataType, nullable: bool| Field::new(name, kind, nullable);
+    Fields::from(vec![
+        field("role", DataType::Utf8, false),
+        field("system_id", DataType::UInt8, false),
+        field("autopilot", DataType::Utf8, false),
+        field("legs_completed", DataType::UInt64, false),
+        field("plan_completed", DataType::Boolean, false),
+        field("modes", DataType::Utf8, false),
+        field("avoidance_texts", DataType::Utf8, false),
+        field("first_acted_t_s", DataType::Float64, true),
+        field("clock_speedup", DataType::Float64, false),
+        field("clock_skew_s", DataType::Float64, false),
+        field("autopilot_version", DataType::Utf8, true),
+        field("track", DataType::Utf8, true),
+    ])
+}
+
+/// Every vehicle of each row ([`StudyResult::vehicles`]), as a list of structs.
+fn vehicles(rows: Rows<'_>) -> ArrayRef {
+    let each: Vec<Vec<VehicleResult>> = rows.iter().map(StudyResult::vehicles).collect();
+    let all: Vec<&VehicleResult> = each.iter().flatten().collect();
+    let text = |f: fn(&VehicleResult) -> Option<String>| -> ArrayRef {
+        Arc::new(all.iter().map(|v| f(v)).collect::<StringArray>())
+    };
+    let float = |f: fn(&VehicleResult) -> Option<f64>| -> ArrayRef {
+        Arc::new(all.iter().map(|v| f(v)).collect::<Float64Array>())
+    };
+    let children: Vec<ArrayRef> = vec![
+        text(|v| Some(v.role.clone())),
+        Arc::new(
+            all.iter()
+                .map(|v| Some(v.system_id))
+                .collect::<UInt8Array>(),
+        ),
+        text(|v| Some(v.autopilot.clone())),
+        Arc::new(
+            all.iter()
+                .map(|v| Some(v.legs_completed))
+                .collect::<UInt64Array>(),
+        ),
+        Arc::new(
+            all.iter()
+                .map(|v| Some(v.plan_completed))
+                .collect::<BooleanArray>(),
+        ),
+        text(|v| Some(v.did.modes.join(","))),
+        text(|v| Some(v.did.avoidance_texts.join(" | "))),
+        float(|v| v.did.first_acted_t_s),
+        float(|v| Some(v.clock_speedup)),
+        float(|v| Some(v.clock_skew_s)),
+        text(|v| v.did.version.clone()),
+        text(|v| v.track.clone()),
+    ];
+    struct_lists(vehicle_fields(), children, each.iter().map(Vec::len))
 }
 
 /// The inputs' columns.
@@ -100,6 +159,12 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("near_misses", counts(rows, |r| Some(m(r).near_misses))),
         ("closest_obstacle_m", floats(rows, |r| r.closest_obstacle_m)),
         ("obstacles", obstacles(rows)),
+        (
+            "approaches",
+            crate::batch::table::approach_lists(
+                rows.iter().map(|r| r.measured.approaches.as_slice()),
+            ),
+        ),
         ("nmac", bools(rows, |r| m(r).nmac)),
         ("cpa_m", floats(rows, |r| m(r).cpa_m)),
         ("cpa_horizontal_m", floats(rows, |r| m(r).cpa_horizontal_m)),
@@ -171,46 +236,44 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("clock_speedup", floats(rows, |r| r.clock_speedup)),
         (
             "intruder_clock_speedup",
-            floats(rows, |r| r.second.as_ref().map(|s| s.clock_speedup)),
+            floats(rows, |r| r.others.first().map(|s| s.clock_speedup)),
         ),
-        (
-            "first_to_act",
-            strings(rows, |r| r.first_to_act().map(FirstToAct::name)),
-        ),
+        ("first_to_act", strings(rows, StudyResult::first_to_act)),
         (
             "intruder_track",
-            strings(rows, |r| r.second.as_ref().and_then(|s| s.track.clone())),
+            strings(rows, |r| r.others.first().and_then(|s| s.track.clone())),
         ),
         (
             "intruder_legs_completed",
-            counts(rows, |r| r.second.as_ref().map(|s| s.legs_completed)),
+            counts(rows, |r| r.others.first().map(|s| s.legs_completed)),
         ),
         (
             "intruder_plan_completed",
-            crate::runs::table::bools(rows, |r| r.second.as_ref().map(|s| s.plan_completed)),
+            crate::runs::table::bools(rows, |r| r.others.first().map(|s| s.plan_completed)),
         ),
         (
             "intruder_modes",
-            strings(rows, |r| r.second.as_ref().map(|s| s.did.modes.join(","))),
+            strings(rows, |r| r.others.first().map(|s| s.did.modes.join(","))),
         ),
         (
             "intruder_avoidance_texts",
             strings(rows, |r| {
-                r.second.as_ref().map(|s| s.did.avoidance_texts.join(" | "))
+                r.others.first().map(|s| s.did.avoidance_texts.join(" | "))
             }),
         ),
         (
             "intruder_first_acted_t_s",
             floats(rows, |r| {
-                r.second.as_ref().and_then(|s| s.did.first_acted_t_s)
+                r.others.first().and_then(|s| s.did.first_acted_t_s)
             }),
         ),
         (
             "intruder_autopilot_version",
             strings(rows, |r| {
-                r.second.as_ref().and_then(|s| s.did.version.clone())
+                r.others.first().and_then(|s| s.did.version.clone())
             }),
         ),
+        ("vehicles", vehicles(rows)),
         ("sim_s", floats(rows, |r| Some(r.sim_s))),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),
         (

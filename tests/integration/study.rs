@@ -283,7 +283,10 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
          orphan,,takeoff 20,,,,,,takeoff 20,\n\
          secondwho,,takeoff 20,,,,,inav,takeoff 20,\n\
          secondplan,,takeoff 20,,,,,arducopter,takeoff 20; until -1,\n\
-         secondhome,,takeoff 20,,,,,arducopter,takeoff 20,1e9 0\n",
+         secondhome,,takeoff 20,,,,,arducopter,takeoff 20,1e9 0\n\
+         three,,takeoff 20,,,,,arducopter|px4,takeoff 20|takeoff 30,0 50|50 0\n\
+         four,,takeoff 20,,,,,arducopter|px4|px4,takeoff 20,\n\
+         threeplans,,takeoff 20,,,,,arducopter|arducopter,takeoff 20|takeoff 30|land,\n",
     )
     .unwrap();
     let out_dir = dir.path().join("out");
@@ -301,7 +304,7 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(
-        stdout.contains("12 rows: 0 collision, 0 nmac, 0 soft_fail, 0 pass, 12 error"),
+        stdout.contains("15 rows: 0 collision, 0 nmac, 0 soft_fail, 0 pass, 15 error"),
         "{stdout}"
     );
     let errors: std::collections::BTreeMap<String, String> = {
@@ -341,6 +344,10 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
         ("secondwho", "intruder_autopilot: \"inav\""),
         ("secondplan", "intruder_plan: plan leg 2"),
         ("secondhome", "intruder_home"),
+        // Vehicles after the first: one per name, at most three in all.
+        ("three", "no ArduCopter SITL"),
+        ("four", "intruder_autopilot: 3 vehicles after the first"),
+        ("threeplans", "intruder_plan: 3 entries for 2 vehicles"),
     ] {
         let error = errors.get(id).map(String::as_str).unwrap_or_default();
         assert!(error.contains(says), "{id}: {error:?}");
@@ -352,7 +359,7 @@ fn a_study_without_sitl_writes_each_row_with_its_error() {
         .unwrap();
     let json: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
     assert_eq!(json["rows"], 0);
-    assert_eq!(json["outcomes"]["nominal"]["error"], 12);
+    assert_eq!(json["outcomes"]["nominal"]["error"], 15);
     // A finished shard is skipped; an unknown column is an error that names it.
     let again = savsim()
         .args(["study", "--no-netns", "--out"])
@@ -1061,34 +1068,62 @@ fn arducopter_is_told_the_same_adsb_reports_at_speedup_1_and_10() {
 fn result_rows(
     dir: &Path,
 ) -> std::collections::BTreeMap<String, serde_json::Map<String, serde_json::Value>> {
-    use arrow_array::{Array, BooleanArray, Float64Array, StringArray, UInt64Array};
+    use arrow_array::{Array, StringArray};
     let batch = crate::batch::read(&dir.join("part-00000-of-00001.parquet"));
     let mut rows = std::collections::BTreeMap::new();
     let ids = batch.column_by_name("row_id").unwrap();
     let ids = ids.as_any().downcast_ref::<StringArray>().unwrap();
+    let schema = batch.schema();
     for i in 0..batch.num_rows() {
-        let mut row = serde_json::Map::new();
-        for (field, column) in batch.schema().fields().iter().zip(batch.columns()) {
-            if !column.is_valid(i) {
-                continue;
-            }
-            let any = column.as_any();
-            let value = if let Some(a) = any.downcast_ref::<StringArray>() {
-                serde_json::Value::from(a.value(i))
-            } else if let Some(a) = any.downcast_ref::<Float64Array>() {
-                serde_json::Value::from(a.value(i))
-            } else if let Some(a) = any.downcast_ref::<BooleanArray>() {
-                serde_json::Value::from(a.value(i))
-            } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
-                serde_json::Value::from(a.value(i) as f64)
-            } else {
-                continue;
-            };
-            row.insert(field.name().clone(), value);
-        }
+        let fields = schema.fields().iter().map(|f| f.name().clone());
+        let row = json_object(fields.zip(batch.columns()), i);
         rows.insert(ids.value(i).to_string(), row);
     }
     rows
+}
+
+/// Element `i` of named columns as a JSON object: text, numbers, booleans and lists of structs
+/// (as arrays of objects); nulls and other types left out.
+fn json_object<'a>(
+    columns: impl Iterator<Item = (String, &'a arrow_array::ArrayRef)>,
+    i: usize,
+) -> serde_json::Map<String, serde_json::Value> {
+    use arrow_array::{
+        Array, BooleanArray, Float64Array, ListArray, StringArray, StructArray, UInt64Array,
+        UInt8Array,
+    };
+    let mut object = serde_json::Map::new();
+    for (name, column) in columns {
+        if !column.is_valid(i) {
+            continue;
+        }
+        let any = column.as_any();
+        let value = if let Some(a) = any.downcast_ref::<StringArray>() {
+            serde_json::Value::from(a.value(i))
+        } else if let Some(a) = any.downcast_ref::<Float64Array>() {
+            serde_json::Value::from(a.value(i))
+        } else if let Some(a) = any.downcast_ref::<BooleanArray>() {
+            serde_json::Value::from(a.value(i))
+        } else if let Some(a) = any.downcast_ref::<UInt64Array>() {
+            serde_json::Value::from(a.value(i) as f64)
+        } else if let Some(a) = any.downcast_ref::<UInt8Array>() {
+            serde_json::Value::from(f64::from(a.value(i)))
+        } else if let Some(a) = any.downcast_ref::<ListArray>() {
+            let items = a.value(i);
+            let Some(items) = items.as_any().downcast_ref::<StructArray>() else {
+                continue;
+            };
+            let names = items.fields().iter().map(|f| f.name().clone());
+            let children: Vec<_> = names.zip(items.columns().iter()).collect();
+            let objects = (0..items.len())
+                .map(|k| serde_json::Value::Object(json_object(children.iter().cloned(), k)));
+            serde_json::Value::Array(objects.collect())
+        } else {
+            continue;
+        };
+        object.insert(name, value);
+    }
+    object
 }
 
 /// Two ArduCopters in each row (`study gen --equipage none,both`, at `SAVSIM_COOP_SPEEDUP`,
@@ -1224,6 +1259,123 @@ fn arducopter_and_px4_in_one_row_keep_one_clock() {
     );
 }
 
+/// Three ArduCopters in one row at `SAVSIM_TRIO_SPEEDUP` (default 4): the unequipped pair of
+/// seed 3's encounter, and a third vehicle (`intruder_autopilot = arducopter|arducopter`) that
+/// climbs to 80 m 200-300 m behind the first's home and hovers there. The pair flies through
+/// its encounter (an NMAC); the third is mirrored beside them on the row's one timeline: its
+/// own system id (202), its track, its closest approaches to both others (no NMAC: 40 m or more
+/// above them), seen the same from each side; its clock paced to the first's and its skew
+/// within the bound. Needs `SAVSIM_ARDUCOPTER`.
+#[test]
+fn three_arducopters_in_one_row_each_mirrored_on_one_timeline() {
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    coop_manifest(dir.path(), "none");
+    let manifest = dir.path().join("study.csv");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let mut rows = savsim::study::manifest::parse_csv(text.as_bytes()).unwrap();
+    let row = &mut rows[0];
+    // The first's run: `... velocity VE VN 0 S`; the third hovers 25 s of it behind its home.
+    let plan = row.plan.clone().unwrap();
+    let velocity: Vec<f64> = plan
+        .rsplit("velocity")
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .map(|w| w.parse().unwrap())
+        .collect();
+    let home = format!("{:.1} {:.1}", -25.0 * velocity[0], -25.0 * velocity[1]);
+    row.intruder_autopilot = Some("arducopter|arducopter".into());
+    row.intruder_plan = Some(format!(
+        "{}|takeoff 80; until 125",
+        row.intruder_plan.clone().unwrap()
+    ));
+    row.intruder_home = Some(format!("{}|{home}", row.intruder_home.clone().unwrap()));
+    // Ended 10 s after the closest approach drawn (120 s), to fly it in less wall time.
+    row.duration_s = Some(130.0);
+    let file = std::fs::File::create(&manifest).unwrap();
+    savsim::study::manifest::write_csv(&rows, file).unwrap();
+    let out_dir = dir.path().join("out");
+    let speedup = std::env::var("SAVSIM_TRIO_SPEEDUP").unwrap_or_else(|_| "4".into());
+    let run = savsim()
+        .args(["study", "--speedup", &speedup, "--out"])
+        .arg(&out_dir)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert_ran(&run);
+    let rows = result_rows(&out_dir);
+    let row = &rows["coop-encounter-00000-none"];
+    eprintln!("{}", brief(row));
+    assert_eq!(row["outcome"], "nmac", "{}", brief(row));
+    let vehicles = row["vehicles"].as_array().unwrap();
+    let field = |k: usize, name: &str| vehicles[k][name].clone();
+    let roles: Vec<_> = (0..vehicles.len()).map(|k| field(k, "role")).collect();
+    assert_eq!(roles, ["own", "intruder", "intruder3"]);
+    let ids: Vec<f64> = (0..3)
+        .map(|k| field(k, "system_id").as_f64().unwrap())
+        .collect();
+    assert_eq!(ids, [1.0, 201.0, 202.0]);
+    let own_speedup = field(0, "clock_speedup").as_f64().unwrap();
+    let mut largest_skew = 0.0f64;
+    for k in 0..3 {
+        assert!(field(k, "autopilot_version")
+            .as_str()
+            .unwrap()
+            .starts_with("4."));
+        let track = field(k, "track");
+        assert!(
+            track.as_str().unwrap().split(';').count() > 100,
+            "vehicle {k}"
+        );
+        // Paced to the first's clock.
+        let speedup = field(k, "clock_speedup").as_f64().unwrap();
+        assert!(
+            (speedup - own_speedup).abs() < 0.05 * own_speedup,
+            "{speedup}x, {own_speedup}x"
+        );
+        largest_skew = largest_skew.max(field(k, "clock_skew_s").as_f64().unwrap());
+        assert_eq!(
+            field(k, "first_acted_t_s"),
+            serde_json::Value::Null,
+            "vehicle {k}"
+        );
+    }
+    assert_eq!(row["clock_skew_s"].as_f64().unwrap(), largest_skew);
+    assert!(
+        largest_skew <= savsim::study::run::MAX_CLOCK_SKEW_S,
+        "skew {largest_skew} s"
+    );
+    // The third took off and held its place until the row's clock read 125 s.
+    assert_eq!(field(2, "legs_completed"), 2.0);
+    // Each pair's closest approach, seen from each of its two vehicles.
+    let approaches = row["approaches"].as_array().unwrap();
+    let approach = |vehicle: f64, other: f64| {
+        let track = format!("vehicle:{other}");
+        approaches
+            .iter()
+            .find(|a| a["vehicle"] == vehicle && a["track"] == track.as_str())
+            .unwrap_or_else(|| panic!("no approach of {vehicle} to {track}: {approaches:?}"))
+    };
+    for (a, b, nmac) in [
+        (1.0, 201.0, true),
+        (1.0, 202.0, false),
+        (201.0, 202.0, false),
+    ] {
+        let (ab, ba) = (approach(a, b), approach(b, a));
+        assert_eq!(ab["nmac"], nmac, "{ab:?}");
+        assert_eq!(ba["nmac"], nmac, "{ba:?}");
+        let (d_ab, d_ba) = (
+            ab["distance_m"].as_f64().unwrap(),
+            ba["distance_m"].as_f64().unwrap(),
+        );
+        assert!((d_ab - d_ba).abs() < 2.0, "{ab:?} {ba:?}");
+    }
+    assert_eq!(row["first_to_act"], "neither");
+}
+
 /// `study gen --kind encounters` for one pair drawn with `seed`, with `more` of its options,
 /// into `dir`.
 fn encounter_manifest(dir: &Path, seed: &str, more: &[&str]) {
@@ -1243,9 +1395,14 @@ fn coop_manifest(dir: &Path, equipage: &str) {
     encounter_manifest(dir, "3", &["--equipage", equipage]);
 }
 
-/// A result row without its tracks, for a message.
+/// A result row without its tracks (its vehicles' too), for a message.
 fn brief(row: &serde_json::Map<String, serde_json::Value>) -> serde_json::Value {
     let mut row = row.clone();
     row.retain(|k, _| !k.ends_with("track"));
+    if let Some(serde_json::Value::Array(vehicles)) = row.get_mut("vehicles") {
+        for vehicle in vehicles.iter_mut().filter_map(|v| v.as_object_mut()) {
+            vehicle.remove("track");
+        }
+    }
     serde_json::Value::Object(row)
 }
