@@ -244,7 +244,10 @@ fn fill_nearby(
         let near = apart_m <= watch.approach_range_m(own_mps, body_mps) + radii_m;
         let taken =
             near || (sensing && apart_m <= watch.sensing_range_m(own_mps, body_mps) + radii_m);
-        if let Some(body) = predicted(history, who, times).filter(|_| taken) {
+        if !taken {
+            return;
+        }
+        if let Some(body) = predicted(history, who, times) {
             out.push(body);
             approached.push(near);
         }
