@@ -1374,6 +1374,35 @@ fn three_arducopters_in_one_row_each_mirrored_on_one_timeline() {
         assert!((d_ab - d_ba).abs() < 2.0, "{ab:?} {ba:?}");
     }
     assert_eq!(row["first_to_act"], "neither");
+    // docs/study.md's per-pair query, as written there, over this study's results: one row a
+    // pair.
+    if crate::common::have_python_module("duckdb", "SAVSIM_REQUIRE_PYTHON", "pip install duckdb") {
+        let sql = doc_sql("Per pair in DuckDB:");
+        let code = format!(
+            "import duckdb, os\nos.chdir({:?})\n\
+             for r in duckdb.sql({sql:?}).fetchall(): print(r[1], r[2], r[4])",
+            dir.path().display().to_string()
+        );
+        let pairs = crate::common::python_code(&code);
+        assert_eq!(
+            pairs.lines().collect::<Vec<_>>(),
+            [
+                "1 vehicle:201 True",
+                "1 vehicle:202 False",
+                "201 vehicle:202 False"
+            ],
+            "{sql}"
+        );
+    }
+}
+
+/// The SQL block of docs/study.md that comes first after `after`.
+fn doc_sql(after: &str) -> String {
+    let doc = std::fs::read_to_string(crate::common::root().join("docs/study.md")).unwrap();
+    let from = &doc[doc.find(after).expect("the docs' words")..];
+    let start = from.find("```sql\n").expect("an SQL block") + "```sql\n".len();
+    let end = from[start..].find("```").expect("its end");
+    from[start..start + end].to_string()
 }
 
 /// `study gen --kind encounters` for one pair drawn with `seed`, with `more` of its options,
