@@ -142,7 +142,7 @@ pub struct StudyResult {
     pub inputs: StudyRow,
     /// The autopilot flown.
     pub autopilot: String,
-    /// Its MAVLink system id, once its SITL started.
+    /// Its MAVLink system id, once the row's SITLs started.
     pub system_id: Option<u8>,
     /// The speedup asked of SITL.
     pub speedup: f64,
@@ -232,8 +232,8 @@ impl StudyResult {
         }
     }
 
-    /// Every vehicle the row flew, the first and [`Self::others`] (none before the first's SITL
-    /// started).
+    /// Every vehicle the row flew, the first and [`Self::others`] (none when its SITLs did not
+    /// all start).
     pub fn vehicles(&self) -> Vec<VehicleResult> {
         let Some(system_id) = self.system_id else {
             return Vec::new();

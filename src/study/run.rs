@@ -507,7 +507,6 @@ fn fly_row(
     let scene = scene_for(row, &checked, setup)?;
     let own_id = autopilot_id(checked.own.px4, instance, 0);
     let mut session = session_for(row, scene.clone(), checked.feed, own_id)?;
-    result.system_id = Some(own_id.system_id);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -524,6 +523,7 @@ fn fly_row(
         record_to(&mut session, &dir)?;
     }
     let mut vehicles = start_vehicles(&runtime, setup, &checked, (instance, &scene, &dir))?;
+    result.system_id = Some(own_id.system_id);
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
     let collided = Flag::default();
