@@ -1208,28 +1208,10 @@ fn arducopter_and_px4_in_one_row_keep_one_clock() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    coop_manifest(dir.path(), "none");
-    let manifest = dir.path().join("study.csv");
-    let text = std::fs::read_to_string(&manifest).unwrap();
-    let mut rows = savsim::study::manifest::parse_csv(text.as_bytes()).unwrap();
-    rows[0].intruder_autopilot = Some("px4".into());
-    rows[0].intruder_params = Some("MPC_POS_MODE=3".into());
-    // Ended 10 s after the closest approach drawn (120 s), to fly it in less wall time.
-    rows[0].duration_s = Some(130.0);
-    let file = std::fs::File::create(&manifest).unwrap();
-    savsim::study::manifest::write_csv(&rows, file).unwrap();
-    let out_dir = dir.path().join("out");
-    let speedup = std::env::var("SAVSIM_MIXED_SPEEDUP").unwrap_or_else(|_| "2".into());
-    let run = savsim()
-        .args(["study", "--speedup", &speedup, "--out"])
-        .arg(&out_dir)
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    assert_ran(&run);
-    let rows = result_rows(&out_dir);
-    let row = &rows["coop-encounter-00000-none"];
-    eprintln!("{}", brief(row));
+    let row = &fly_short_coop_row(dir.path(), ("SAVSIM_MIXED_SPEEDUP", "2"), |row| {
+        row.intruder_autopilot = Some("px4".into());
+        row.intruder_params = Some("MPC_POS_MODE=3".into());
+    });
     // PX4 SIH now and then never leaves the ground in AUTO.TAKEOFF (1 run in 7 here, none in 40
     // study rows): the encounter is then not flown, and only savsim's part is checked.
     let px4_flew = row["intruder_legs_completed"].as_f64().unwrap() >= 2.0;
@@ -1272,43 +1254,25 @@ fn three_arducopters_in_one_row_each_mirrored_on_one_timeline() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    coop_manifest(dir.path(), "none");
-    let manifest = dir.path().join("study.csv");
-    let text = std::fs::read_to_string(&manifest).unwrap();
-    let mut rows = savsim::study::manifest::parse_csv(text.as_bytes()).unwrap();
-    let row = &mut rows[0];
-    // The first's run: `... velocity VE VN 0 S`; the third hovers 25 s of it behind its home.
-    let plan = row.plan.clone().unwrap();
-    let velocity: Vec<f64> = plan
-        .rsplit("velocity")
-        .next()
-        .unwrap()
-        .split_whitespace()
-        .map(|w| w.parse().unwrap())
-        .collect();
-    let home = format!("{:.1} {:.1}", -25.0 * velocity[0], -25.0 * velocity[1]);
-    row.intruder_autopilot = Some("arducopter|arducopter".into());
-    row.intruder_plan = Some(format!(
-        "{}|takeoff 80; until 125",
-        row.intruder_plan.clone().unwrap()
-    ));
-    row.intruder_home = Some(format!("{}|{home}", row.intruder_home.clone().unwrap()));
-    // Ended 10 s after the closest approach drawn (120 s), to fly it in less wall time.
-    row.duration_s = Some(130.0);
-    let file = std::fs::File::create(&manifest).unwrap();
-    savsim::study::manifest::write_csv(&rows, file).unwrap();
-    let out_dir = dir.path().join("out");
-    let speedup = std::env::var("SAVSIM_TRIO_SPEEDUP").unwrap_or_else(|_| "4".into());
-    let run = savsim()
-        .args(["study", "--speedup", &speedup, "--out"])
-        .arg(&out_dir)
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    assert_ran(&run);
-    let rows = result_rows(&out_dir);
-    let row = &rows["coop-encounter-00000-none"];
-    eprintln!("{}", brief(row));
+    let row = &fly_short_coop_row(dir.path(), ("SAVSIM_TRIO_SPEEDUP", "4"), |row| {
+        // The first's run: `... velocity VE VN 0 S`; the third hovers 25 s of it behind its
+        // home.
+        let plan = row.plan.clone().unwrap();
+        let velocity: Vec<f64> = plan
+            .rsplit("velocity")
+            .next()
+            .unwrap()
+            .split_whitespace()
+            .map(|w| w.parse().unwrap())
+            .collect();
+        let home = format!("{:.1} {:.1}", -25.0 * velocity[0], -25.0 * velocity[1]);
+        row.intruder_autopilot = Some("arducopter|arducopter".into());
+        row.intruder_plan = Some(format!(
+            "{}|takeoff 80; until 125",
+            row.intruder_plan.clone().unwrap()
+        ));
+        row.intruder_home = Some(format!("{}|{home}", row.intruder_home.clone().unwrap()));
+    });
     assert_eq!(row["outcome"], "nmac", "{}", brief(row));
     let vehicles = row["vehicles"].as_array().unwrap();
     let field = |k: usize, name: &str| vehicles[k][name].clone();
@@ -1394,6 +1358,38 @@ fn three_arducopters_in_one_row_each_mirrored_on_one_timeline() {
             "{sql}"
         );
     }
+}
+
+/// Seed 3's unequipped encounter row (`coop_manifest`) changed by `edit`, ended 10 s after its
+/// closest approach drawn (120 s) to fly it in less wall time, flown in `dir` at the speedup
+/// the variable `speedup.0` gives (default `speedup.1`): its result row, printed.
+fn fly_short_coop_row(
+    dir: &Path,
+    speedup: (&str, &str),
+    edit: impl FnOnce(&mut StudyRow),
+) -> serde_json::Map<String, serde_json::Value> {
+    coop_manifest(dir, "none");
+    let manifest = dir.join("study.csv");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let mut rows = savsim::study::manifest::parse_csv(text.as_bytes()).unwrap();
+    edit(&mut rows[0]);
+    rows[0].duration_s = Some(130.0);
+    let file = std::fs::File::create(&manifest).unwrap();
+    savsim::study::manifest::write_csv(&rows, file).unwrap();
+    let out_dir = dir.join("out");
+    let speedup = std::env::var(speedup.0).unwrap_or_else(|_| speedup.1.into());
+    let run = savsim()
+        .args(["study", "--speedup", &speedup, "--out"])
+        .arg(&out_dir)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert_ran(&run);
+    let row = result_rows(&out_dir)
+        .remove("coop-encounter-00000-none")
+        .unwrap();
+    eprintln!("{}", brief(&row));
+    row
 }
 
 /// The SQL block of docs/study.md that comes first after `after`.
