@@ -487,7 +487,8 @@ pub struct FeedArgs {
     #[arg(long, default_value_t = 0)]
     pub feed_sensor_type: u8,
     /// Aircraft farther than this are not sent as ADS-B, metres (ArduCopter's
-    /// ADSB_LIST_RADIUS default; ArduPlane's is 10000).
+    /// ADSB_LIST_RADIUS default; ArduPlane's is 10000): where they are sent at, their truth or a
+    /// modelled receiver's report of them.
     #[arg(long, default_value_t = 2000.0)]
     pub feed_adsb_radius_m: f64,
     /// The vehicle's sensors the feed sends from: `ideal` (exact), or devices: presets with

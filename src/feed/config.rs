@@ -78,8 +78,9 @@ pub struct FeedConfig {
     pub sensor_type: u8,
     /// ADSB_VEHICLE reports per aircraft per second (vehicle's clock).
     pub adsb_hz: f64,
-    /// Aircraft farther than this from the vehicle are not reported as ADS-B, metres. Default
-    /// 2000, ArduCopter's ADSB_LIST_RADIUS (ArduPlane's is 10000).
+    /// Aircraft farther than this from the vehicle are not reported as ADS-B (where they are
+    /// reported at: their truth, or a modelled device's report), metres. Default 2000,
+    /// ArduCopter's ADSB_LIST_RADIUS (ArduPlane's is 10000).
     pub adsb_radius_m: f64,
     /// COLLISION: report aircraft whose closest approach comes within this horizontally,
     /// metres...

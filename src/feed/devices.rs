@@ -26,7 +26,7 @@ use glam::{DQuat, DVec3};
 
 use savsim_core::sensors::device::{Device, Model};
 use savsim_core::sensors::draws::{mix, Draws};
-use savsim_core::sensors::range::{Beam, BeamReading, RangeState};
+use savsim_core::sensors::range::{Beam, BeamReading, BeamTruth, RangeState};
 use savsim_core::sensors::surveillance::{Own, Target, TargetReport, TargetState};
 
 use super::aircraft::{aircraft, body_velocity, has_transponder};
@@ -88,7 +88,7 @@ pub(super) struct Devices {
     /// Scratch: ray directions, hits, truths, readings.
     dirs: Vec<DVec3>,
     hits: Vec<Option<f64>>,
-    truths: Vec<Option<f64>>,
+    truths: Vec<BeamTruth>,
     readings: Vec<BeamReading>,
 }
 
@@ -255,8 +255,8 @@ impl Devices {
         for b in beams.iter() {
             let hits = &self.hits[at..at + b.len()];
             at += b.len();
-            self.truths
-                .push(hits.iter().flatten().copied().min_by(f64::total_cmp));
+            let nearest_m = hits.iter().flatten().copied().min_by(f64::total_cmp);
+            self.truths.push(BeamTruth::along(b, nearest_m));
         }
         self.readings.clear();
         self.readings.resize(beams.len(), BeamReading::NoData);

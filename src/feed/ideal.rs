@@ -112,9 +112,8 @@ impl Feed {
         }
         let period_ms = (1000.0 / cfg.adsb_hz).round().max(1.0) as u32;
         v.next_adsb_ms = Some(f.stamp.wrapping_add(period_ms));
-        let own = f.input.current.position_enu_m;
         for (aircraft, body) in aircraft(f.input) {
-            if (body.current.position_enu_m - own).length() <= cfg.adsb_radius_m {
+            if f.within_adsb_radius(body.current.position_enu_m) {
                 f.push(wire::adsb_vehicle(&aircraft, 0.0));
             }
         }

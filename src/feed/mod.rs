@@ -263,6 +263,7 @@ impl Feed {
             input,
             stamp,
             up_enu: input.plane.up_at(&input.current.position),
+            adsb_radius_m: self.config.adsb_radius_m,
             out,
         };
         let kinds = self.config.kinds;
@@ -304,6 +305,7 @@ impl Feed {
             input,
             stamp,
             up_enu: input.plane.up_at(&input.current.position),
+            adsb_radius_m: self.config.adsb_radius_m,
             out,
         };
         let Some(devices) = self.devices.as_mut() else {
@@ -339,10 +341,19 @@ struct Frame<'i, 'o> {
     stamp: u32,
     /// The local vertical at the vehicle, scene ENU.
     up_enu: DVec3,
+    /// Aircraft sent as ADS-B farther than this from the vehicle are not sent, metres.
+    adsb_radius_m: f64,
     out: &'o mut Vec<FeedMessage>,
 }
 
 impl Frame<'_, '_> {
+    /// The one rule of `--feed-adsb-radius-m`, for the exact feed and modelled devices alike:
+    /// an aircraft is sent as ADS-B only where it is sent at (its truth, or a device's report
+    /// of it) within the radius of the vehicle's position at this frame.
+    fn within_adsb_radius(&self, position_enu_m: DVec3) -> bool {
+        (position_enu_m - self.input.current.position_enu_m).length() <= self.adsb_radius_m
+    }
+
     fn push(&mut self, message: MavMessage) {
         self.out.push(FeedMessage {
             to: self.input.sender,

@@ -101,7 +101,8 @@ pub(super) fn take_arrived(
     }
 }
 
-/// ADSB_VEHICLE of a report, `age_s` after it was made.
+/// ADSB_VEHICLE of a report, `age_s` after it was made, when it puts the aircraft within the
+/// ADS-B radius.
 pub(super) fn send_report(
     f: &mut Frame<'_, '_>,
     r: &TargetReport,
@@ -109,6 +110,9 @@ pub(super) fn send_report(
     kind: Kind,
     age_s: f64,
 ) {
+    if !f.within_adsb_radius(r.position_enu_m) {
+        return;
+    }
     let plane = f.input.plane;
     let mut position = plane.geodetic_from_enu_m(r.position_enu_m);
     position.alt_m = r.altitude_m;

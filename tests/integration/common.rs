@@ -417,3 +417,26 @@ pub fn until_processed(savsim: std::net::SocketAddr, deadline: std::time::Instan
     }
     false
 }
+
+/// The Kolmogorov-Smirnov statistic of `samples` against `cdf`, and its p-value
+/// (Kolmogorov's asymptotic series).
+pub fn ks(mut samples: Vec<f64>, cdf: impl Fn(f64) -> f64) -> (f64, f64) {
+    samples.sort_by(f64::total_cmp);
+    let n = samples.len() as f64;
+    let d = samples
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| {
+            let f = cdf(x);
+            (f - i as f64 / n).max((i + 1) as f64 / n - f)
+        })
+        .fold(0.0, f64::max);
+    let lambda = (n.sqrt() + 0.12 + 0.11 / n.sqrt()) * d;
+    let p: f64 = (1..=100)
+        .map(|j| {
+            let j = j as f64;
+            2.0 * (-1f64).powf(j - 1.0) * (-2.0 * j * j * lambda * lambda).exp()
+        })
+        .sum();
+    (d, p.clamp(0.0, 1.0))
+}

@@ -19,6 +19,11 @@ const ORIGIN: Geodetic = Geodetic::new(-35.363261, 149.165230, 584.0);
 /// A session over `scene` (no terrain) with `--feed LIST` and the ADS-B radius given, a vehicle
 /// heartbeat taken.
 fn fed_session(scene: &str, list: &str, adsb_radius_m: f64) -> Session {
+    fed_session_with(scene, list, adsb_radius_m, "ideal")
+}
+
+/// [`fed_session`] with the vehicles' `sensors` (as `--sensors`).
+fn fed_session_with(scene: &str, list: &str, adsb_radius_m: f64, sensors: &str) -> Session {
     let mut session = Session::new(
         Some(Arc::new(scene_at(ORIGIN, scene))),
         CollisionConfig::default(),
@@ -29,6 +34,7 @@ fn fed_session(scene: &str, list: &str, adsb_radius_m: f64) -> Session {
         .start_feed(FeedConfig {
             kinds: FeedKinds::parse(list).unwrap(),
             adsb_radius_m,
+            sensors: savsim::sensors::suite::Suite::parse(sensors, |_| Err(String::new())).unwrap(),
             ..FeedConfig::default()
         })
         .unwrap();
@@ -169,6 +175,34 @@ fn adsb_heading_and_climb_are_the_aircrafts_own_and_far_aircraft_are_not_sent() 
             .filter(|m| matches!(m, MavMessage::ADSB_VEHICLE(_)))
             .count();
         assert_eq!(adsb, usize::from(heard), "{apart_m} m apart");
+    }
+}
+
+/// `--feed-adsb-radius-m` is one rule whatever the sensors: with a modelled ADS-B receiver
+/// (`adsb-1090es` receives to 20 NM; `ideal-adsb` is exact), a vehicle 3.2 km, 5 NM and 15 NM
+/// off is not sent with the default 2000 m (it was, before), and is sent with a radius past it.
+#[test]
+fn the_adsb_radius_holds_for_modelled_receivers_too() {
+    for sensors in ["ideal-adsb", "adsb-1090es:nacp=10"] {
+        for apart_m in [3200.0, 9260.0, 27780.0] {
+            for (radius_m, heard) in [(2000.0, false), (apart_m + 500.0, true)] {
+                let mut session = fed_session_with("", "adsb", radius_m, sensors);
+                let mut sent = 0;
+                // 20 s at 10 Hz: Appendix Q's reception gets a report through in that time.
+                for t_ms in (1000..21_000).step_by(100) {
+                    hover_at(&mut session, 2, east_of_origin(apart_m, 30.0), t_ms);
+                    sent += hover_at(&mut session, 1, east_of_origin(0.0, 30.0), t_ms)
+                        .iter()
+                        .filter(|m| matches!(m, MavMessage::ADSB_VEHICLE(_)))
+                        .count();
+                }
+                assert_eq!(
+                    sent > 0,
+                    heard,
+                    "{sensors}: {apart_m} m apart, radius {radius_m} m: {sent} sent"
+                );
+            }
+        }
     }
 }
 

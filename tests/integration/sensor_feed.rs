@@ -119,6 +119,19 @@ fn a_lidar_reads_the_wall_with_its_noise_and_a_front_camera_leaves_the_rest_unkn
         // Nothing within 12 m behind: clear (max + 1).
         assert_eq!(d[TAIL], 1201);
     }
+    // A bin is the nearest of its 11 or 12 rays (0.45 degrees apart in 5), each with its own
+    // noise (5 cm at 5 m): short of the wall by the expected least of that many normal draws,
+    // 1.59 to 1.63 sigma (docs/sensors.md).
+    let noses: Vec<f64> = frames
+        .iter()
+        .skip(3)
+        .map(|(_, d)| f64::from(d[NOSE]))
+        .collect();
+    let short_sigmas = (500.0 - noses.iter().sum::<f64>() / noses.len() as f64) / 5.0;
+    assert!(
+        (1.3..=1.9).contains(&short_sigmas),
+        "{short_sigmas} sigma short"
+    );
     // A D435 sees 87 degrees ahead: behind it, unknown (UINT16_MAX). A bin is the nearest of
     // its rays (five across, seven rows), each with the z^2 error (9.4 cm at 5 m): below 5 m
     // by up to four sigma, above by at most one.
@@ -173,12 +186,24 @@ fn bad_sensor_lists_are_clear_errors() {
         ("adsb-1090es:nacp=99", "nacp"),
         ("tfmini:rate_hz", "key=value"),
         ("missing.toml", "missing.toml"),
+        // An array setting is read whole (it was cut at its comma), and checked.
+        ("rplidar-a2:fov_deg=[400,0]", "fov_deg"),
+        // A number from outside is written as a person reads it, not in 301 digits.
+        ("rplidar-a2:rate_hz=1e300", "rate_hz: 1e300: give"),
     ] {
         let err = sensors_for(Some(list), Some(&scene))
             .unwrap_err()
             .to_string();
         assert!(err.contains(says), "{list}: {err}");
+        assert!(err.len() < 300, "{list}: {err}");
     }
+    // An array setting within range is taken, beside another device.
+    let suite = sensors_for(Some("rplidar-a2:fov_deg=[180,0],tfmini-down"), Some(&scene)).unwrap();
+    let savsim::sensors::device::Model::Range(lidar) = &suite.devices()[0].model else {
+        panic!("{suite:?}")
+    };
+    assert_eq!(lidar.fov_deg, [180.0, 0.0]);
+    assert_eq!(suite.devices().len(), 2);
     let out = savsim()
         .args([
             "demo",

@@ -8,61 +8,64 @@ use glam::{DQuat, DVec3};
 use savsim::sensors::device::Model;
 use savsim::sensors::draws::Draws;
 use savsim::sensors::errors::{GaussMarkov, MarkovState};
-use savsim::sensors::range::{BeamReading, RangeState};
+use savsim::sensors::range::{BeamReading, BeamTruth, RangeState};
 use savsim::sensors::spec::DeviceSpec;
 use savsim::sensors::surveillance::{Own, Target, TargetState};
 use statrs::distribution::{ContinuousCDF, Normal};
 
-const N: usize = 100_000;
+use crate::common::ks;
 
-/// The Kolmogorov-Smirnov statistic of `samples` against `cdf`, and its p-value
-/// (Kolmogorov's asymptotic series).
-fn ks(mut samples: Vec<f64>, cdf: impl Fn(f64) -> f64) -> (f64, f64) {
-    samples.sort_by(f64::total_cmp);
-    let n = samples.len() as f64;
-    let d = samples
-        .iter()
-        .enumerate()
-        .map(|(i, &x)| {
-            let f = cdf(x);
-            (f - i as f64 / n).max((i + 1) as f64 / n - f)
-        })
-        .fold(0.0, f64::max);
-    let lambda = (n.sqrt() + 0.12 + 0.11 / n.sqrt()) * d;
-    let p: f64 = (1..=100)
-        .map(|j| {
-            let j = j as f64;
-            2.0 * (-1f64).powf(j - 1.0) * (-2.0 * j * j * lambda * lambda).exp()
-        })
-        .sum();
-    (d, p.clamp(0.0, 1.0))
-}
+const N: usize = 100_000;
 
 fn device(spec: &str) -> savsim::sensors::device::Device {
     toml::from_str::<DeviceSpec>(spec).unwrap().build().unwrap()
 }
 
-#[test]
-fn a_stereo_cameras_depth_error_is_normal_with_the_z_squared_sigma() {
+/// The depths a D435 pixel reads of a flat wall `z` ahead, its ray `off_deg` from the optical
+/// axis, in units of the stereo law's sigma at `z` (z^2 subpixel / (focal baseline), written
+/// here): standard normal when the law is applied to the depth.
+fn d435_depth_errors(z: f64, off_deg: f64) -> Vec<f64> {
     let d = device("preset = \"realsense-d435\"\nquantum_m = 0.0\ninvalid_ray = 0.0");
     let Model::Range(m) = d.model else { panic!() };
     let draws = Draws::new(42);
     let mut state = RangeState::default();
-    let z = 4.0;
-    // z^2 subpixel / (focal baseline), written here.
     let sigma = z * z * 0.08 / (424.0 * 0.05);
+    let cos = off_deg.to_radians().cos();
+    let truth = [BeamTruth {
+        distance_m: Some(z / cos),
+        axial_cos: cos,
+    }];
     let mut out = [BeamReading::NoData];
-    let samples: Vec<f64> = (0..N as u64)
+    (0..N as u64)
         .map(|k| {
-            assert!(m.read(&mut state, &draws, 7, (k, 1.0 / 30.0), &[Some(z)], &mut out));
+            assert!(m.read(&mut state, &draws, 7, (k, 1.0 / 30.0), &truth, &mut out));
             match out[0] {
-                BeamReading::Range(r) => (r - z) / sigma,
+                BeamReading::Range(r) => (r * cos - z) / sigma,
                 other => panic!("{other:?}"),
             }
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn a_stereo_cameras_depth_error_is_normal_with_the_z_squared_sigma() {
     let unit = Normal::new(0.0, 1.0).unwrap();
-    let (stat, p) = ks(samples, |x| unit.cdf(x));
+    let (stat, p) = ks(d435_depth_errors(4.0, 0.0), |x| unit.cdf(x));
+    assert!(p > 0.01, "KS D = {stat}, p = {p}");
+}
+
+/// The stereo law is on the depth along the optical axis (Intel's D400 formula, z): a pixel 40
+/// degrees off the axis, of a wall 5 m ahead (6.53 m along its ray), reads depths with the
+/// sigma z = 5 m gives (0.094 m; 0.123 m along the ray), not with the one of its slant range
+/// (0.161 m along the ray, as it did before).
+#[test]
+fn a_stereo_cameras_error_off_its_axis_is_the_depths_not_the_slant_ranges() {
+    let errors = d435_depth_errors(5.0, 40.0);
+    let n = errors.len() as f64;
+    let sd = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    assert!((sd - 1.0).abs() < 0.01, "depth sigma {sd} of the law's");
+    let unit = Normal::new(0.0, 1.0).unwrap();
+    let (stat, p) = ks(errors, |x| unit.cdf(x));
     assert!(p > 0.01, "KS D = {stat}, p = {p}");
 }
 

@@ -15,8 +15,15 @@ pub struct OutOfRange {
     pub what: String,
 }
 
-/// A number as a person reads it: `1e14`, not fifteen digits.
-fn shown(value: f64) -> String {
+/// A number as a person reads it: `1e14`, not fifteen digits (every error message that quotes a
+/// number from outside writes it so).
+///
+/// ```
+/// use savsim_core::bounds::shown;
+/// assert_eq!(shown(1e300), "1e300");
+/// assert_eq!(shown(2.5), "2.5");
+/// ```
+pub fn shown(value: f64) -> String {
     let a = value.abs();
     if a >= 1e9 || (a > 0.0 && a < 1e-6) {
         format!("{value:e}")

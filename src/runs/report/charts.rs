@@ -97,6 +97,16 @@ fn category(names: &[String], y: f64) -> String {
         .unwrap_or_default()
 }
 
+/// A count axis's label: the count at a whole number, nothing between (an axis from 0 to 2 has
+/// ticks at 0, 0.2, ...: each would read "0", "0", "1", ... once rounded).
+fn whole(x: f64) -> String {
+    if (x - x.round()).abs() < 1e-6 {
+        format!("{:.0}", x.round())
+    } else {
+        String::new()
+    }
+}
+
 /// A chart of one row per category (`names`, from the bottom) along a value axis from 0 to
 /// `x_max`, its caption and its axis drawn: the axis's description and its labels' decimals.
 fn category_chart<'a, 'b>(
@@ -119,7 +129,10 @@ fn category_chart<'a, 'b>(
         .disable_y_mesh()
         .y_labels(n)
         .y_label_formatter(&|y| category(names, *y))
-        .x_label_formatter(&|x| format!("{x:.decimals$}"))
+        .x_label_formatter(&|x| match decimals {
+            0 => whole(*x),
+            _ => format!("{x:.decimals$}"),
+        })
         .x_desc(x_desc)
         .label_style(FONT)
         .draw()
@@ -286,7 +299,7 @@ pub fn convergence(traces: &[Trace]) -> Result<Option<String>> {
                 .configure_mesh()
                 .x_desc("pairs flown")
                 .y_desc("ratio")
-                .x_label_formatter(&|x| format!("{x:.0}"))
+                .x_label_formatter(&|x| whole(*x))
                 .y_labels(4)
                 .label_style(FONT)
                 .draw()
@@ -385,7 +398,7 @@ pub fn histograms(x_desc: &str, series: &[(String, Vec<f64>)]) -> Result<Option<
                 .x_desc(x_desc)
                 .y_desc("rows")
                 .y_labels(4)
-                .y_label_formatter(&|y| format!("{y:.0}"))
+                .y_label_formatter(&|y| whole(*y))
                 .label_style(FONT)
                 .draw()
                 .map_err(failed)?;
@@ -417,6 +430,38 @@ mod tests {
         assert_eq!(counts[0][0], 2);
         assert_eq!(counts[0][9], 2);
         assert_eq!(counts[0].iter().sum::<u64>(), 4);
+    }
+
+    /// The texts of an SVG's `<text>` elements.
+    fn texts(svg: &str) -> Vec<String> {
+        svg.split("<text")
+            .skip(1)
+            .filter_map(|t| t.split_once('>').and_then(|(_, r)| r.split_once("</text>")))
+            .map(|(text, _)| text.trim().to_string())
+            .collect()
+    }
+
+    /// A four-row study's outcomes: the count axis is labelled 0, 1, 2 once each (it read
+    /// "0 0 1 1 2 2" before).
+    #[test]
+    fn a_count_axis_names_each_whole_number_once() {
+        let mut counts = BTreeMap::new();
+        for (variant, outcome, n) in [("nominal", "collision", 2), ("mitigated", "pass", 2)] {
+            counts
+                .entry(variant.to_string())
+                .or_insert_with(BTreeMap::new)
+                .insert(outcome.to_string(), n);
+        }
+        let numbers: Vec<String> = texts(&outcomes(&counts).unwrap())
+            .into_iter()
+            .filter(|t| t.parse::<f64>().is_ok())
+            .collect();
+        let mut unique = numbers.clone();
+        unique.dedup();
+        assert_eq!(numbers, unique, "{numbers:?}");
+        assert!(numbers.contains(&"2".to_string()), "{numbers:?}");
+        assert_eq!(whole(0.4), "");
+        assert_eq!(whole(3.0000000001), "3");
     }
 
     #[test]

@@ -44,8 +44,8 @@ pub fn describe(scene: &Scene) -> String {
         };
         let _ = writeln!(
             out,
-            "  osm {}: {} buildings ({} parts, {} holes); heights: {} from height, {} from levels, {} defaulted ({defaulted:.1}%); {} outlines replaced by their parts, {} kept where their parts leave them ({} slivers left out), {} skipped",
-            o.id, o.buildings, o.parts, o.holes, o.height_from_tag, o.height_from_levels, o.height_defaulted, o.outlines_replaced, o.outlines_trimmed, o.slivers_dropped, o.skipped
+            "  osm {}: {} buildings ({} parts, {} holes, {} more where parts stand); heights: {} from height, {} from levels, {} defaulted ({defaulted:.1}%); {} outlines replaced by their parts, {} kept where their parts leave them ({} slivers left out), {} skipped",
+            o.id, o.buildings, o.parts, o.holes, o.holes_cut_by_parts, o.height_from_tag, o.height_from_levels, o.height_defaulted, o.outlines_replaced, o.outlines_trimmed, o.slivers_dropped, o.skipped
         );
     }
     let _ = writeln!(out, "dynamic obstacles: {}", scene.dynamic.len());

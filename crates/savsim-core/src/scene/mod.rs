@@ -413,8 +413,12 @@ pub struct OsmStats {
     pub buildings: usize,
     /// Of those, `building:part`s.
     pub parts: usize,
-    /// Inner rings (courtyards) kept in them.
+    /// Inner rings (courtyards) of the buildings and parts assembled, as OpenStreetMap draws
+    /// them (libosmium's count).
     pub holes: usize,
+    /// Holes the parts cut in the outlines they leave (where a part stands inside its
+    /// outline): filled by the part, not courtyards.
+    pub holes_cut_by_parts: usize,
     /// Heights from `height`.
     pub height_from_tag: usize,
     /// Heights from `building:levels`.

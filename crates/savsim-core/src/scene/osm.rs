@@ -211,6 +211,12 @@ pub struct Assembly {
     pub outlines_trimmed: usize,
     /// Pieces of trimmed outlines too thin or small to keep (see [`SLIVER_WIDTH_M`]).
     pub slivers_dropped: usize,
+    /// Inner rings of every building and part assembled (what libosmium's assembler counts):
+    /// courtyards drawn in OpenStreetMap.
+    pub inner_rings: usize,
+    /// Holes the parts cut in the outlines they leave: where a part stands wholly inside its
+    /// outline, the outline's piece has a hole the part fills (not a courtyard).
+    pub holes_cut_by_parts: usize,
 }
 
 fn tag<'a>(tags: &'a Tags, key: &str) -> Option<&'a str> {
@@ -325,6 +331,7 @@ pub fn footprints(data: &OsmData) -> (Vec<Footprint>, Assembly) {
             _ => found.broken_relations += 1,
         }
     }
+    found.inner_rings = out.iter().map(|f| f.holes.len()).sum();
     let out = prefer_parts(out, &mut found);
     (out, found)
 }
@@ -343,12 +350,36 @@ fn relation_rings(
             .filter(|m| inner || m.role.is_empty() || m.role == "outer")
             .map(|m| data.ways.get(&m.id).map(|w| w.refs.clone()))
             .collect::<Option<_>>()?;
-        join_rings(ways)?
+        join_rings(cancel_shared_segments(ways))?
             .iter()
             .map(|refs| ring(data, refs))
             .collect()
     };
     Some((of_role(false)?, of_role(true)?))
+}
+
+/// `ways` with every segment two of them share taken out, as libosmium's assembler does (a
+/// segment drawn an even number of times bounds nothing): two rings drawn along a common edge
+/// become one ring around both, so two courtyards that share a side are one hole. What is
+/// left is given as two-node ways for [`join_rings`] to chain; ways that share no segment are
+/// returned as they are.
+fn cancel_shared_segments(ways: Vec<Vec<i64>>) -> Vec<Vec<i64>> {
+    let key = |a: i64, b: i64| (a.min(b), a.max(b));
+    let mut drawn: std::collections::HashMap<(i64, i64), usize> = Default::default();
+    for s in ways.iter().flat_map(|w| w.windows(2)) {
+        *drawn.entry(key(s[0], s[1])).or_default() += 1;
+    }
+    if drawn.values().all(|&n| n == 1) {
+        return ways;
+    }
+    let mut left = Vec::new();
+    for s in ways.iter().flat_map(|w| w.windows(2)) {
+        let n = drawn.get_mut(&key(s[0], s[1])).map(std::mem::take);
+        if s[0] != s[1] && n.is_some_and(|n| n % 2 == 1) {
+            left.push(vec![s[0], s[1]]);
+        }
+    }
+    left
 }
 
 /// Whether `p` is inside the ring (even-odd rule, in the plane of lon and lat).
@@ -412,6 +443,11 @@ fn prefer_parts(footprints: Vec<Footprint>, found: &mut Assembly) -> Vec<Footpri
             out.push(outline);
         } else {
             found.outlines_trimmed += 1;
+            found.holes_cut_by_parts += kept
+                .iter()
+                .flat_map(|piece| piece.interiors())
+                .filter(|hole| !outline.holes.iter().any(|h| same_ring_area(h, hole)))
+                .count();
             out.extend(kept.iter().enumerate().map(|(k, piece)| Footprint {
                 id: if k == 0 {
                     outline.id.clone()
@@ -427,6 +463,19 @@ fn prefer_parts(footprints: Vec<Footprint>, found: &mut Assembly) -> Vec<Footpri
     }
     out.extend(parts);
     out
+}
+
+/// Whether a piece's hole is one of its outline's own courtyards (the same area, in the plane
+/// of lon and lat, within a millionth): the boolean operations may start a ring elsewhere.
+fn same_ring_area(courtyard: &[[f64; 2]], hole: &geo::LineString) -> bool {
+    use geo::Area;
+    let a = geo::Polygon::new(
+        geo::LineString::from(courtyard.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>()),
+        Vec::new(),
+    )
+    .unsigned_area();
+    let b = geo::Polygon::new(hole.clone(), Vec::new()).unsigned_area();
+    (a - b).abs() <= 1e-6 * a.max(b)
 }
 
 /// An outline's piece is a sliver below this mean width (2 x area / perimeter), metres.
@@ -626,7 +675,13 @@ mod tests {
     #[test]
     fn a_multipolygon_of_two_outer_ways_and_a_hole_is_one_footprint_with_its_hole() {
         let (f, found) = footprints(&data(SQUARE));
-        assert_eq!(found, Assembly::default());
+        assert_eq!(
+            found,
+            Assembly {
+                inner_rings: 1,
+                ..Assembly::default()
+            }
+        );
         assert_eq!(f.len(), 1);
         assert_eq!(f[0].id, "relation/20");
         assert_eq!(f[0].outer.len(), 4);
@@ -708,6 +763,51 @@ mod tests {
         );
         assert_eq!(f[0].holes.len(), 1);
         assert_eq!((found.outlines_replaced, found.outlines_trimmed), (0, 0));
+    }
+
+    /// Two courtyards drawn along a common side (Monaco's relation 11384697, two pitches in a
+    /// garden) are one hole around both, as libosmium assembles them (it was two holes).
+    #[test]
+    fn two_inner_rings_sharing_a_side_are_one_hole() {
+        let two = SQUARE
+            .replace(
+                r#"<node id="8" lat="0.0006" lon="0.0004"/>"#,
+                r#"<node id="8" lat="0.0006" lon="0.0004"/><node id="9" lat="0.0004" lon="0.0008"/><node id="15" lat="0.0006" lon="0.0008"/>"#,
+            )
+            .replace(
+                r#"<way id="12">"#,
+                r#"<way id="16"><nd ref="6"/><nd ref="9"/><nd ref="15"/><nd ref="7"/><nd ref="6"/></way><way id="12">"#,
+            )
+            .replace(
+                r#"<member type="way" ref="12" role="inner"/>"#,
+                r#"<member type="way" ref="12" role="inner"/><member type="way" ref="16" role="inner"/>"#,
+            );
+        let (f, found) = footprints(&data(&two));
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].holes.len(), 1, "{:?}", f[0].holes);
+        assert_eq!(f[0].holes[0].len(), 6);
+        assert!((area(&f[0].holes[0]) - 0.08e-6).abs() < 1e-15);
+        assert_eq!(found.inner_rings, 1);
+    }
+
+    /// A part standing wholly inside its outline (Monaco's Tour Odeon, way 627772921, tagged
+    /// both) leaves the outline's piece with a hole the part fills: counted as cut by the part,
+    /// not as a courtyard (libosmium's inner rings: none).
+    #[test]
+    fn a_hole_a_part_cuts_is_not_a_courtyard() {
+        let part = r#"<node id="50" lat="0.0004" lon="0.0004"/><node id="51" lat="0.0004" lon="0.0006"/>
+          <node id="52" lat="0.0006" lon="0.0006"/><node id="53" lat="0.0006" lon="0.0004"/>
+          <way id="31"><nd ref="50"/><nd ref="51"/><nd ref="52"/><nd ref="53"/><nd ref="50"/><tag k="building:part" v="yes"/></way>"#;
+        let (f, found) = footprints(&data(&outline_with(part)));
+        assert_eq!(f[0].holes.len(), 1);
+        assert_eq!((found.inner_rings, found.holes_cut_by_parts), (0, 1));
+        // A courtyard the outline keeps is not counted as cut.
+        let (_, found) = footprints(&data(&SQUARE.replace(
+            "<relation",
+            r#"<node id="60" lat="0.0001" lon="0.0001"/><node id="61" lat="0.0001" lon="0.0002"/><node id="62" lat="0.0002" lon="0.0002"/>
+               <way id="13"><nd ref="60"/><nd ref="61"/><nd ref="62"/><nd ref="60"/><tag k="building:part" v="yes"/></way><relation"#,
+        )));
+        assert_eq!((found.inner_rings, found.holes_cut_by_parts), (1, 1));
     }
 
     #[test]

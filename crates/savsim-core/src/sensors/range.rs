@@ -42,6 +42,32 @@ pub struct RangeState {
     burst_instant: Option<u64>,
 }
 
+/// What is true along one beam: the nearest return's distance (`None`: nothing within range)
+/// and the cosine of the beam's angle from the device's boresight (a stereo camera's error is
+/// on the depth along its optical axis, not on the slant range).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeamTruth {
+    /// The nearest return along the beam, metres.
+    pub distance_m: Option<f64>,
+    /// The cosine of the beam's angle from the boresight (1 along it).
+    pub axial_cos: f64,
+}
+
+impl BeamTruth {
+    /// The truth along `beam` (its first ray is its centre, in the device's frame, x along the
+    /// boresight) at `distance_m`.
+    pub fn along(beam: &Beam, distance_m: Option<f64>) -> Self {
+        BeamTruth {
+            distance_m,
+            axial_cos: beam.first().map_or(1.0, |d| d.x),
+        }
+    }
+}
+
+/// The least cosine a stereo error is carried back to the slant range with: a beam 89.9
+/// degrees off a camera's axis (no stereo camera sees so wide).
+const MIN_AXIAL_COS: f64 = 1e-3;
+
 /// A beam: the rays cast for it (one, or a single beam's centre and edge) in the device's frame
 /// (x along its boresight, y to its right, z down), unit vectors.
 pub type Beam = smallvec::SmallVec<[DVec3; 5]>;
@@ -100,14 +126,31 @@ impl RangeModel {
         beam
     }
 
-    /// The noise's standard deviation at true distance `d_m`, metres.
-    pub fn sigma_at(&self, d_m: f64) -> f64 {
-        self.sigma_m + self.proportional * d_m + self.stereo.map_or(0.0, |s| s.sigma_m(d_m))
+    /// The noise's standard deviation on the range, metres, at true distance `d_m` along a beam
+    /// at `axial_cos` to the boresight: the constant and proportional terms on the range; a
+    /// stereo camera's on the depth `z = d axial_cos`, carried back along the beam
+    /// (`sigma_z(z) / axial_cos`), so that the depth a pixel reads has the stereo law's sigma.
+    ///
+    /// ```
+    /// use savsim_core::sensors::spec::DeviceSpec;
+    /// use savsim_core::sensors::device::Model;
+    /// let spec = DeviceSpec { preset: Some("realsense-d435".into()), ..DeviceSpec::default() };
+    /// let Model::Range(d435) = spec.build().unwrap().model else { panic!() };
+    /// // A wall 5 m ahead: along the axis, and 40 degrees off it (6.53 m along the ray).
+    /// let c = 40f64.to_radians().cos();
+    /// let on_axis = d435.sigma_at(5.0, 1.0);
+    /// assert!((d435.sigma_at(5.0 / c, c) * c - on_axis).abs() < 1e-12);
+    /// ```
+    pub fn sigma_at(&self, d_m: f64, axial_cos: f64) -> f64 {
+        let stereo = self.stereo.map_or(0.0, |s| {
+            let c = axial_cos.max(MIN_AXIAL_COS);
+            s.sigma_m(d_m * c) / c
+        });
+        self.sigma_m + self.proportional * d_m + stereo
     }
 
     /// The reading at the device's instant `k` (instants `dt_s` apart from the start of the
-    /// vehicle's clock) from the true distance of each beam (`None`: nothing within range),
-    /// written to `out`. Draws are keyed by `key` (the run, vehicle and device), the channel,
+    /// vehicle's clock) from what is true along each beam, written to `out`. Draws are keyed by `key` (the run, vehicle and device), the channel,
     /// the beam and `k`: the readings do not depend on when they were asked. False when the
     /// whole reading is lost (then `out` holds `NoData`).
     pub fn read(
@@ -116,7 +159,7 @@ impl RangeModel {
         draws: &Draws,
         key: u64,
         (k, dt_s): (u64, f64),
-        truths: &[Option<f64>],
+        truths: &[BeamTruth],
         out: &mut [BeamReading],
     ) -> bool {
         let stream = |channel: Channel, beam: u64| mix(mix(key, channel as u64), beam);
@@ -144,19 +187,20 @@ impl RangeModel {
                 *reading = BeamReading::NoData;
                 continue;
             }
-            let truth = if self.false_return > 0.0
+            let distance_m = if self.false_return > 0.0
                 && draws.uniform(stream(Channel::False, j), k) < self.false_return
             {
                 Some(near_m + (far_m - near_m) * draws.uniform(stream(Channel::FalseRange, j), k))
             } else {
-                *truth
+                truth.distance_m
             };
-            *reading = match truth {
+            *reading = match distance_m {
                 None => BeamReading::Clear,
                 Some(d) if d < near_m => BeamReading::NoData,
                 Some(d) if d > far_m => BeamReading::Clear,
                 Some(d) => {
-                    let noise = self.sigma_at(d) * draws.normal(stream(Channel::Noise, j), k);
+                    let sigma_m = self.sigma_at(d, truth.axial_cos);
+                    let noise = sigma_m * draws.normal(stream(Channel::Noise, j), k);
                     let measured = quantise(d + common + noise, self.quantum_m);
                     if measured < near_m {
                         BeamReading::NoData

@@ -18,6 +18,7 @@
 
 use serde::Deserialize;
 
+use crate::bounds::shown;
 use crate::sensors::device::{
     nacp_bound95_m, nacv_bound95_mps, AdsbModel, Burst, Device, EoIrModel, Model, Mount,
     RadarModel, RangeModel, Reception, Stereo,
@@ -252,7 +253,10 @@ impl DeviceSpec {
         if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1000.0) {
             return Err(check.err(
                 "rate_hz",
-                format!("{rate_hz}: give more than 0 and at most 1000 per second"),
+                format!(
+                    "{}: give more than 0 and at most 1000 per second",
+                    shown(rate_hz)
+                ),
             ));
         }
         let latency_s = check.number("latency_s", s.latency_s.unwrap_or(0.0), 0.0, 60.0)?;
@@ -291,7 +295,10 @@ impl Check<'_> {
         if v.is_finite() && (lo..=hi).contains(&v) {
             Ok(v)
         } else {
-            Err(self.err(field, format!("{v}: give a number from {lo} to {hi}")))
+            Err(self.err(
+                field,
+                format!("{}: give a number from {lo} to {hi}", shown(v)),
+            ))
         }
     }
 

@@ -88,8 +88,8 @@ impl Suite {
         text: &str,
         read: impl Fn(&str) -> Result<String, String>,
     ) -> Result<Suite, SuiteError> {
-        let items: Vec<&str> = text
-            .split(',')
+        let items: Vec<&str> = split_outside(text, ',')
+            .into_iter()
             .map(str::trim)
             .filter(|s| !s.is_empty())
             .collect();
@@ -149,9 +149,40 @@ impl Suite {
     }
 }
 
+/// `text` cut at each `sep` outside a TOML array (`[...]`) and a quoted string, so that a
+/// setting may hold an array (`fov_deg=[360,30]`) or a string with the separator in it.
+///
+/// ```
+/// # use savsim_core::sensors::suite::split_outside;
+/// assert_eq!(
+///     split_outside("rplidar-a2:fov_deg=[360,0],tfmini", ','),
+///     ["rplidar-a2:fov_deg=[360,0]", "tfmini"]
+/// );
+/// assert_eq!(split_outside("a:name=\"x:y\":rate_hz=5", ':'), ["a", "name=\"x:y\"", "rate_hz=5"]);
+/// ```
+pub fn split_outside(text: &str, sep: char) -> Vec<&str> {
+    let (mut out, mut start, mut depth, mut quoted) = (Vec::new(), 0, 0usize, None);
+    for (i, c) in text.char_indices() {
+        match (c, quoted) {
+            ('"' | '\'', None) => quoted = Some(c),
+            (q, Some(open)) if q == open => quoted = None,
+            (_, Some(_)) => {}
+            ('[', None) => depth += 1,
+            (']', None) => depth = depth.saturating_sub(1),
+            (c, None) if c == sep && depth == 0 => {
+                out.push(&text[start..i]);
+                start = i + c.len_utf8();
+            }
+            _ => {}
+        }
+    }
+    out.push(&text[start..]);
+    out
+}
+
 /// `preset[:key=value...]` as a spec: the preset, and each setting as that TOML field.
 fn item_spec(item: &str) -> Result<DeviceSpec, SuiteError> {
-    let mut parts = item.split(':');
+    let mut parts = split_outside(item, ':').into_iter();
     let preset = parts.next().unwrap_or_default().trim();
     let mut table = toml::Table::new();
     table.insert("preset".into(), toml::Value::String(preset.into()));

@@ -217,6 +217,8 @@ pub(crate) fn osm(
             outlines_replaced: found.outlines_replaced,
             outlines_trimmed: found.outlines_trimmed,
             slivers_dropped: found.slivers_dropped,
+            holes: found.inner_rings,
+            holes_cut_by_parts: found.holes_cut_by_parts,
             skipped: found.open_ways + found.broken_relations,
             ..OsmStats::default()
         };
@@ -247,7 +249,6 @@ pub(crate) fn osm(
             });
             stats.buildings += 1;
             stats.parts += usize::from(f.part);
-            stats.holes += f.holes.len();
             match source {
                 osm::HeightSource::Height => stats.height_from_tag += 1,
                 osm::HeightSource::Levels => stats.height_from_levels += 1,
