@@ -26,7 +26,14 @@ For each: gen, (edit), fly (`savsim study MANIFEST --out DIR/out --speedup S --j
 
 `--n 3` is a smoke test. `--study adsb` or `--study prox` runs one. A study whose results
 already exist is not flown again (savsim skips shards whose file exists) unless `--force`.
-Each step's command and wall time are printed and written to DIR/commands.txt.
+Each step's command and wall time are printed and written to DIR/commands.txt. `--keep-work`
+keeps each row's folder (its `feed.tlog`: scripts/adsb_first_errors.py reads it).
+
+A row's sensor errors are drawn with a seed made from its `seed` column and its pair
+(docs/sensors.md, "What a seed means"). `--adsb-base-seeds 1,2,3,4` flies the ADS-B study's
+NACp 6 rows again under each of those base seeds (its `seed` column rewritten, the variant
+named `... seed S`), into DIR/adsb/seed-S/, and summarizes them with the study's own rows
+(DIR/adsb/summary_seeds.*): how much the error draw alone moves the NACp 6 ratio.
 """
 
 import argparse
@@ -117,10 +124,24 @@ def study(name, a, env):
             f.write(f"# {edited}: {n} mitigated rows' {AVD_DEFAULT} -> {AVD_300}\n")
         manifest = edited
     out = os.path.join(d, "out")
+    wall = fly(a, env, manifest, out, log)
+    summarize(a, out, d, "summary", log)
+    png = os.path.join(a.charts, "sensors_adsb.png" if name == "adsb" else "sensors_proximity.png")
+    kind = "adsb" if name == "adsb" else "proximity"
+    run([sys.executable, CHART, "--kind", kind, os.path.join(d, "summary.json"), out, png], log)
+    if name == "adsb" and a.adsb_base_seeds:
+        wall += base_seeds(a, env, d, manifest, log)
+    return wall
+
+
+def fly(a, env, manifest, out, log):
+    """`savsim study MANIFEST --out OUT`; its wall time."""
     fly = [a.savsim, "study", manifest, "--out", out, "--speedup", str(a.speedup), "--jobs",
            str(a.jobs)]
     if a.force:
         fly.append("--force")
+    if a.keep_work:
+        fly.append("--keep-work")
     subprocess_env = dict(os.environ, **env)
     print(f"$ SAVSIM_ARDUCOPTER={env['SAVSIM_ARDUCOPTER']} "
           f"SAVSIM_ARDUCOPTER_DEFAULTS={env['SAVSIM_ARDUCOPTER_DEFAULTS']} \\", flush=True)
@@ -134,15 +155,56 @@ def study(name, a, env):
         f.write(f"SAVSIM_ARDUCOPTER={env['SAVSIM_ARDUCOPTER']} "
                 f"SAVSIM_ARDUCOPTER_DEFAULTS={env['SAVSIM_ARDUCOPTER_DEFAULTS']} {line}\n"
                 f"# wall {wall:.1f} s\n")
-    summary = os.path.join(d, "summary.json")
-    run([a.savsim, "study", "summarize", out, "--json"], log, stdout=summary)
-    run([a.savsim, "study", "summarize", out], log, stdout=os.path.join(d, "summary.txt"))
-    with open(os.path.join(d, "summary.txt")) as f:
-        print(f.read(), flush=True)
-    png = os.path.join(a.charts, "sensors_adsb.png" if name == "adsb" else "sensors_proximity.png")
-    kind = "adsb" if name == "adsb" else "proximity"
-    run([sys.executable, CHART, "--kind", kind, summary, out, png], log)
     return wall
+
+
+def summarize(a, out, d, name, log):
+    """`savsim study summarize OUT` as JSON and text, into D/NAME.json and D/NAME.txt."""
+    run([a.savsim, "study", "summarize", out, "--json"], log,
+        stdout=os.path.join(d, name + ".json"))
+    run([a.savsim, "study", "summarize", out], log, stdout=os.path.join(d, name + ".txt"))
+    with open(os.path.join(d, name + ".txt")) as f:
+        print(f.read(), flush=True)
+
+
+def base_seeds(a, env, d, manifest, log):
+    """The NACp 6 rows of `manifest` flown under each of `--adsb-base-seeds`, then summarized
+    with the study's own rows (their shards linked into D/all-seeds/)."""
+    with open(manifest, newline="") as f:
+        reader = csv.DictReader(f)
+        fields = reader.fieldnames
+        rows = [r for r in reader if "adsb-nacp6" in (r.get("variant") or "")]
+    combined = os.path.join(d, "all-seeds")
+    os.makedirs(combined, exist_ok=True)
+    link(os.path.join(d, "out"), combined, "study")
+    wall = 0.0
+    for seed in a.adsb_base_seeds.split(","):
+        seed = seed.strip()
+        sd = os.path.join(d, f"seed-{seed}")
+        os.makedirs(sd, exist_ok=True)
+        edited = os.path.join(sd, "study.csv")
+        with open(edited, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields, lineterminator="\n")
+            w.writeheader()
+            for r in rows:
+                w.writerow(dict(r, seed=seed, id=f"{r['id']}-seed{seed}",
+                                variant=f"{r['variant']} seed {seed}"))
+        with open(log, "a") as f:
+            f.write(f"# {edited}: the NACp 6 rows with seed {seed}\n")
+        out = os.path.join(sd, "out")
+        wall += fly(a, env, edited, out, log)
+        link(out, combined, f"seed{seed}")
+    summarize(a, combined, d, "summary_seeds", log)
+    return wall
+
+
+def link(results, combined, prefix):
+    """Each Parquet shard of `results` linked into `combined` as PREFIX-<name>."""
+    for name in sorted(os.listdir(results)):
+        if name.endswith(".parquet"):
+            target = os.path.join(combined, f"{prefix}-{name}")
+            if not os.path.lexists(target):
+                os.symlink(os.path.abspath(os.path.join(results, name)), target)
 
 
 def main():
@@ -163,6 +225,10 @@ def main():
     ap.add_argument("--arducopter", default=os.environ.get("SAVSIM_ARDUCOPTER"))
     ap.add_argument("--defaults", default=os.environ.get("SAVSIM_ARDUCOPTER_DEFAULTS"))
     ap.add_argument("--force", action="store_true", help="fly shards whose results exist")
+    ap.add_argument("--keep-work", action="store_true",
+                    help="keep each row's folder (its feed.tlog)")
+    ap.add_argument("--adsb-base-seeds", default="",
+                    help="fly the NACp 6 rows again under these base seeds (comma-separated)")
     a = ap.parse_args()
     if not a.arducopter or not a.defaults:
         sys.exit("give --arducopter and --defaults (or SAVSIM_ARDUCOPTER, "

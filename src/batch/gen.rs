@@ -152,6 +152,7 @@ pub fn encounters(options: &GenOptions) -> Result<Vec<Run>> {
                 expect_nmac: Some(
                     horizontal_m < NMAC_HORIZONTAL_M && vertical_m.abs() < NMAC_VERTICAL_M,
                 ),
+                seed: Some(options.seed),
                 ..Run::default()
             }
         })

@@ -135,6 +135,7 @@ pub fn encounters(options: &GenOptions, model: &Model) -> Result<Vec<Run>> {
                 vmd_at_tca_m: Some(vmd_m),
                 pair: Some(format!("enc-{i:06}")),
                 w: Some(1.0),
+                seed: Some(options.seed),
                 ..Run::default()
             })
         })

@@ -145,6 +145,7 @@ pub fn encounters(
                 vmd_at_tca_m: Some(p.vmd_m),
                 pair: Some(format!("enc-{i:06}")),
                 w: Some(p.w),
+                seed: Some(options.seed),
                 ..Run::default()
             })
         })

@@ -78,19 +78,44 @@ pub struct Run {
     /// The ownship's surveillance (and navigation) devices, as `--sensors`: its DAA system
     /// alerts on the intruders as they report them (with `daa_conf`).
     pub sensors: Option<String>,
-    /// The seed of the sensors' errors (default 1).
+    /// The seed of the sensors' errors (default: made from `seed` and the row's `pair`, else
+    /// its id: [`crate::runs::seeds`]).
     pub sensor_seed: Option<u64>,
     /// A DAIDALUS configuration (`.conf`): the alert levels raised on the sensed states
     /// (`sensors`; exact states without).
     pub daa_conf: Option<String>,
     /// Write the sensed states here as a DAIDALUS state file (with `daa_conf`).
     pub sensed_daa: Option<String>,
+    /// A generator's seed, carried to the results; the base the row's sensor errors are drawn
+    /// from when it has no `sensor_seed` (default 1).
+    pub seed: Option<u64>,
 }
 
 impl Run {
     /// The run's id: its own, or `run-<index>`.
     pub fn id_or(&self, index: usize) -> String {
         self.id.clone().unwrap_or_else(|| format!("run-{index}"))
+    }
+
+    /// The encounter the run is a variant of: its `pair`, else its id.
+    pub fn pair_or(&self, index: usize) -> String {
+        self.pair.clone().unwrap_or_else(|| self.id_or(index))
+    }
+
+    /// The seed of the run's sensor errors: its `sensor_seed`, else one made from its `seed`
+    /// and its encounter ([`crate::runs::seeds`]).
+    ///
+    /// ```
+    /// use savsim::batch::manifest::Run;
+    /// let run = |id: &str, pair: Option<&str>| Run {
+    ///     id: Some(id.into()), pair: pair.map(Into::into), ..Run::default()
+    /// };
+    /// // Two variants of pair p share one; runs without a pair draw by their ids.
+    /// assert_eq!(run("a", Some("p")).sensor_seed_or(0), run("b", Some("p")).sensor_seed_or(1));
+    /// assert_ne!(run("a", None).sensor_seed_or(0), run("b", None).sensor_seed_or(1));
+    /// ```
+    pub fn sensor_seed_or(&self, index: usize) -> u64 {
+        crate::runs::seeds::sensor_seed(self.sensor_seed, self.seed, &self.pair_or(index))
     }
 
     /// The same run with its file paths made relative to `base` (a manifest's directory).

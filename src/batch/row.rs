@@ -42,6 +42,8 @@ pub struct RunRow {
     pub kind: String,
     /// The run as the manifest gave it (paths anchored to the manifest's directory).
     pub inputs: Run,
+    /// The seed its sensor errors were drawn with ([`Run::sensor_seed_or`]).
+    pub sensor_seed: u64,
     /// Collision mode, resolved (`exact` when the row names none).
     pub mode: String,
     /// Why the run failed (then the results below are empty).
@@ -128,6 +130,7 @@ impl RunRow {
             run_id: run.id_or(index),
             kind: kind.into(),
             inputs: run.clone(),
+            sensor_seed: run.sensor_seed_or(index),
             mode: mode.into(),
             error: None,
             ticks: 0,

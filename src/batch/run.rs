@@ -202,7 +202,7 @@ fn fly_encounter(
     encounter: &Encounter,
     row: &mut RunRow,
 ) -> Result<(), RowError> {
-    let mut sensed = sensed_daa(run, scene)?;
+    let mut sensed = sensed_daa(run, row.sensor_seed, scene)?;
     let flown = encounter::fly(scene, pipeline, encounter, &mut sensed);
     row.record_run(
         flown.pipeline.totals(),
@@ -223,8 +223,8 @@ fn fly_encounter(
 }
 
 /// The row's DAA system on sensed states, when it names a `daa_conf`: its devices (`ideal`:
-/// exact ADS-B), seeded by `sensor_seed`.
-fn sensed_daa(run: &Run, scene: &Scene) -> Result<encounter::Sensed, RowError> {
+/// exact ADS-B), their errors drawn with `sensor_seed`.
+fn sensed_daa(run: &Run, sensor_seed: u64, scene: &Scene) -> Result<encounter::Sensed, RowError> {
     let Some(conf) = run.daa_conf.as_deref().filter(|c| !c.is_empty()) else {
         return Ok(None);
     };
@@ -247,7 +247,7 @@ fn sensed_daa(run: &Run, scene: &Scene) -> Result<encounter::Sensed, RowError> {
     Ok(Some(crate::batch::sensed::SensedDaa::new(
         config,
         &devices,
-        run.sensor_seed.unwrap_or(1),
+        sensor_seed,
         run.sensed_daa.is_some(),
     )))
 }

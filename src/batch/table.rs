@@ -102,6 +102,7 @@ fn input_columns(rows: &[RunRow]) -> Columns {
         ("pair", strings(rows, |r| r.inputs.pair.as_deref())),
         ("w", floats(rows, |r| r.inputs.w)),
         ("expect_nmac", bools(rows, |r| r.inputs.expect_nmac)),
+        ("seed", counts(rows, |r| r.inputs.seed)),
     ]
 }
 
@@ -162,7 +163,7 @@ fn result_columns(rows: &[RunRow]) -> Columns {
 fn sensed_columns(rows: &[RunRow]) -> Columns {
     vec![
         ("sensors", strings(rows, |r| r.inputs.sensors.as_deref())),
-        ("sensor_seed", counts(rows, |r| r.inputs.sensor_seed)),
+        ("sensor_seed", counts(rows, |r| Some(r.sensor_seed))),
         ("daa_conf", strings(rows, |r| r.inputs.daa_conf.as_deref())),
         (
             "alert_max_level",

@@ -10,12 +10,14 @@
 //! - [`summary`]: outcome counts, rates and risk ratios per variant, as text and JSON.
 //! - [`report`]: the same as one self-contained HTML page with charts and the rows.
 //! - [`recordings`]: which rows are kept as rerun recordings (`--rerun-rows`).
+//! - [`seeds`]: the seed a row's sensor errors are drawn with.
 //! - [`waypoints`]: tracks written as text, `t_s e_m n_m u_m; ...`.
 
 pub mod manifest;
 pub mod recordings;
 pub mod report;
 pub mod scenes;
+pub mod seeds;
 pub mod shard;
 pub mod summary;
 pub mod table;

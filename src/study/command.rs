@@ -286,10 +286,8 @@ impl Study<'_> {
 
 /// How many pairs the rows at `indexes` fly.
 fn distinct_pairs(rows: &[manifest::StudyRow], indexes: &[usize]) -> usize {
-    let pairs: std::collections::HashSet<String> = indexes
-        .iter()
-        .map(|&i| rows[i].pair.clone().unwrap_or_else(|| rows[i].id_or(i)))
-        .collect();
+    let pairs: std::collections::HashSet<String> =
+        indexes.iter().map(|&i| rows[i].pair_or(i)).collect();
     pairs.len()
 }
 

@@ -37,7 +37,7 @@ pub fn rounds(rows: &[StudyRow], pairs_per_round: usize) -> Vec<Vec<usize>> {
     let mut round_of: HashMap<String, usize> = HashMap::new();
     let mut out: Vec<Vec<usize>> = Vec::new();
     for (index, row) in rows.iter().enumerate() {
-        let pair = row.pair.clone().unwrap_or_else(|| row.id_or(index));
+        let pair = row.pair_or(index);
         let next = round_of.len() / pairs_per_round.max(1);
         let round = *round_of.entry(pair).or_insert(next);
         if round == out.len() {

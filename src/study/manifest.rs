@@ -37,7 +37,8 @@ pub struct StudyRow {
     /// The vehicle's sensors the feed sends from, as `--sensors` (`ideal` by default, or the
     /// scene's `[[sensor]]` tables).
     pub sensors: Option<String>,
-    /// The seed of the sensors' errors (default: `seed`, else 1).
+    /// The seed of the sensors' errors (default: made from `seed` and the row's `pair`, else
+    /// its id: [`crate::runs::seeds`]).
     pub sensor_seed: Option<u64>,
     /// The flight plan (`study::plan`).
     pub plan: Option<String>,
@@ -50,7 +51,8 @@ pub struct StudyRow {
     pub duration_s: Option<f64>,
     /// The SITL speedup (default: `--speedup`, else 1).
     pub speedup: Option<f64>,
-    /// Carried to the results (a generator's seed).
+    /// A generator's seed, carried to the results; the base the row's sensor errors are drawn
+    /// from when it has no `sensor_seed` (default 1).
     pub seed: Option<u64>,
     /// Fly the row this many times (default 1), as `ID#0`, `ID#1`, ...
     pub repeat: Option<u32>,
@@ -78,6 +80,30 @@ impl StudyRow {
     /// The row's id: its own, or `row-<index>`.
     pub fn id_or(&self, index: usize) -> String {
         self.id.clone().unwrap_or_else(|| format!("row-{index}"))
+    }
+
+    /// The encounter the row is a variant of: its `pair`, else its id.
+    pub fn pair_or(&self, index: usize) -> String {
+        self.pair.clone().unwrap_or_else(|| self.id_or(index))
+    }
+
+    /// The seed of the row's sensor errors: its `sensor_seed`, else one made from its `seed`
+    /// and its encounter ([`crate::runs::seeds`]).
+    ///
+    /// ```
+    /// use savsim::study::manifest::StudyRow;
+    /// let row = |pair: &str, variant: &str| StudyRow {
+    ///     pair: Some(pair.into()), variant: Some(variant.into()), seed: Some(11),
+    ///     ..StudyRow::default()
+    /// };
+    /// // The variants of a pair share one; two pairs do not.
+    /// assert_eq!(row("a", "nominal").sensor_seed_or(0), row("a", "mitigated").sensor_seed_or(1));
+    /// assert_ne!(row("a", "nominal").sensor_seed_or(0), row("b", "nominal").sensor_seed_or(0));
+    /// let own = StudyRow { sensor_seed: Some(3), ..row("a", "nominal") };
+    /// assert_eq!(own.sensor_seed_or(0), 3);
+    /// ```
+    pub fn sensor_seed_or(&self, index: usize) -> u64 {
+        crate::runs::seeds::sensor_seed(self.sensor_seed, self.seed, &self.pair_or(index))
     }
 
     /// The same row with its scene path made relative to `base` (a manifest's directory).

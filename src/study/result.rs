@@ -140,6 +140,8 @@ pub struct StudyResult {
     pub row_id: String,
     /// The row as the manifest gave it (the scene path anchored).
     pub inputs: StudyRow,
+    /// The seed its sensor errors were drawn with ([`StudyRow::sensor_seed_or`]).
+    pub sensor_seed: u64,
     /// The autopilot flown.
     pub autopilot: String,
     /// Its MAVLink system id, once the row's SITLs started.
@@ -206,6 +208,7 @@ impl StudyResult {
             index: index as u64,
             row_id: row.id_or(index),
             inputs: row.clone(),
+            sensor_seed: row.sensor_seed_or(index),
             autopilot: row.autopilot.clone().unwrap_or_else(|| "arducopter".into()),
             system_id: None,
             speedup: 0.0,

@@ -426,9 +426,10 @@ pub fn run_row(index: usize, row: &StudyRow, instance: u16, setup: &Setup) -> St
 }
 
 /// The session for a row: its scene, on the vehicle's clock, small-UAS well clear, its feed
-/// from its sensors.
+/// from its sensors, their errors drawn with `sensor_seed`.
 fn session_for(
     row: &StudyRow,
+    sensor_seed: u64,
     scene: Arc<Scene>,
     feed: Option<FeedKinds>,
     own: SenderId,
@@ -447,7 +448,7 @@ fn session_for(
                 kinds,
                 hz: FEED_HZ,
                 sensors,
-                sensor_seed: row.sensor_seed.or(row.seed).unwrap_or(1),
+                sensor_seed,
                 ..FeedConfig::default()
             })
             .map_err(savsim)?;
@@ -506,7 +507,7 @@ fn fly_row(
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
     let own_id = autopilot_id(checked.own.px4, instance, 0);
-    let mut session = session_for(row, scene.clone(), checked.feed, own_id)?;
+    let mut session = session_for(row, result.sensor_seed, scene.clone(), checked.feed, own_id)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()

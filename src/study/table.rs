@@ -118,7 +118,7 @@ fn input_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("params", text(|r| r.inputs.params.as_ref())),
         ("feed", text(|r| r.inputs.feed.as_ref())),
         ("sensors", text(|r| r.inputs.sensors.as_ref())),
-        ("sensor_seed", counts(rows, |r| r.inputs.sensor_seed)),
+        ("sensor_seed", counts(rows, |r| Some(r.sensor_seed))),
         ("plan", text(|r| r.inputs.plan.as_ref())),
         ("intruder", text(|r| r.inputs.intruder.as_ref())),
         ("intruder_kind", text(|r| r.inputs.intruder_kind.as_ref())),

@@ -1063,6 +1063,180 @@ fn arducopter_is_told_the_same_adsb_reports_at_speedup_1_and_10() {
     );
 }
 
+/// The horizontal errors (east, north, metres) of the fresh ADS-B reports (`tslc` 0) a row's
+/// `feed.tlog` holds, of an aircraft that holds still at `truth_enu_m` (east, north) in open
+/// air (the scene's origin SITL's home).
+fn report_errors_en(tlog: &Path, truth_enu_m: [f64; 2]) -> Vec<[f64; 2]> {
+    use savsim::geo::{Geodetic, LocalTangentPlane};
+    let plane = LocalTangentPlane::new(savsim::scene::gen::DEFAULT_ORIGIN);
+    adsb_reports(tlog)
+        .into_iter()
+        .filter(|a| a.tslc == 0)
+        .map(|a| {
+            let at = Geodetic::new(
+                a.lat as f64 * 1e-7,
+                a.lon as f64 * 1e-7,
+                a.altitude as f64 * 1e-3,
+            );
+            let p = plane.enu_m_from_geodetic(&at);
+            [p.x - truth_enu_m[0], p.y - truth_enu_m[1]]
+        })
+        .collect()
+}
+
+/// How far the second list of reports' instants is behind the first's: the shift at which the
+/// first ten of `b` are `a`'s scaled by `scale` (within `tolerance_m`), if any within 4.
+fn shift_where_scaled(
+    a: &[[f64; 2]],
+    b: &[[f64; 2]],
+    scale: f64,
+    tolerance_m: f64,
+) -> Option<isize> {
+    let matches = |shift: isize| {
+        (0..10).all(|i| {
+            let j = i as isize + shift;
+            j >= 0
+                && (j as usize) < a.len()
+                && i < b.len()
+                && (0..2).all(|axis| (a[j as usize][axis] * scale - b[i][axis]).abs() < tolerance_m)
+        })
+    };
+    (-4..=4).find(|&shift| matches(shift))
+}
+
+/// Every encounter of a study draws its own sensor errors, and its variants one realisation
+/// (docs/sensors.md, "What a seed means"): two generated pairs, each flown by ArduCopter with
+/// ADS-B of NACp 6 and of NACp 7 (scenes/sensors/adsb-nacp*.toml), the intruder held still
+/// 1.5 km off so that its truth is one point, 50 s of the vehicle's clock at 20x: the two
+/// pairs' reports are off by different errors (before, every row of a study drew with its
+/// `seed`, 11, and both pairs were told the same), and within a pair NACp 7's errors are NACp
+/// 6's scaled by their sigmas (75.7 m over 227 m: a third), instant for instant. (A row flown
+/// twice is told the same reports: `arducopter_is_told_the_same_adsb_reports_at_speedup_1_and_10`.)
+#[test]
+fn each_pair_of_a_study_is_told_its_own_adsb_errors_and_its_variants_share_them() {
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let sensors = crate::common::root().join("scenes/sensors");
+    let gen = savsim()
+        .args([
+            "study",
+            "gen",
+            "--kind",
+            "encounters",
+            "--n",
+            "2",
+            "--seed",
+            "11",
+        ])
+        .arg("--sensors")
+        .arg(sensors.join("adsb-nacp6.toml"))
+        .arg("--sensors")
+        .arg(sensors.join("adsb-nacp7.toml"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_ran(&gen);
+    // The mitigated rows, 50 s long, each intruder holding at its first waypoint.
+    let mut manifest = csv::Reader::from_path(dir.path().join("study.csv")).unwrap();
+    let header = manifest.headers().unwrap().clone();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (variant, pair, duration, intruder) = (
+        column("variant"),
+        column("pair"),
+        column("duration_s"),
+        column("intruder"),
+    );
+    let mut flown = Vec::new();
+    let one = dir.path().join("one.csv");
+    let mut writer = csv::Writer::from_path(&one).unwrap();
+    writer.write_record(&header).unwrap();
+    for record in manifest.records().map(|r| r.unwrap()) {
+        if !record[variant].starts_with("mitigated") {
+            continue;
+        }
+        let first: Vec<f64> = record[intruder]
+            .split(';')
+            .next()
+            .unwrap()
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let still = format!("0 {} {} {}; 600 {0} {1} {2}", first[1], first[2], first[3]);
+        let edited: Vec<String> = record
+            .iter()
+            .enumerate()
+            .map(|(i, v)| match i {
+                i if i == duration => "50".into(),
+                i if i == intruder => still.clone(),
+                _ => v.into(),
+            })
+            .collect();
+        writer.write_record(&edited).unwrap();
+        let nacp7 = record[variant].contains("nacp7");
+        flown.push((record[pair].to_string(), nacp7, [first[1], first[2]]));
+    }
+    writer.flush().unwrap();
+    assert_eq!(flown.len(), 4, "{flown:?}");
+    let out = dir.path().join("out");
+    let ran = savsim()
+        .args([
+            "study",
+            "--jobs",
+            "2",
+            "--keep-work",
+            "--speedup",
+            "20",
+            "--out",
+        ])
+        .arg(&out)
+        .arg(&one)
+        .output()
+        .unwrap();
+    assert_ran(&ran);
+    let mut told = std::collections::BTreeMap::new();
+    for entry in std::fs::read_dir(out.join("work")).unwrap().flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let index: usize = name[..6].parse().unwrap();
+        let (pair, nacp7, truth) = &flown[index];
+        let errors = report_errors_en(&entry.path().join("feed.tlog"), *truth);
+        eprintln!(
+            "{name}: {} reports, the first off by {:?}",
+            errors.len(),
+            errors.first()
+        );
+        assert!(errors.len() >= 20, "{name}: {} fresh reports", errors.len());
+        told.insert((pair.clone(), *nacp7), errors);
+    }
+    let pairs: Vec<&String> = told.keys().filter(|k| !k.1).map(|k| &k.0).collect();
+    assert_eq!(pairs.len(), 2, "{:?}", told.keys());
+    let (a, b) = (
+        &told[&(pairs[0].clone(), false)],
+        &told[&(pairs[1].clone(), false)],
+    );
+    let apart = |x: [f64; 2], y: [f64; 2]| (x[0] - y[0]).hypot(x[1] - y[1]);
+    // Drawn for this generator's seed and pairs: 100 m apart at the least (a shift of the
+    // first instant moves an error by ~13 m a report: tau 300 s, 2 Hz).
+    assert!(
+        apart(a[0], b[0]) > 100.0,
+        "two pairs told one error: {:?} and {:?}",
+        a[0],
+        b[0]
+    );
+    for p in pairs {
+        let (six, seven) = (&told[&(p.clone(), false)], &told[&(p.clone(), true)]);
+        let shift = shift_where_scaled(six, seven, 1.0 / 3.0, 0.5);
+        assert!(
+            shift.is_some(),
+            "pair {p}: NACp 7's errors {:?} are not NACp 6's {:?} scaled",
+            &seven[..3],
+            &six[..3]
+        );
+    }
+}
+
 /// One row of a study's results by row id: its string, number and flag columns (a column a
 /// row leaves empty is absent from its map; counts as numbers).
 fn result_rows(
