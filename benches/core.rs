@@ -20,7 +20,7 @@ use parry3d::partitioning::{Bvh, BvhBuildStrategy};
 use savsim::bench::flights::flight_set;
 use savsim::bench::run_samples;
 use savsim::collision::broad_phase::StaticBroadPhase;
-use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+use savsim::collision::sensing::octree::{Octree, OctreeConfig, OctreeWorkspace};
 use savsim::pipeline::{CollisionConfig, Mode, Pipeline, SensorFan};
 use savsim::scene::{Aabb64, Kind, Scene};
 

@@ -11,7 +11,7 @@ use crate::cli::{
     NetworkArgs, RecordArgs, ReplayArgs, SceneCommand, SceneKind, SigningMode,
 };
 use crate::collision::events::EventKind;
-use crate::collision::threat::AhpWeights;
+use crate::collision::sensing::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::ingest::address::ConnectAddress;
 use crate::ingest::signing::SigningKey;
@@ -83,7 +83,7 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
             crate::daa::well_clear::SETTING_HELP
         ))
     })?;
-    session.set_approaches(crate::collision::approach::Approaches::with_volume(volume));
+    session.set_approaches(crate::daa::approach::Approaches::with_volume(volume));
     if let Some(target) = &args.rerun {
         start_viz(&mut session, target, args.rerun_octree)?;
     }

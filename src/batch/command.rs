@@ -190,8 +190,8 @@ pub fn report(rows: &[RunRow], path: &Path) -> String {
     let mut text = format!(
         "{} runs: {} with a collision, {} NMAC, {} failed; written to {}\n",
         rows.len(),
-        count(|r| r.collisions > 0),
-        count(|r| r.nmac),
+        count(|r| r.measured.collisions > 0),
+        count(|r| r.measured.nmac),
         count(|r| r.error.is_some()),
         path.display()
     );

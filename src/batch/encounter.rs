@@ -8,10 +8,10 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use crate::batch::error::TrackError;
-use crate::collision::approach::Approaches;
+use crate::batch::error::{DaaTracksError, TrackError};
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::digest::EventDigest;
+use crate::daa::approach::Approaches;
 use crate::geo::LocalTangentPlane;
 use crate::ingest::stats::IngestStats;
 use crate::ingest::tlog::TlogReader;
@@ -296,25 +296,6 @@ pub fn tracks_from_daa(path: &Path, scene: &Scene) -> Result<DaaTracks, DaaTrack
         return Err(DaaTracksError::NoPair(path.to_owned()));
     }
     Ok(DaaTracks { own, intruders })
-}
-
-/// Why a DAIDALUS state file gave no encounter.
-#[derive(Debug, thiserror::Error)]
-pub enum DaaTracksError {
-    /// The file could not be read (its path is in the error).
-    #[error(transparent)]
-    Read(Box<crate::error::Error>),
-    /// The file is not a state file.
-    #[error("{}: {source}", path.display())]
-    Parse {
-        /// The file.
-        path: std::path::PathBuf,
-        /// What is wrong with it.
-        source: crate::daa::scenario::ScenarioError,
-    },
-    /// Fewer than two aircraft.
-    #[error("{}: an encounter needs an ownship and at least one intruder", .0.display())]
-    NoPair(std::path::PathBuf),
 }
 
 /// The tracks of a DAIDALUS state file.

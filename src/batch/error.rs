@@ -1,10 +1,9 @@
-//! Why a manifest row could not run (its `error` cell), and why one of its tracks could not
-//! be read.
+//! Why a manifest row could not run (its `error` cell), and why one of its tracks (waypoints,
+//! a tlog, a trajectory file, a DAIDALUS state file) could not be read: every error of a batch
+//! row, so that what reads a track imports this and this imports none of them.
 
 use std::path::PathBuf;
 
-use crate::batch::encounter::DaaTracksError;
-use crate::batch::trajectory::TrajectoryError;
 use crate::daa::well_clear::SETTING_HELP;
 use crate::runs::scenes::SceneLookup;
 use crate::runs::waypoints::WaypointError;
@@ -90,4 +89,71 @@ pub enum TrackError {
     /// A track with no waypoint.
     #[error("no waypoints")]
     Empty,
+}
+
+/// Why a trajectory file could not be read (the path is added by [`TrackError`]).
+#[derive(Debug, thiserror::Error)]
+pub enum TrajectoryError {
+    /// The file could not be opened, or its header read.
+    #[error("{0}")]
+    Open(csv::Error),
+    /// A column the track needs is not in the header.
+    #[error("no `{0}` column (needs Time, lat, lon, alt_MSL_ft)")]
+    NoColumn(&'static str),
+    /// A row that could not be read.
+    #[error("line {line}: {source}")]
+    Row {
+        /// The line, from 1 (the header is line 1).
+        line: usize,
+        /// What the CSV reader said.
+        source: csv::Error,
+    },
+    /// More rows than a track may have.
+    #[error("more than {MAX_SAMPLES:e} rows")]
+    TooLong,
+    /// A cell that is not a finite number.
+    #[error("line {line}: column {column}: not a number")]
+    NotANumber {
+        /// The line, from 1.
+        line: usize,
+        /// The column, from 1.
+        column: usize,
+    },
+    /// A latitude, longitude or altitude no place has.
+    #[error("line {line}: {lat_deg}, {lon_deg}, {alt_ft} ft: not a place")]
+    NotAPlace {
+        /// The line, from 1.
+        line: usize,
+        /// Its latitude, degrees.
+        lat_deg: f64,
+        /// Its longitude, degrees.
+        lon_deg: f64,
+        /// Its altitude, feet.
+        alt_ft: f64,
+    },
+    /// A time not after the one before.
+    #[error("line {0}: times must increase")]
+    TimeNotAfter(usize),
+    /// A header and nothing else.
+    #[error("no rows")]
+    Empty,
+}
+
+/// Why a DAIDALUS state file gave no encounter.
+#[derive(Debug, thiserror::Error)]
+pub enum DaaTracksError {
+    /// The file could not be read (its path is in the error).
+    #[error(transparent)]
+    Read(Box<crate::error::Error>),
+    /// The file is not a state file.
+    #[error("{}: {source}", path.display())]
+    Parse {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong with it.
+        source: crate::daa::scenario::ScenarioError,
+    },
+    /// Fewer than two aircraft.
+    #[error("{}: an encounter needs an ownship and at least one intruder", .0.display())]
+    NoPair(std::path::PathBuf),
 }

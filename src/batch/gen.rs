@@ -25,7 +25,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::batch::manifest::Run;
-use crate::collision::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
+use crate::daa::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
 use crate::error::{Error, Result};
 use crate::pipeline::Mode;
 use crate::scene::Kind;

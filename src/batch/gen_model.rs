@@ -19,33 +19,15 @@
 //! nearer (the results' `cpa_*`). The geometry is drawn from these distributions themselves,
 //! so every weight `w` is 1; each encounter is its own `pair`.
 
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::batch::gen::GenOptions;
 use crate::batch::manifest::Run;
-use crate::daa::encounter_model::{track, Model, TrackPoint};
+use crate::daa::encounter_model::Model;
 use crate::error::{Error, Result};
-
-/// Tracks drawn for one encounter before the model is judged unable to give one.
-const MAX_TRACK_TRIES: usize = 10_000;
-
-/// A sampled track, turned by `heading_rad` about its start and moved so that it is at
-/// `at_enu_m` at `tca_s`: its waypoints.
-pub(crate) fn placed(
-    track: &[TrackPoint],
-    heading_rad: f64,
-    tca_s: usize,
-    at_enu_m: DVec3,
-) -> Vec<(f64, DVec3)> {
-    let turn = DQuat::from_rotation_z(-heading_rad);
-    let shift = at_enu_m - turn * track[tca_s].position_enu_m;
-    track
-        .iter()
-        .map(|p| (p.t_s, turn * p.position_enu_m + shift))
-        .collect()
-}
+use crate::runs::model_tracks::{placed, sample, velocity};
 
 pub(crate) fn waypoints(points: &[(f64, DVec3)]) -> String {
     points
@@ -53,30 +35,6 @@ pub(crate) fn waypoints(points: &[(f64, DVec3)]) -> String {
         .map(|(t, p)| format!("{t} {:.3} {:.3} {:.3}", p.x, p.y, p.z))
         .collect::<Vec<_>>()
         .join("; ")
-}
-
-pub(crate) fn sample(
-    model: &Model,
-    seconds: usize,
-    rng: &mut ChaCha8Rng,
-) -> Result<Vec<TrackPoint>> {
-    for _ in 0..MAX_TRACK_TRIES {
-        if let Some(t) = track(model, seconds, rng) {
-            return Ok(t);
-        }
-    }
-    Err(Error::Usage(format!(
-        "the model gave no acceptable {seconds} s track in {MAX_TRACK_TRIES} draws"
-    )))
-}
-
-/// The velocity at `k` along placed waypoints (the second after it, or before it at the end).
-pub(crate) fn velocity(points: &[(f64, DVec3)], k: usize) -> DVec3 {
-    if k + 1 < points.len() {
-        points[k + 1].1 - points[k].1
-    } else {
-        points[k].1 - points[k - 1].1
-    }
 }
 
 /// The encounters, as manifest rows.

@@ -16,13 +16,14 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::batch::gen::GenOptions;
-use crate::batch::gen_model::{placed, sample, velocity, waypoints};
+use crate::batch::gen_model::waypoints;
 use crate::batch::manifest::Run;
 use crate::daa::encounter_model::{Model, TrackPoint};
 use crate::daa::pairing::{heading_norm_ftps, hmd_weight, relative_heading};
 use crate::daa::pairing_ini::PairingSettings;
 use crate::daa::well_clear::FT_M;
 use crate::error::{Error, Result};
+use crate::runs::model_tracks::{placed, sample, velocity};
 
 /// Track pairs drawn for one encounter before the settings are judged unable to give one.
 const MAX_PAIR_TRIES: usize = 100_000;

@@ -16,7 +16,7 @@ use crate::batch::error::RowError;
 use crate::batch::manifest::Run;
 use crate::batch::row::RunRow;
 use crate::batch::run::{mode_of, prepare, well_clear, Flight, Scenes};
-use crate::collision::approach::Approaches;
+use crate::daa::approach::Approaches;
 use crate::geo::LocalTangentPlane;
 use crate::ingest::decode::{AttitudeReport, PositionReport, Report};
 use crate::ingest::stats::SenderId;

@@ -13,7 +13,7 @@ use crate::batch::error::{RowError, TrackError};
 use crate::batch::manifest::{is_tlog_path, Run};
 use crate::batch::row::RunRow;
 use crate::batch::trajectory::{is_trajectory_path, track_from_trajectory};
-use crate::collision::approach::Approaches;
+use crate::daa::approach::Approaches;
 use crate::daa::well_clear::Volume;
 use crate::ingest::stats::IngestStats;
 use crate::pipeline::{CollisionConfig, Mode, Pipeline};
@@ -73,15 +73,6 @@ pub(crate) fn mode_of(run: &Run) -> Result<Mode, RowError> {
     }
 }
 
-/// What a caught panic said (its `&str` or `String` payload; empty for any other).
-pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_default()
-}
-
 /// Run row `index` of a manifest.
 pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
     let started = Instant::now();
@@ -94,7 +85,7 @@ pub fn run_one(index: usize, run: &Run, scenes: &Scenes) -> RunRow {
     );
     let outcome = mode.and_then(|mode| {
         std::panic::catch_unwind(AssertUnwindSafe(|| execute(run, mode, scenes, &mut row)))
-            .unwrap_or_else(|panic| Err(RowError::Internal(panic_message(&*panic))))
+            .unwrap_or_else(|panic| Err(RowError::Internal(crate::runs::panic_message(&*panic))))
     });
     if let Err(e) = outcome {
         // Nothing half-done stays in a failed row: its inputs and the error.

@@ -4,56 +4,15 @@
 //! as it is.
 
 use std::path::Path;
-use std::sync::Arc;
 
-use arrow_array::{ArrayRef, BooleanArray, Float64Array, RecordBatch, StringArray, UInt8Array};
-use arrow_schema::{DataType, Field, Fields};
+use arrow_array::RecordBatch;
 
-use crate::batch::row::{ApproachRow, RunRow};
+use crate::batch::row::RunRow;
 use crate::error::Result;
-use crate::runs::table::{bools, counts, floats, strings, struct_lists, Settings};
-
-fn approach_fields() -> Fields {
-    Fields::from(vec![
-        Field::new("vehicle", DataType::UInt8, false),
-        Field::new("track", DataType::Utf8, false),
-        Field::new("distance_m", DataType::Float64, false),
-        Field::new("horizontal_m", DataType::Float64, false),
-        Field::new("vertical_m", DataType::Float64, false),
-        Field::new("t_s", DataType::Float64, false),
-        Field::new("nmac", DataType::Boolean, false),
-        Field::new("lowc", DataType::Boolean, false),
-    ])
-}
-
-fn approaches(rows: &[RunRow]) -> ArrayRef {
-    approach_lists(rows.iter().map(|r| r.approaches.as_slice()))
-}
-
-/// Each row's approaches, as a list of structs (`approaches` in batch and study results).
-pub(crate) fn approach_lists<'a>(
-    rows: impl Iterator<Item = &'a [ApproachRow]> + Clone,
-) -> ArrayRef {
-    let all: Vec<&ApproachRow> = rows.clone().flatten().collect();
-    let float = |f: fn(&ApproachRow) -> f64| -> ArrayRef {
-        Arc::new(all.iter().map(|a| f(a)).collect::<Float64Array>())
-    };
-    let children: Vec<ArrayRef> = vec![
-        Arc::new(all.iter().map(|a| a.vehicle).collect::<UInt8Array>()),
-        Arc::new(
-            all.iter()
-                .map(|a| Some(a.track.as_str()))
-                .collect::<StringArray>(),
-        ),
-        float(|a| a.distance_m),
-        float(|a| a.horizontal_m),
-        float(|a| a.vertical_m),
-        float(|a| a.t_s),
-        Arc::new(all.iter().map(|a| Some(a.nmac)).collect::<BooleanArray>()),
-        Arc::new(all.iter().map(|a| Some(a.lowc)).collect::<BooleanArray>()),
-    ];
-    struct_lists(approach_fields(), children, rows.map(<[ApproachRow]>::len))
-}
+use crate::runs::measured::{
+    approaches_column, contact_columns, cpa_columns, lowc_columns, Columns, Measured,
+};
+use crate::runs::table::{bools, counts, floats, strings, Settings};
 
 /// The results as one Arrow record batch (an empty batch with the full schema when there are
 /// no rows). Every batch has the same schema, whatever its rows hold.
@@ -63,8 +22,6 @@ pub fn record_batch(rows: &[RunRow]) -> RecordBatch {
     columns.extend(sensed_columns(rows));
     crate::runs::table::record_batch(columns, nullable)
 }
-
-type Columns = Vec<(&'static str, ArrayRef)>;
 
 /// The row as the manifest gave it.
 fn input_columns(rows: &[RunRow]) -> Columns {
@@ -108,41 +65,29 @@ fn input_columns(rows: &[RunRow]) -> Columns {
 
 /// What the run found: contacts, approaches, well clear, ingest counts, costs.
 fn result_columns(rows: &[RunRow]) -> Columns {
-    vec![
+    let mut columns = vec![
         ("error", strings(rows, |r| r.error.as_deref())),
-        ("ticks", counts(rows, |r| Some(r.ticks))),
-        ("collisions", counts(rows, |r| Some(r.collisions))),
-        (
-            "first_collision_t_s",
-            floats(rows, |r| r.first_collision_t_s),
-        ),
-        (
-            "first_collision_obstacle",
-            strings(rows, |r| r.first_collision_obstacle.as_deref()),
-        ),
-        ("near_misses", counts(rows, |r| Some(r.near_misses))),
-        (
-            "closest_near_miss_m",
-            floats(rows, |r| r.closest_near_miss_m),
-        ),
-        ("nmac", bools(rows, |r| Some(r.nmac))),
-        ("cpa_m", floats(rows, |r| r.cpa_m)),
-        ("cpa_horizontal_m", floats(rows, |r| r.cpa_horizontal_m)),
-        ("cpa_vertical_m", floats(rows, |r| r.cpa_vertical_m)),
-        ("cpa_t_s", floats(rows, |r| r.cpa_t_s)),
-        ("cpa_track", strings(rows, |r| r.cpa_track.as_deref())),
-        ("approaches", approaches(rows)),
-        ("lowc", bools(rows, |r| Some(r.lowc))),
-        ("lowc_first_t_s", floats(rows, |r| r.lowc_first_t_s)),
-        ("lowc_duration_s", floats(rows, |r| Some(r.lowc_duration_s))),
-        ("min_taumod_s", floats(rows, |r| r.min_taumod_s)),
+        ("ticks", counts(rows, |r| Some(r.measured.ticks))),
+    ];
+    fn m(r: &RunRow) -> &Measured {
+        &r.measured
+    }
+    columns.extend(contact_columns(rows, m));
+    columns.push((
+        "closest_near_miss_m",
+        floats(rows, |r| r.measured.closest_near_miss_m),
+    ));
+    columns.extend(cpa_columns(rows, m));
+    columns.push(approaches_column(rows, m));
+    columns.extend(lowc_columns(rows, m));
+    columns.extend([
         (
             "lowc_min_horizontal_m",
-            floats(rows, |r| r.lowc_min_horizontal_m),
+            floats(rows, |r| r.measured.lowc_min_horizontal_m),
         ),
         (
             "lowc_min_vertical_m",
-            floats(rows, |r| r.lowc_min_vertical_m),
+            floats(rows, |r| r.measured.lowc_min_vertical_m),
         ),
         ("messages", counts(rows, |r| Some(r.messages))),
         ("bad_frames", counts(rows, |r| Some(r.bad_frames))),
@@ -156,7 +101,8 @@ fn result_columns(rows: &[RunRow]) -> Columns {
             floats(rows, |r| Some(r.tick_cost_us_p99)),
         ),
         ("wall_s", floats(rows, |r| Some(r.wall_s))),
-    ]
+    ]);
+    columns
 }
 
 /// The DAA system's alerting on the sensed states (with `daa_conf`).

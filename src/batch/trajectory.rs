@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use crate::batch::error::TrackError;
+use crate::batch::error::{TrackError, TrajectoryError};
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::scene::{Scene, Waypoint};
 use savsim_core::bounds::MAX_SAMPLES;
@@ -18,54 +18,6 @@ const FT_M: f64 = 0.3048;
 /// Whether a track is given as a trajectory file (rather than waypoints or a tlog).
 pub fn is_trajectory_path(track: &str) -> bool {
     track.trim_end().to_ascii_lowercase().ends_with(".csv")
-}
-
-/// Why a trajectory file could not be read (the path is added by [`TrackError`]).
-#[derive(Debug, thiserror::Error)]
-pub enum TrajectoryError {
-    /// The file could not be opened, or its header read.
-    #[error("{0}")]
-    Open(csv::Error),
-    /// A column the track needs is not in the header.
-    #[error("no `{0}` column (needs Time, lat, lon, alt_MSL_ft)")]
-    NoColumn(&'static str),
-    /// A row that could not be read.
-    #[error("line {line}: {source}")]
-    Row {
-        /// The line, from 1 (the header is line 1).
-        line: usize,
-        /// What the CSV reader said.
-        source: csv::Error,
-    },
-    /// More rows than a track may have.
-    #[error("more than {MAX_SAMPLES:e} rows")]
-    TooLong,
-    /// A cell that is not a finite number.
-    #[error("line {line}: column {column}: not a number")]
-    NotANumber {
-        /// The line, from 1.
-        line: usize,
-        /// The column, from 1.
-        column: usize,
-    },
-    /// A latitude, longitude or altitude no place has.
-    #[error("line {line}: {lat_deg}, {lon_deg}, {alt_ft} ft: not a place")]
-    NotAPlace {
-        /// The line, from 1.
-        line: usize,
-        /// Its latitude, degrees.
-        lat_deg: f64,
-        /// Its longitude, degrees.
-        lon_deg: f64,
-        /// Its altitude, feet.
-        alt_ft: f64,
-    },
-    /// A time not after the one before.
-    #[error("line {0}: times must increase")]
-    TimeNotAfter(usize),
-    /// A header and nothing else.
-    #[error("no rows")]
-    Empty,
 }
 
 /// The track of a trajectory file, in `scene`'s ENU frame.

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use crate::bench::compare::{collisions, compare};
 use crate::bench::flights::{Flight, Traffic};
-use crate::bench::report::{FlightResult, FlightRow, ModeRow, SceneReport};
+use crate::bench::rows::{FlightResult, FlightRow, ModeRow, SceneReport};
 use crate::bench::BenchOptions;
 use crate::collision::events::{Event, EventKind};
 use crate::costs::percentiles_us;

@@ -16,21 +16,25 @@
 //! - [`flights`]: the flight set; [`fly`]: flying it through each mode, the costs.
 //! - [`compare`]: a mode's collisions against the reference's.
 //! - [`scale`]: scene sizes and fleets; [`machine`]: where it ran.
-//! - [`report`]: the report, its goals, Markdown; [`chart`]: the chart.
+//! - [`rows`]: what a run measured, row by row; [`results`]: all of it, its goals, Markdown;
+//!   [`chart`]: the chart.
+//! - [`residency`]: the mesh budget run.
 
 pub mod chart;
 pub mod compare;
 pub mod flights;
 pub mod fly;
 pub mod machine;
-pub mod report;
 pub mod residency;
+pub mod results;
+pub mod rows;
 pub mod scale;
 
 pub use compare::collisions;
 pub use fly::{run_samples, Costs};
 pub use machine::{peak_rss_bytes, Machine};
-pub use report::{markdown, BenchReport, FlightResult, FlightRow, Goal, ModeRow, SceneReport};
+pub use results::{markdown, BenchReport, Goal};
+pub use rows::{FlightResult, FlightRow, ModeRow, SceneReport};
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -181,6 +185,6 @@ pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<Ben
         peak_rss_bytes: peak_rss_bytes(),
         wall_s: started.elapsed().as_secs_f64(),
     };
-    report.goals = report::goals(&report);
+    report.goals = results::goals(&report);
     Ok(report)
 }

@@ -32,7 +32,7 @@ use savsim_core::sensors::surveillance::{Own, Target, TargetReport, TargetState}
 use super::aircraft::{aircraft, body_velocity, has_transponder};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
-use super::tracks::{in_range, send_report, take_arrived, Told};
+use super::tracks::{in_range, send_report, Told};
 use super::wire::Range;
 use super::Frame;
 use crate::pipeline::{Pipeline, Rays};
@@ -397,4 +397,43 @@ fn mount_rotation(yaw_deg: f64, pitch_deg: f64) -> DQuat {
     // Yaw about the body's down axis (clockwise seen from above), then pitch about the
     // device's right axis: a positive rotation about y turns x towards -z, up in FRD.
     DQuat::from_rotation_z(yaw_deg.to_radians()) * DQuat::from_rotation_y(pitch_deg.to_radians())
+}
+
+/// Take what arrived by `t_s`: range pictures become the device's latest; reports are sent
+/// and become its tracks (and what the vehicle was told).
+fn take_arrived(
+    d: &mut DeviceState,
+    t_s: f64,
+    told: &mut BTreeMap<u64, Told>,
+    mut f: Option<&mut Frame<'_, '_>>,
+    own_enu_m: DVec3,
+) {
+    while d.pending.front().is_some_and(|(at, _)| *at <= t_s) {
+        let Some((at, pending)) = d.pending.pop_front() else {
+            break;
+        };
+        match pending {
+            Pending::Range(picture) => d.latest = Some((at, *picture)),
+            Pending::Report {
+                report,
+                measured_s,
+                icao,
+                kind,
+            } => {
+                if let Some(f) = f.as_deref_mut() {
+                    send_report(f, &report, icao, kind, t_s - measured_s);
+                }
+                let t = told.entry(report.key).or_default();
+                t.reports_received += 1;
+                let reported = (report.position_enu_m - own_enu_m).length();
+                if t.first_detection_s.is_none() {
+                    t.first_detection_s = Some(t_s);
+                    t.first_detection_range_m = Some(reported);
+                }
+                t.sensed_closest_m = Some(t.sensed_closest_m.map_or(reported, |m| m.min(reported)));
+                d.tracks
+                    .insert(report.key, (report, measured_s, icao, kind, t_s));
+            }
+        }
+    }
 }

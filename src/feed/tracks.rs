@@ -1,15 +1,11 @@
-//! What surveillance devices' reports become when they arrive: ADSB_VEHICLE messages, the
-//! device's tracks, and what the vehicle was told of each aircraft.
+//! What surveillance devices' reports become when they arrive: ADSB_VEHICLE messages, and what
+//! the vehicle was told of each aircraft.
 
-use std::collections::BTreeMap;
-
-use glam::DVec3;
 use serde::Serialize;
 
 use savsim_core::sensors::device::{Device, Model};
 use savsim_core::sensors::surveillance::TargetReport;
 
-use super::devices::{DeviceState, Pending};
 use super::wire;
 use super::Frame;
 use crate::scene::Kind;
@@ -59,45 +55,6 @@ pub(super) fn in_range(device: &Device, range_m: f64) -> bool {
         Model::Radar(m) => (m.range_m[0]..=m.range_m[1]).contains(&range_m),
         Model::EoIr(m) => range_m <= m.max_range_m,
         Model::Range(_) => false,
-    }
-}
-
-/// Take what arrived by `t_s`: range pictures become the device's latest; reports are sent
-/// and become its tracks (and what the vehicle was told).
-pub(super) fn take_arrived(
-    d: &mut DeviceState,
-    t_s: f64,
-    told: &mut BTreeMap<u64, Told>,
-    mut f: Option<&mut Frame<'_, '_>>,
-    own_enu_m: DVec3,
-) {
-    while d.pending.front().is_some_and(|(at, _)| *at <= t_s) {
-        let Some((at, pending)) = d.pending.pop_front() else {
-            break;
-        };
-        match pending {
-            Pending::Range(picture) => d.latest = Some((at, *picture)),
-            Pending::Report {
-                report,
-                measured_s,
-                icao,
-                kind,
-            } => {
-                if let Some(f) = f.as_deref_mut() {
-                    send_report(f, &report, icao, kind, t_s - measured_s);
-                }
-                let t = told.entry(report.key).or_default();
-                t.reports_received += 1;
-                let reported = (report.position_enu_m - own_enu_m).length();
-                if t.first_detection_s.is_none() {
-                    t.first_detection_s = Some(t_s);
-                    t.first_detection_range_m = Some(reported);
-                }
-                t.sensed_closest_m = Some(t.sensed_closest_m.map_or(reported, |m| m.min(reported)));
-                d.tracks
-                    .insert(report.key, (report, measured_s, icao, kind, t_s));
-            }
-        }
     }
 }
 

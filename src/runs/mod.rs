@@ -3,6 +3,8 @@
 //! into rates and risk ratios. Neither command imports the other; both import this.
 //!
 //! - [`manifest`]: reading a manifest's rows (CSV, TOML, JSON) of either command.
+//! - [`measured`]: what savsim measures of a run (contacts, approaches, well clear) and its
+//!   columns, the same in both results.
 //! - [`scenes`]: the scenes a manifest names, each loaded once per process.
 //! - [`shard`]: which rows a process runs, and its file.
 //! - [`table`]: rows as Arrow columns, a shard's Parquet file (written atomically, with
@@ -14,6 +16,8 @@
 //! - [`waypoints`]: tracks written as text, `t_s e_m n_m u_m; ...`.
 
 pub mod manifest;
+pub mod measured;
+pub mod model_tracks;
 pub mod recordings;
 pub mod report;
 pub mod scenes;
@@ -42,4 +46,13 @@ pub fn row_name(index: u64, id: &str) -> String {
         })
         .collect();
     format!("{index:06}-{id}")
+}
+
+/// What a caught panic said (its `&str` or `String` payload; empty for any other).
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_default()
 }

@@ -16,9 +16,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::digest::EventDigest;
 use crate::collision::events::{Event, EventKind};
+use crate::daa::approach::{Approaches, WellClearChange};
 use crate::error::{Error, Result};
 use crate::feed::{Feed, FeedConfig, FeedMessage};
 use crate::ingest::frame::{FrameStatus, RawFrame};

@@ -5,7 +5,7 @@
 use serde_json::{json, Value};
 
 use super::Session;
-use crate::collision::approach::Pair;
+use crate::daa::approach::Pair;
 use crate::pipeline::Pipeline;
 
 impl Session {

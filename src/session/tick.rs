@@ -7,8 +7,8 @@
 use std::time::Instant;
 
 use super::{traffic, Session};
-use crate::collision::approach::{Approaches, WellClearChange};
 use crate::collision::events::{Event, EventKind};
+use crate::daa::approach::{Approaches, WellClearChange};
 use crate::daa::episodes::Change;
 use crate::error::Result;
 use crate::feed::FrameInput;

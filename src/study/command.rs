@@ -2,7 +2,6 @@
 //! rows, the shard's file; `study summarize` and `study gen`.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -10,15 +9,12 @@ use crate::cli::{StudyArgs, StudyCommand, StudyGenKind};
 use crate::error::{Error, Result};
 use crate::runs::shard::Shard;
 use crate::runs::table::Settings;
+use crate::study::netns::{in_own_namespace, INSIDE_NETNS};
 use crate::study::result::{Outcome, StudyResult};
-use crate::study::run::{Setup, SPEEDUP_RANGE};
+use crate::study::row::ids::MAX_JOBS;
+use crate::study::row::{Setup, SPEEDUP_RANGE};
 use crate::study::sitl::{ArduCopter, Px4};
 use crate::study::{converge, manifest};
-
-/// Set in the environment of a study that runs inside its own network namespace.
-pub const INSIDE_NETNS: &str = "SAVSIM_STUDY_NETNS";
-/// The most SITLs at once.
-pub const MAX_JOBS: usize = 64;
 
 /// Run `savsim study ...`.
 pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
@@ -325,7 +321,7 @@ fn fly_rows(
 /// Move row `r`'s recording (when it made one) beside the results if `--rerun-rows` keeps it,
 /// else remove it; what happened said on stderr.
 fn keep_recording(r: &StudyResult, folder: &Path, setup: &Setup, nominal: &str) {
-    let made = folder.join(crate::study::run::RECORDING);
+    let made = folder.join(crate::study::row::RECORDING);
     let Some(choice) = setup.record_rows.as_ref().filter(|_| made.is_file()) else {
         return;
     };
@@ -371,63 +367,6 @@ fn px4(flag: Option<&Path>) -> Option<Px4> {
     Some(Px4 {
         binary: std::fs::canonicalize(&binary).unwrap_or(binary),
     })
-}
-
-/// Run this same command again inside a network namespace of its own with only loopback up
-/// (`unshare -n`, as root; else `unshare -rn`, a user namespace), and return its ending.
-/// `None` when no namespace can be made here: the study runs in this process.
-fn in_own_namespace(shutdown: &AtomicBool) -> Result<Option<Result<()>>> {
-    let exe = std::env::current_exe().map_err(|e| Error::file("the savsim executable", e))?;
-    for flags in ["-n", "-rn"] {
-        let works = Command::new("unshare")
-            .args([flags, "true"])
-            .status()
-            .is_ok_and(|s| s.success());
-        if !works {
-            continue;
-        }
-        let mut child = Command::new("unshare")
-            .args([flags, "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
-            .arg(&exe)
-            .args(std::env::args_os().skip(1))
-            .env(INSIDE_NETNS, "1")
-            .spawn()
-            .map_err(|e| Error::file("unshare", e))?;
-        let status = wait_forwarding(&mut child, shutdown)?;
-        let failed = format!("study: the run in its network namespace ended with {status}");
-        return Ok(Some(match status.code() {
-            Some(0) => Ok(()),
-            // Its own usage error, already printed: the same exit code.
-            Some(2) => Err(Error::Usage(failed)),
-            _ => Err(Error::Runtime(failed)),
-        }));
-    }
-    eprintln!(
-        "study: no network namespace can be made here (`unshare -n`): SITL binds its TCP ports \
-         on every interface"
-    );
-    Ok(None)
-}
-
-/// Wait for the study in its namespace (the same process as `unshare`: it execs), passing a
-/// signal that stopped this one on to it as SIGTERM.
-fn wait_forwarding(
-    child: &mut std::process::Child,
-    shutdown: &AtomicBool,
-) -> Result<std::process::ExitStatus> {
-    let mut forwarded = false;
-    loop {
-        if let Some(status) = child.try_wait().map_err(|e| Error::file("unshare", e))? {
-            return Ok(status);
-        }
-        if shutdown.load(Ordering::Relaxed) && !forwarded {
-            forwarded = true;
-            let _ = Command::new("kill")
-                .args(["-TERM", &child.id().to_string()])
-                .status();
-        }
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
 }
 
 /// What a shard found, for a person at a terminal.

@@ -20,9 +20,9 @@ use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::batch::gen_model::{placed, sample, velocity};
 use crate::daa::encounter_model::Model;
 use crate::error::Result;
+use crate::runs::model_tracks::{placed, sample, velocity};
 use crate::study::manifest::StudyRow;
 
 /// The height the paths are flown at, metres above home.

@@ -16,14 +16,13 @@
 
 pub mod command;
 pub mod converge;
-pub mod fly;
 pub mod gen;
 pub mod manifest;
-pub mod pace;
+pub mod netns;
 pub mod pilot;
 pub mod plan;
 pub mod result;
-pub mod run;
+pub mod row;
 pub mod sitl;
 pub mod summarize;
 pub mod table;
@@ -33,7 +32,7 @@ use std::sync::Mutex;
 
 use manifest::StudyRow;
 use result::StudyResult;
-use run::Setup;
+use row::Setup;
 
 /// Run `rows` (each with its index in the manifest) `jobs` at a time, job `k` on SITL
 /// instance `k`, calling `on_done` after each; results in the order of `rows`.
@@ -53,7 +52,7 @@ pub fn run_rows(
                 let Some(&(index, row)) = rows.get(i) else {
                     return;
                 };
-                let result = run::run_row(index, row, job as u16, setup);
+                let result = row::run_row(index, row, job as u16, setup);
                 on_done(&result);
                 if let Ok(mut done) = done.lock() {
                     done[i] = Some(result);

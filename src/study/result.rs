@@ -3,9 +3,8 @@
 
 use serde::Serialize;
 
-use crate::batch::manifest::Run;
-use crate::batch::row::RunRow;
 use crate::collision::digest::EventDigest;
+use crate::runs::measured::Measured;
 use crate::study::manifest::StudyRow;
 
 /// Closest approach to an obstacle below this without a collision is a soft fail, metres (the
@@ -155,7 +154,7 @@ pub struct StudyResult {
     /// What savsim measured, as a batch row (collisions, near misses, NMAC, closest
     /// approaches to moving bodies, well clear), times in seconds of the vehicle's clock
     /// from its boot.
-    pub measured: RunRow,
+    pub measured: Measured,
     /// The closest approach to each obstacle within the near-miss band.
     pub obstacles: Vec<ObstacleApproach>,
     /// The closest of them, metres.
@@ -197,7 +196,7 @@ pub struct StudyResult {
     pub clock_speedup: Option<f64>,
     /// With several autopilots: the largest drift of another vehicle's clock from the row's
     /// (the first's) over the row, seconds (measured; the row is an error beyond
-    /// [`crate::study::run::MAX_CLOCK_SKEW_S`]).
+    /// [`crate::study::row::MAX_CLOCK_SKEW_S`]).
     pub clock_skew_s: Option<f64>,
 }
 
@@ -214,7 +213,7 @@ impl StudyResult {
             speedup: 0.0,
             outcome: Outcome::Error,
             error: None,
-            measured: RunRow::of_inputs(index, &Run::default(), "exact"),
+            measured: Measured::default(),
             obstacles: Vec::new(),
             closest_obstacle_m: None,
             track: None,

@@ -7,7 +7,7 @@
 //! (`--serial0 udpclient:127.0.0.1:PORT`, to the row's own UDP link), the pilot SERIAL1
 //! (`--serial1 tcp:2:wait`: SITL does not boot until the pilot is connected).
 //! SITL binds its TCP ports on every interface: `savsim study` runs inside a network
-//! namespace of its own where the machine allows (`study::run`).
+//! namespace of its own where the machine allows (`study::row`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -214,7 +214,7 @@ impl Px4 {
     /// Whether its startup script leaves SIH's home altitude (SIH_LOC_H0) at its default (maps
     /// PX4_HOME_LAT and _LON only; which releases do: docs/study.md): then savsim boots it once
     /// to set SIH_LOC_H0
-    /// over MAVLink (`study::run`), or the vehicle would fly hundreds of metres from the scene's
+    /// over MAVLink (`study::row`), or the vehicle would fly hundreds of metres from the scene's
     /// height.
     pub fn home_alt_by_param(&self) -> bool {
         let script = self

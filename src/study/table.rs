@@ -11,6 +11,9 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Fields};
 
 use crate::error::Result;
+use crate::runs::measured::{
+    approaches_column, contact_columns, cpa_columns, lowc_columns, Measured,
+};
 use crate::runs::table::{counts, floats, strings, struct_lists, Settings};
 use crate::study::result::{StudyResult, VehicleResult};
 
@@ -141,44 +144,23 @@ fn input_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
 
 /// What was measured and what the autopilot did.
 fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
-    fn m(r: &StudyResult) -> &crate::batch::row::RunRow {
+    fn m(r: &StudyResult) -> &Measured {
         &r.measured
     }
-    vec![
+    let mut columns = vec![
         ("outcome", strings(rows, |r| Some(r.outcome.name()))),
         ("error", strings(rows, |r| r.error.clone())),
-        ("collisions", counts(rows, |r| Some(m(r).collisions))),
-        (
-            "first_collision_t_s",
-            floats(rows, |r| m(r).first_collision_t_s),
-        ),
-        (
-            "first_collision_obstacle",
-            strings(rows, |r| m(r).first_collision_obstacle.clone()),
-        ),
-        ("near_misses", counts(rows, |r| Some(m(r).near_misses))),
+    ];
+    columns.extend(contact_columns(rows, m));
+    columns.extend([
         ("closest_obstacle_m", floats(rows, |r| r.closest_obstacle_m)),
         ("obstacles", obstacles(rows)),
-        (
-            "approaches",
-            crate::batch::table::approach_lists(
-                rows.iter().map(|r| r.measured.approaches.as_slice()),
-            ),
-        ),
-        ("nmac", bools(rows, |r| m(r).nmac)),
-        ("cpa_m", floats(rows, |r| m(r).cpa_m)),
-        ("cpa_horizontal_m", floats(rows, |r| m(r).cpa_horizontal_m)),
-        ("cpa_vertical_m", floats(rows, |r| m(r).cpa_vertical_m)),
-        ("cpa_t_s", floats(rows, |r| m(r).cpa_t_s)),
-        ("cpa_track", strings(rows, |r| m(r).cpa_track.clone())),
-        ("vehicle_track", strings(rows, |r| r.track.clone())),
-        ("lowc", bools(rows, |r| m(r).lowc)),
-        ("lowc_first_t_s", floats(rows, |r| m(r).lowc_first_t_s)),
-        (
-            "lowc_duration_s",
-            floats(rows, |r| Some(m(r).lowc_duration_s)),
-        ),
-        ("min_taumod_s", floats(rows, |r| m(r).min_taumod_s)),
+        approaches_column(rows, m),
+    ]);
+    columns.extend(cpa_columns(rows, m));
+    columns.push(("vehicle_track", strings(rows, |r| r.track.clone())));
+    columns.extend(lowc_columns(rows, m));
+    columns.extend([
         ("armed_t_s", floats(rows, |r| r.armed_t_s)),
         ("legs_completed", counts(rows, |r| Some(r.legs_completed))),
         ("plan_completed", bools(rows, |r| r.plan_completed)),
@@ -280,7 +262,8 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             "achieved_speedup",
             floats(rows, |r| Some(r.achieved_speedup)),
         ),
-    ]
+    ]);
+    columns
 }
 
 /// The results as one record batch (the full schema when there are no rows).

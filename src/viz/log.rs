@@ -526,7 +526,7 @@ fn log_approaches(
                 .with_show_labels(true),
         )?;
         if a.nmac {
-            use crate::collision::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
+            use crate::daa::approach::{NMAC_HORIZONTAL_M, NMAC_VERTICAL_M};
             state.rows.log(
                 rec,
                 format!("{path}/nmac"),

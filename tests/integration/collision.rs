@@ -4,7 +4,7 @@
 use glam::{DQuat, DVec3};
 use savsim::bench::{collisions, run_samples};
 use savsim::collision::events::{Event, EventKind};
-use savsim::collision::threat::{AhpWeights, PAPER_MATRIX};
+use savsim::collision::sensing::threat::{AhpWeights, PAPER_MATRIX};
 use savsim::collision::ColliderKind;
 use savsim::geo::Geodetic;
 use savsim::pipeline::{

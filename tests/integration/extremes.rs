@@ -5,9 +5,9 @@
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use savsim::bench::{collisions, run_samples};
-use savsim::collision::contact::{ray_distance_m, Placed};
+use savsim::collision::contact::queries::{ray_distance_m, Placed};
 use savsim::collision::events::Event;
-use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+use savsim::collision::sensing::octree::{Octree, OctreeConfig, OctreeWorkspace};
 use savsim::geo::{Geodetic, LocalTangentPlane};
 use savsim::pipeline::{CollisionConfig, Mode, Pipeline};
 use savsim::scene::{Aabb64, Scene};

@@ -270,15 +270,15 @@ fn the_volume_an_outlines_parts_leave_uncovered_collides() {
     let scenes = savsim::batch::run::Scenes::for_runs(&runs);
     let through_sw = savsim::batch::run::run_one(0, &runs[0], &scenes);
     assert_eq!(through_sw.error, None);
-    assert_eq!(through_sw.collisions, 1, "{through_sw:?}");
+    assert_eq!(through_sw.measured.collisions, 1, "{through_sw:?}");
     assert_eq!(
-        through_sw.first_collision_obstacle.as_deref(),
+        through_sw.measured.first_collision_obstacle.as_deref(),
         Some("osm/way/10")
     );
     // Nose first into the west wall at E = -20 m, 1 m/s from E = -40 m.
-    let t = through_sw.first_collision_t_s.unwrap();
+    let t = through_sw.measured.first_collision_t_s.unwrap();
     assert!((18.0..20.0).contains(&t), "{t}");
     let over_the_part = savsim::batch::run::run_one(1, &runs[1], &scenes);
     assert_eq!(over_the_part.error, None);
-    assert_eq!(over_the_part.collisions, 0, "{over_the_part:?}");
+    assert_eq!(over_the_part.measured.collisions, 0, "{over_the_part:?}");
 }

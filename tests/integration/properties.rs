@@ -11,8 +11,8 @@ use parry3d::shape::{Cuboid, TriMesh};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use savsim::collision::broad_phase::StaticBroadPhase;
-use savsim::collision::contact::{self, Placed};
-use savsim::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+use savsim::collision::contact::queries::{self, Placed};
+use savsim::collision::sensing::octree::{Octree, OctreeConfig, OctreeWorkspace};
 use savsim::scene::geometry::{Geometry, HeightGrid, TerrainPatch};
 use savsim::scene::Aabb64;
 
@@ -79,7 +79,7 @@ fn ray_casts_agree_with_moller_trumbore() {
                 enu_from_shape: DQuat::IDENTITY,
                 pivot_local_m: Vec3::ZERO,
             };
-            let got = contact::ray_distance_m(origin + offset, dir, 500.0, &placed);
+            let got = queries::ray_distance_m(origin + offset, dir, 500.0, &placed);
             let want = tris
                 .iter()
                 .filter_map(|(a, b, c)| moller_trumbore(origin, dir, [*a, *b, *c]))
@@ -209,7 +209,7 @@ fn sweeps_agree_with_dense_sampling() {
                 enu_from_shape: DQuat::IDENTITY,
                 pivot_local_m: Vec3::ZERO,
             };
-            let hit = contact::sweep(&at(start), &at(end), &wall, &wall);
+            let hit = queries::sweep(&at(start), &at(end), &wall, &wall);
             let steps = 2000;
             let sampled = (0..=steps)
                 .map(|i| i as f64 / steps as f64)

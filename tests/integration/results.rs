@@ -85,7 +85,7 @@ fn the_closest_near_miss_past_the_first_thousand_events_is_reported() {
         session.tick_costs(),
         0.0,
     );
-    assert_eq!(row.closest_near_miss_m, Some(closest));
+    assert_eq!(row.measured.closest_near_miss_m, Some(closest));
     let mut result = StudyResult::of_inputs(0, &StudyRow::default());
     result.record_obstacles(digest);
     assert_eq!(result.closest_obstacle_m, Some(closest));

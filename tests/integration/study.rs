@@ -1328,7 +1328,7 @@ fn two_arducopters_meet_unequipped_and_both_turn_away_equipped() {
         eprintln!("{id}: {}", brief(row));
         let skew = row["clock_skew_s"].as_f64().unwrap();
         assert!(
-            skew <= savsim::study::run::MAX_CLOCK_SKEW_S,
+            skew <= savsim::study::row::MAX_CLOCK_SKEW_S,
             "{id}: skew {skew} s"
         );
         assert!(row["intruder_track"].as_str().unwrap().split(';').count() > 100);
@@ -1399,7 +1399,7 @@ fn arducopter_and_px4_in_one_row_keep_one_clock() {
     }
     let skew = row["clock_skew_s"].as_f64().unwrap();
     assert!(
-        skew <= savsim::study::run::MAX_CLOCK_SKEW_S,
+        skew <= savsim::study::row::MAX_CLOCK_SKEW_S,
         "skew {skew} s"
     );
     // Paced: the ArduCopter ran at PX4's pace, both short of the speedup asked.
@@ -1483,7 +1483,7 @@ fn three_arducopters_in_one_row_each_mirrored_on_one_timeline() {
     }
     assert_eq!(row["clock_skew_s"].as_f64().unwrap(), largest_skew);
     assert!(
-        largest_skew <= savsim::study::run::MAX_CLOCK_SKEW_S,
+        largest_skew <= savsim::study::row::MAX_CLOCK_SKEW_S,
         "skew {largest_skew} s"
     );
     // The third took off and held its place until the row's clock read 125 s.

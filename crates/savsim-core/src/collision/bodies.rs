@@ -1,5 +1,5 @@
-//! Who is who across ticks, and where: stable identities of vehicles and moving obstacles, body
-//! poses, and the colliders placed for a query.
+//! Who is who across ticks, and where: stable identities of vehicles and moving obstacles, and
+//! body poses (the colliders placed for a query are in `placed`).
 //!
 //! Identities outlive a tick (rapier's generational handles): a moving obstacle is named by
 //! where it comes from (a scene track, a MAVLink (sysid, compid), an ICAO address) and by a
@@ -8,13 +8,10 @@
 
 use std::sync::Arc;
 
-use glam::{DQuat, DVec3, Vec3};
-use parry3d::shape::{Cuboid, Shape, SharedShape, TriMesh};
+use glam::{DQuat, DVec3};
 
-use crate::collision::contact::Placed;
-use crate::collision::moving::MovingBodies;
 use crate::scene::geometry::Geometry;
-use crate::scene::{Aabb64, Kind, Scene};
+use crate::scene::Kind;
 use crate::world::TrackSample;
 
 /// Where a moving body comes from.
@@ -207,208 +204,6 @@ impl DynamicBody {
         }
     }
 }
-
-/// The world a stage looks at in one tick.
-pub(crate) struct World<'a> {
-    pub scene: &'a Scene,
-    /// The moving bodies; the ticking vehicle's own body, if listed, is skipped.
-    pub dynamic: &'a MovingBodies,
-    /// The ticking vehicle as a moving body.
-    pub own: BodySource,
-    pub octree: &'a crate::collision::octree::Octree,
-    /// The static broad phase (region queries and rays).
-    pub statics: &'a crate::collision::broad_phase::StaticBroadPhase,
-    pub shapes: &'a crate::collision::shapes::ExactShapes,
-}
-
-impl World<'_> {
-    /// Call `visit(index, body)` for every moving body but the ticking vehicle's own that may
-    /// come within `lead_s` seconds of its speed of `region` in this interval.
-    pub fn moving_near(
-        &self,
-        region: &Aabb64,
-        lead_s: f64,
-        mut visit: impl FnMut(usize, &DynamicBody),
-    ) {
-        let own = self.own;
-        self.dynamic.near(self.scene, region, lead_s, |i, d| {
-            if d.key.source != own {
-                visit(i, d)
-            }
-        });
-    }
-}
-
-/// Everything a stage needs to know about an obstacle at this tick.
-pub(crate) struct ObstacleView<'s> {
-    pub geometry: &'s Geometry,
-    pub geometry_index: usize,
-    pub kind: Kind,
-    pub threat: f64,
-    pub speed_mps: f64,
-    pub previous: BodyPose,
-    pub current: BodyPose,
-    pub aabb_enu_m: Aabb64,
-    pub id: &'s str,
-}
-
-/// The obstacle `o` at this tick; `None` for a moving body that is not in `dynamic` (its track
-/// ended): state that names it is stale.
-pub(crate) fn view<'s>(
-    scene: &'s Scene,
-    dynamic: &'s MovingBodies,
-    o: ObstacleRef,
-) -> Option<ObstacleView<'s>> {
-    match o {
-        ObstacleRef::Static(i) => {
-            let s = scene.obstacles.get(i as usize)?;
-            let pose = BodyPose {
-                position_enu_m: s.placement.position_enu_m,
-                enu_from_body: s.placement.enu_from_local,
-            };
-            Some(ObstacleView {
-                geometry: &s.geometry,
-                geometry_index: s.geometry_index,
-                kind: s.kind,
-                threat: s.threat,
-                speed_mps: 0.0,
-                previous: pose,
-                current: pose,
-                aabb_enu_m: s.aabb_enu_m,
-                id: &s.id,
-            })
-        }
-        ObstacleRef::Dynamic(key) => view_dynamic(scene, dynamic, dynamic.find(scene, key)?),
-    }
-}
-
-/// Moving body `i` of `dynamic` at this tick (`None` for a model the scene does not have).
-pub(crate) fn view_dynamic<'s>(
-    scene: &'s Scene,
-    dynamic: &'s MovingBodies,
-    i: usize,
-) -> Option<ObstacleView<'s>> {
-    let d = dynamic.get(i);
-    let g = scene.geometries.get(d.geometry_index)?;
-    Some(ObstacleView {
-        geometry: g,
-        geometry_index: d.geometry_index,
-        kind: d.kind,
-        threat: d.threat,
-        speed_mps: d.speed_mps,
-        previous: d.previous,
-        current: d.current,
-        aabb_enu_m: dynamic.aabb(scene, i),
-        id: &d.id,
-    })
-}
-
-/// A collider's shape, owned or shared.
-pub(crate) enum Holder {
-    /// The enclosing box (exact for a cuboid geometry).
-    Box(Cuboid),
-    /// A triangle mesh (surfaces only).
-    Mesh(Arc<TriMesh>),
-    /// An exact solid made of parts (a union of blocks as a parry `Compound`).
-    Solid(SharedShape),
-    /// Terrain as a parry `HeightField`: a surface, whose inside is what lies under it.
-    Field(SharedShape),
-}
-
-/// A shape with its placement.
-pub(crate) struct Body {
-    holder: Holder,
-    position_enu_m: DVec3,
-    rotation: DQuat,
-    pivot_local_m: Vec3,
-    /// The shape's frame in the body's frame (identity but for a height field, whose up is
-    /// its y axis).
-    local_rotation: DQuat,
-}
-
-impl Body {
-    /// A body whose shape's frame is the geometry's frame, placed at `pose`.
-    pub fn new(holder: Holder, pose: BodyPose) -> Body {
-        Body {
-            holder,
-            position_enu_m: pose.position_enu_m,
-            rotation: pose.enu_from_body,
-            pivot_local_m: Vec3::ZERO,
-            local_rotation: DQuat::IDENTITY,
-        }
-    }
-
-    /// A terrain patch's height field (centred on the patch, y up), placed at `pose`.
-    pub fn field(shape: SharedShape, geometry: &Geometry, pose: BodyPose) -> Body {
-        let local_rotation = field_rotation();
-        // The field's centre in the patch's frame: the middle of its footprint, at height 0.
-        let c = geometry.local_aabb.center();
-        let centre = Vec3::new(c.x, c.y, 0.0);
-        Body {
-            holder: Holder::Field(shape),
-            position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
-            rotation: pose.enu_from_body * local_rotation,
-            pivot_local_m: (local_rotation.inverse() * -centre.as_dvec3()).as_vec3(),
-            local_rotation,
-        }
-    }
-
-    /// The geometry's enclosing box, placed at `pose`.
-    pub fn boxed(geometry: &Geometry, pose: BodyPose) -> Body {
-        let (cuboid, centre) = geometry.box_collider();
-        Body {
-            holder: Holder::Box(cuboid),
-            position_enu_m: pose.position_enu_m + pose.enu_from_body * centre.as_dvec3(),
-            rotation: pose.enu_from_body,
-            pivot_local_m: -centre,
-            local_rotation: DQuat::IDENTITY,
-        }
-    }
-
-    /// True when the body is a surface mesh (it holds no inside).
-    pub fn is_surface(&self) -> bool {
-        matches!(self.holder, Holder::Mesh(_) | Holder::Field(_))
-    }
-
-    /// True when the body is a solid of several convex parts (a compound of blocks).
-    pub fn is_compound(&self) -> bool {
-        matches!(self.holder, Holder::Solid(_))
-    }
-
-    /// The body where it was placed.
-    pub fn placed(&self) -> Placed<'_> {
-        Placed {
-            shape: match &self.holder {
-                Holder::Box(c) => c as &dyn Shape,
-                Holder::Mesh(m) => m.as_ref() as &dyn Shape,
-                Holder::Solid(s) | Holder::Field(s) => s.as_ref(),
-            },
-            position_enu_m: self.position_enu_m,
-            enu_from_shape: self.rotation,
-            pivot_local_m: self.pivot_local_m,
-        }
-    }
-
-    /// The same body moved so that its reference point has pose `pose`.
-    pub fn at(&self, pose: BodyPose) -> Placed<'_> {
-        let rotation = pose.enu_from_body * self.local_rotation;
-        let offset = -(rotation * self.pivot_local_m.as_dvec3());
-        self.placed().moved(pose.position_enu_m + offset, rotation)
-    }
-}
-
-/// The rotation from a parry height field's frame (y up, rows along z) to a terrain patch's
-/// (z up): +90 degrees about x, so that the field's y is up and its z is south.
-pub(crate) fn field_rotation() -> DQuat {
-    DQuat::from_rotation_x(std::f64::consts::FRAC_PI_2)
-}
-
-/// True when `point` is inside the obstacle's solid (see [`Geometry::contains_local_point`]).
-pub(crate) fn inside_solid(geometry: &Geometry, pose: &BodyPose, point: DVec3) -> bool {
-    let local = pose.enu_from_body.inverse() * (point - pose.position_enu_m);
-    geometry.contains_local_point(local.as_vec3())
-}
-
 /// The radius of the sphere about its origin that holds `geometry`, metres.
 pub fn radius_m(geometry: &Geometry) -> f64 {
     f64::from(

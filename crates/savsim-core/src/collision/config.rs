@@ -1,7 +1,7 @@
 //! Collision settings: the modes and every threshold, each with its default and unit.
 
-use crate::collision::octree::OctreeConfig;
-use crate::collision::threat::{AhpWeights, PAPER_MATRIX};
+use crate::collision::sensing::octree::OctreeConfig;
+use crate::collision::sensing::threat::{AhpWeights, PAPER_MATRIX};
 
 /// How contacts are decided and how the sensing layer runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]

@@ -6,10 +6,11 @@
 
 use std::sync::Arc;
 
-use crate::collision::bodies::{view, ObstacleRef};
-use crate::collision::contacts::Touch;
+use crate::collision::bodies::ObstacleRef;
+use crate::collision::contact::Touch;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::moving::MovingBodies;
+use crate::collision::view::view;
 use crate::scene::Scene;
 use crate::world::TrackSample;
 

@@ -8,9 +8,10 @@
 
 use glam::DVec3;
 
-use crate::collision::bodies::{view, ObstacleRef, World};
-use crate::collision::contact;
+use crate::collision::bodies::ObstacleRef;
+use crate::collision::contact::queries;
 use crate::collision::meshes::MeshCache;
+use crate::collision::view::{view, World};
 use crate::scene::Aabb64;
 
 /// A fan of rays from one point: unit directions, ENU, and how far they reach.
@@ -49,7 +50,7 @@ pub(crate) fn nearest(
         let body = world
             .shapes
             .body(v.geometry_index, v.geometry, meshes, v.current, false);
-        contact::ray_distance_m(origin_enu_m, dir_enu, limit, &body.placed())
+        queries::ray_distance_m(origin_enu_m, dir_enu, limit, &body.placed())
             .filter(|&d| d <= limit)
     };
     let mut best = world

@@ -1,59 +1,49 @@
 //! The collision core: octree, colliders, six rays, AHP threat, box <-> mesh swapping, contacts
 //! and swept time of impact, per tick and per vehicle (Li et al. 2019, with savsim's changes in
-//! ../shared/ALGORITHM.md and docs/threat-model.md).
+//! docs/threat-model.md).
 //!
-//! Two layers: the **contact layer** decides what was hit (exact shapes, swept between samples:
-//! the truth savsim reports), the **sensing layer** models what the vehicle perceives (the
-//! paper's node, rays, beta and box/mesh state) at a sensor rate. A mode swaps a stage, never
-//! adds a branch to every stage.
+//! Two layers, each in its own room: the **contact layer** ([`contact`]) decides what was hit
+//! (exact shapes, swept between samples: the truth savsim reports), the **sensing layer**
+//! ([`sensing`]) models what the vehicle perceives (the paper's node, rays, beta and box/mesh
+//! state) at a sensor rate. What both use lies beside them. A mode swaps a stage, never adds a
+//! branch to every stage.
 //!
 //! Pure and synchronous: [`crate::pipeline::Pipeline::step`] takes the scene and one vehicle's samples
 //! and pushes [`events::Event`]s. No tokio, no rerun, no files, no clap or mavlink types here.
 //!
 //! - [`config`]: the modes and every threshold.
-//! - [`bodies`]: identities (generational keys), poses, placed colliders.
-//! - [`octree`]: the static scene's octree (the paper's nodes).
+//! - [`bodies`]: identities (generational keys) and poses.
+//! - [`placed`]: colliders placed for a query (a shape and its pose).
+//! - [`view`]: what a stage of a tick looks at: the world and each obstacle at the tick.
+//! - [`contact`]: the contact layer, one strategy per mode: its exact queries, shapes,
+//!   distances, sweeps and spans.
+//! - [`sensing`]: the sensing layer (the paper's algorithm): the octree, node, activation,
+//!   rays, the AHP threat, collider swaps and residency.
 //! - [`broad_phase`]: the static broad phase (parry's `Bvh`): region queries and rays.
-//! - [`shapes`]: the contact layer's exact shapes (cuboids, compounds, meshes).
-//! - [`contact`]: exact f64-anchored queries (intersection, distance, sweep, ray).
-//! - [`distance`]: distances through parry, with cuboid pairs repaired.
-//! - [`ray_height_field`]: exact rays against terrain height fields.
-//! - [`swept`]: the contact layer's `exact` strategy (shortcuts that prove, then sweeps).
-//! - [`spans`]: every span of contact within an interval (part by part).
 //! - [`moving`]: the moving bodies of a tick and their broad phase.
 //! - [`mesh_worker`]: the thread that builds meshes off the tick path.
 //! - [`meshes`]: the triangle meshes, built on demand, resident within a budget.
-//! - [`contacts`]: the contact layer, one strategy per mode.
-//! - [`sensing`]: the sensing layer (the paper's algorithm): node, activation, rays;
-//!   [`swaps`]: its threat, collider swaps and residency.
-//! - [`threat`]: AHP weights and beta.
 //! - [`episodes`]: contacts and near misses into events.
-//! - [`events`]: what is reported.
+//! - [`events`]: what is reported; [`digest`]: what a run's events add up to.
 //! - [`fan`]: exact ray fans (what a range sensor measures; the closed-loop feed).
-//! - [`approach`]: closest point of approach and NMAC between two tracks.
+//!
+//! Closest approach, NMAC and well clear between aircraft are detect and avoid's:
+//! `crate::daa::approach`.
 
-pub mod approach;
 pub mod bodies;
 pub mod broad_phase;
 pub mod config;
 pub mod contact;
-pub mod contacts;
 pub mod digest;
-pub mod distance;
 pub mod episodes;
 pub mod events;
 pub mod fan;
 pub mod mesh_worker;
 pub mod meshes;
 pub mod moving;
-pub mod octree;
-pub mod ray_height_field;
+pub mod placed;
 pub mod sensing;
-pub mod shapes;
-pub mod spans;
-pub mod swaps;
-pub mod swept;
-pub mod threat;
+pub mod view;
 
 /// Which collider an obstacle currently has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]

@@ -2,6 +2,8 @@
 //! it, and DAIDALUS's own files (`.conf`, `.daa`), so that savsim and DAIDALUS can be run side
 //! by side on the same input.
 //!
+//! - [`approach`]: each vehicle's closest approach, NMAC and losses of well clear with each
+//!   moving body over a run.
 //! - [`well_clear`]: the well-clear predicate and its interval for linear relative motion.
 //! - [`alerting`]: alert levels, and their filtering (M of N, hysteresis, persistence).
 //! - [`conf`], [`scenario`], [`units`]: DAIDALUS's configuration and state files.
@@ -16,6 +18,7 @@
 
 pub mod alerting;
 pub mod alerting_run;
+pub mod approach;
 pub mod conf;
 pub mod encounter_model;
 pub mod episodes;

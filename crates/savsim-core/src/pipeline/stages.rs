@@ -7,15 +7,16 @@ use std::time::Instant;
 use glam::DVec3;
 
 use super::{TickReport, VehicleCollision};
-use crate::collision::bodies::{radius_m, BodyPose, VehicleKey, World};
+use crate::collision::bodies::{radius_m, BodyPose, VehicleKey};
 use crate::collision::broad_phase::StaticBroadPhase;
 use crate::collision::config::CollisionConfig;
 use crate::collision::config::Mode;
-use crate::collision::contacts::{Before, Contacts, Motion};
+use crate::collision::contact::{Before, Contacts, Motion};
 use crate::collision::episodes::Found;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::sensing::{Frame, Rules, Sensing, SensingState};
+use crate::collision::view::World;
 use crate::scene::Scene;
 use crate::world::TrackSample;
 

@@ -9,12 +9,8 @@ use parry3d::math::Pose;
 use parry3d::query;
 use parry3d::shape::{Cuboid, Shape, TriMesh};
 
-use super::ground::Ground;
+use super::ground::{Ground, TOUCH_M};
 use crate::scene::geometry::{Geometry, GeometrySource};
-
-/// Two shapes closer than this touch, metres (0.1 mm; two boxes are tested on their 15
-/// separating axes, where a corner-to-corner gap may be up to 1.7 times this).
-pub const TOUCH_M: f64 = 1e-4;
 
 /// A shape as the reference sees it.
 pub(super) enum Parts {

@@ -14,11 +14,13 @@
 //! - [`errors`]: Gauss-Markov errors, biases, quantisation.
 //! - [`device`]: a device, validated: its mount, rate, latency and model.
 //! - [`spec`]: devices as written (TOML `[[sensor]]`, preset names with settings).
+//! - [`build`]: a spec built into a device, its preset resolved and every field checked.
 //! - [`presets`]: the named devices.
 //! - [`suite`]: a vehicle's devices, and the names (`ideal`, lists, files) that give them.
 //! - [`range`]: what a range device reads along its rays.
 //! - [`surveillance`]: what ADS-B, radar and EO/IR report of other aircraft.
 
+pub mod build;
 pub mod device;
 pub mod draws;
 pub mod errors;

@@ -5,19 +5,23 @@
 //! them. In `paper` mode its colliders are what contacts are tested against.
 //!
 //! A frame: activation (steps 1-2, here), the rays (step 3, `rays`), then rating and swaps
-//! (`collision::swaps`).
+//! ([`swaps`]), beta from [`threat`]; the nodes are the static scene's [`octree`].
 //!
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
 
+pub mod octree;
 mod rays;
+pub mod swaps;
+pub mod threat;
 
 use glam::DVec3;
 
-use crate::collision::bodies::{view, ObstacleRef, World};
+use crate::collision::bodies::ObstacleRef;
 use crate::collision::config::CollisionConfig;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
-use crate::collision::octree::NodeId;
+use crate::collision::sensing::octree::NodeId;
+use crate::collision::view::{view, World};
 use crate::collision::ColliderKind;
 use crate::scene::Aabb64;
 use crate::world::TrackSample;
@@ -147,9 +151,9 @@ impl Sensing {
         let mut counts = FrameCounts::default();
         self.activate(f, state, events);
         self.cast_rays(f, meshes, state, &mut counts);
-        crate::collision::swaps::rate_and_swap(f, meshes, state, events);
+        crate::collision::sensing::swaps::rate_and_swap(f, meshes, state, events);
         if rules == Rules::Sensor && world.shapes.has_meshes() {
-            crate::collision::swaps::make_resident_ahead(f, meshes, state);
+            crate::collision::sensing::swaps::make_resident_ahead(f, meshes, state);
         }
         for act in &state.active {
             match act.collider {

@@ -4,10 +4,12 @@
 use glam::DVec3;
 
 use super::{Active, Frame, FrameCounts, RayHit, Rules, Sensing, SensingState};
-use crate::collision::bodies::{view, Body, ObstacleRef};
-use crate::collision::contact;
+use crate::collision::bodies::ObstacleRef;
+use crate::collision::contact::queries;
+use crate::collision::contact::shapes::ExactShapes;
 use crate::collision::meshes::MeshCache;
-use crate::collision::shapes::ExactShapes;
+use crate::collision::placed::Body;
+use crate::collision::view::view;
 use crate::collision::ColliderKind;
 use crate::scene::Aabb64;
 
@@ -140,7 +142,7 @@ impl RayTests<'_, '_> {
         }
         let body = match rules {
             Rules::Paper => Body::new(
-                crate::collision::bodies::Holder::Mesh(
+                crate::collision::placed::Holder::Mesh(
                     self.meshes.get(v.geometry_index, v.geometry),
                 ),
                 v.current,
@@ -151,6 +153,6 @@ impl RayTests<'_, '_> {
                     .body(v.geometry_index, v.geometry, self.meshes, v.current, false)
             }
         };
-        contact::ray_distance_m(position, dir, limit, &body.placed())
+        queries::ray_distance_m(position, dir, limit, &body.placed())
     }
 }

@@ -29,7 +29,7 @@ impl AhpWeights {
     /// `None` if an entry is not positive and finite.
     ///
     /// ```
-    /// use savsim_core::collision::threat::{AhpWeights, PAPER_MATRIX};
+    /// use savsim_core::collision::sensing::threat::{AhpWeights, PAPER_MATRIX};
     /// let w = AhpWeights::from_matrix(PAPER_MATRIX).unwrap();
     /// assert!((w.w[0] - 0.4833).abs() < 1e-4);
     /// assert!((w.w[1] - 0.2586).abs() < 1e-4 && (w.w[2] - 0.2582).abs() < 1e-4);
@@ -59,7 +59,7 @@ impl AhpWeights {
     /// `angle_deg` from the UAV's forward axis. A = 180 - angle within 45 degrees, else 0.
     ///
     /// ```
-    /// use savsim_core::collision::threat::{AhpWeights, PAPER_MATRIX};
+    /// use savsim_core::collision::sensing::threat::{AhpWeights, PAPER_MATRIX};
     /// let w = AhpWeights::from_matrix(PAPER_MATRIX).unwrap();
     /// let ahead = w.beta(60.0, 0.0, 0.0);
     /// assert!((ahead - (0.4833 * 60.0 + 0.2582 * 180.0)).abs() < 0.05);

@@ -49,7 +49,7 @@ impl Approach {
     ///
     /// ```
     /// use glam::DVec3;
-    /// use savsim_core::collision::approach::Approach;
+    /// use savsim_core::daa::approach::Approach;
     /// // Passing 100 m abeam, 20 m above, at mid-interval.
     /// let a = Approach::over(0.0, 10.0, DVec3::new(-50.0, 100.0, 20.0), DVec3::new(50.0, 100.0, 20.0));
     /// assert!((a.t_s - 5.0).abs() < 1e-12);
@@ -147,7 +147,7 @@ impl Approaches {
     /// lists and sums).
     ///
     /// ```
-    /// use savsim_core::collision::approach::Approaches;
+    /// use savsim_core::daa::approach::Approaches;
     /// assert!(Approaches::default().pairs().is_empty());
     /// ```
     pub fn pairs(&self) -> Vec<(u8, &Pair)> {

@@ -11,7 +11,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use crate::study::pilot::Heard;
+use crate::study::pilot::heard::{carried, Heard};
 
 /// The drift is brought back within this many seconds of the vehicle's clock.
 pub const SETTLE_S: f64 = 2.0;
@@ -96,16 +96,11 @@ impl Pace {
     }
 }
 
-/// A clock's `ms` heard at `at`, carried on to `now` at `speedup`, seconds.
-pub(crate) fn carried(ms: u32, at: Instant, now: Instant, speedup: f64) -> f64 {
-    f64::from(ms) / 1000.0 + now.saturating_duration_since(at).as_secs_f64() * speedup
-}
-
 /// The speedup that keeps pace with a clock running at `other_pace` and brings `drift_s` (own
 /// ahead positive) back to zero within [`SETTLE_S`]: at most 20% off the other's pace.
 ///
 /// ```
-/// use savsim::study::pace::paced;
+/// use savsim::study::pilot::pace::paced;
 /// assert_eq!(paced(4.7, 0.0), 4.7);
 /// // 0.2 s ahead: slower, by a tenth over SETTLE_S = 2 s.
 /// assert!((paced(4.7, 0.2) - 4.7 * 0.9).abs() < 1e-12);

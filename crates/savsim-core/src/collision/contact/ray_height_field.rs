@@ -16,7 +16,7 @@ use parry3d::shape::{HeightField, Triangle};
 /// use glam::{DVec3, Vec3};
 /// use parry3d::shape::HeightField;
 /// use parry3d::utils::Array2;
-/// use savsim_core::collision::ray_height_field::cast;
+/// use savsim_core::collision::contact::ray_height_field::cast;
 /// // A flat 100 m square at height 2, and a ray straight down from 30 m.
 /// let field = HeightField::new(Array2::repeat(3, 3, 2.0), Vec3::new(100.0, 1.0, 100.0));
 /// let down = cast(&field, DVec3::new(10.0, 30.0, -5.0), DVec3::NEG_Y, 40.0);

@@ -5,8 +5,14 @@
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::MavCmd;
 
-use crate::study::pilot::{goto_velocity, leg_done, mode, Fix, Pilot, PilotError};
+use crate::study::pilot::heard::Fix;
+use crate::study::pilot::{mode, Pilot, PilotError};
 use crate::study::plan::Leg;
+
+/// A goto is done within this distance of its point, metres.
+pub const GOTO_DONE_M: f64 = 1.0;
+/// A takeoff is done within this height of its target, metres.
+pub const TAKEOFF_DONE_M: f64 = 1.0;
 
 /// How long an autopilot may take to arm, seconds of its clock: well beyond the time SITL's EKF
 /// and GPS take to be ready after boot (docs/study.md, "Measured").
@@ -344,11 +350,12 @@ impl StickMap {
         } else {
             velocity.z / self.vel_down
         };
-        let xy = |v: f64| crate::study::pilot::stick_for(v / self.vel_xy, self.dz, self.expo_xy);
+        let xy =
+            |v: f64| crate::study::pilot::fly::stick_for(v / self.vel_xy, self.dz, self.expo_xy);
         (
             xy(forward),
             xy(right),
-            crate::study::pilot::stick_for(vertical, self.dz, self.expo_z),
+            crate::study::pilot::fly::stick_for(vertical, self.dz, self.expo_z),
         )
     }
 }
@@ -398,5 +405,67 @@ fn start_leg_px4(pilot: &mut Pilot, leg: &Leg) -> Result<(), PilotError> {
             [0.0, 0.0, 0.0, nan, nan, nan, nan],
         ),
         _ => Ok(()),
+    }
+}
+
+/// The stick (-1..1) that makes PX4's Position mode ask for `fraction` (-1..1) of its
+/// maximum, through its deadzone `dz` (MPC_HOLD_DZ) and expo `e` (MPC_XY_MAN_EXPO):
+/// PX4 maps a stick `s` to `expo(deadzone(s))`, `deadzone(s) = (|s| - dz) / (1 - dz)`,
+/// `expo(u) = (1 - e) u + e u^3`; this inverts it (Newton on the cubic).
+///
+/// ```
+/// use savsim::study::pilot::fly::stick_for;
+/// let s = stick_for(0.5, 0.1, 0.6);
+/// let u = (s - 0.1) / 0.9;
+/// assert!(((1.0 - 0.6) * u + 0.6 * u * u * u - 0.5).abs() < 1e-9);
+/// assert_eq!(stick_for(0.0, 0.1, 0.6), 0.0);
+/// ```
+pub fn stick_for(fraction: f64, dz: f64, e: f64) -> f64 {
+    let f = fraction.clamp(-1.0, 1.0);
+    if f == 0.0 {
+        return 0.0;
+    }
+    let target = f.abs();
+    let mut u = target;
+    for _ in 0..50 {
+        let value = (1.0 - e) * u + e * u * u * u - target;
+        let slope = (1.0 - e) + 3.0 * e * u * u;
+        if slope.abs() < 1e-12 {
+            break;
+        }
+        u = (u - value / slope).clamp(0.0, 1.0);
+    }
+    f.signum() * (u * (1.0 - dz) + dz).min(1.0)
+}
+
+/// The velocity a `goto` commands from `at` towards `to` at `speed_mps`, slowing within two
+/// seconds of the point (at most half the distance per second), scene ENU m/s.
+///
+/// ```
+/// use glam::DVec3;
+/// let v = savsim::study::pilot::fly::goto_velocity(DVec3::ZERO, DVec3::new(100.0, 0.0, 0.0), 5.0);
+/// assert_eq!(v, DVec3::new(5.0, 0.0, 0.0));
+/// let near = savsim::study::pilot::fly::goto_velocity(DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), 5.0);
+/// assert_eq!(near, DVec3::new(1.0, 0.0, 0.0));
+/// ```
+pub fn goto_velocity(at: DVec3, to: DVec3, speed_mps: f64) -> DVec3 {
+    let away = to - at;
+    let distance = away.length();
+    if distance < 1e-6 {
+        return DVec3::ZERO;
+    }
+    away / distance * speed_mps.min(0.5 * distance)
+}
+
+/// Whether `leg` is done at `fix`, given where and when it began (a takeoff's height is
+/// above where it began: home).
+pub fn leg_done(leg: &Leg, fix: &Fix, began: &Fix, armed: bool) -> bool {
+    let elapsed_s = f64::from(fix.time_boot_ms.wrapping_sub(began.time_boot_ms)) / 1000.0;
+    match *leg {
+        Leg::Takeoff { up_m } => fix.enu_m.z - began.enu_m.z >= up_m - TAKEOFF_DONE_M,
+        Leg::Goto { enu_m, .. } => fix.enu_m.distance(DVec3::from(enu_m)) <= GOTO_DONE_M,
+        Leg::Velocity { seconds, .. } | Leg::Hold { seconds } => elapsed_s >= seconds,
+        Leg::Until { t_s } => fix.row_s >= t_s,
+        Leg::Land => !armed && elapsed_s > 1.0,
     }
 }

@@ -4,21 +4,21 @@
 //! last sample with the vehicle's reference point in one convex part of the obstacle (or
 //! under a terrain patch) all along held all through (convexity); and two bodies whose gaps at
 //! the two ends add up to more than the gap can close in the interval cannot have touched in
-//! it (the gap is 1-Lipschitz in time at the rate [`contact::closing_bound_m`] bounds; for
+//! it (the gap is 1-Lipschitz in time at the rate [`queries::closing_bound_m`] bounds; for
 //! terrain, read off the height grid). Neither guesses: each is a proof, and anything it cannot
-//! prove is swept, every span of contact found (`collision::spans`).
+//! prove is swept, every span of contact found (`collision::contact::spans`).
 //!
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
 
 use glam::DVec3;
 use smallvec::SmallVec;
 
-use crate::collision::bodies::{
-    inside_solid, view, Body, BodyPose, ObstacleRef, ObstacleView, World,
-};
-use crate::collision::contact;
-use crate::collision::contacts::{above_terrain, solid_overlap, Before, Contacts, Motion, Touch};
+use crate::collision::bodies::{BodyPose, ObstacleRef};
+use crate::collision::contact::queries;
+use crate::collision::contact::{above_terrain, solid_overlap, Before, Contacts, Motion, Touch};
 use crate::collision::meshes::MeshCache;
+use crate::collision::placed::{inside_solid, Body};
+use crate::collision::view::{view, ObstacleView, World};
 use crate::scene::geometry::{Geometry, GeometrySource};
 use crate::scene::Aabb64;
 
@@ -148,7 +148,7 @@ impl Contacts {
             Some(d) => d,
             None if near_miss_candidate => {
                 tests += 1;
-                contact::distance_m(&s.vehicle.placed(), &body.placed())
+                queries::distance_m(&s.vehicle.placed(), &body.placed())
             }
             None => return tests,
         };
@@ -217,8 +217,8 @@ impl Interval<'_> {
             body.at(v.previous),
             body.placed(),
         );
-        let closing = contact::closing_bound_m(&a0, &a1, &b0, &b1);
-        let slack = 2.0 * f64::from(contact::tolerance_m(a0.shape, b0.shape)) + GAP_SLACK_M;
+        let closing = queries::closing_bound_m(&a0, &a1, &b0, &b1);
+        let slack = 2.0 * f64::from(queries::tolerance_m(a0.shape, b0.shape)) + GAP_SLACK_M;
         // A gap parry could not measure (infinite) proves nothing.
         let beyond = |gaps: f64| gaps.is_finite() && gaps > closing + slack;
         // Terrain: half of that gap at each end, read off the height grid.
@@ -240,7 +240,7 @@ impl Interval<'_> {
             return proof;
         }
         proof.tests += 1;
-        let d1 = contact::distance_m(&a1, &b1);
+        let d1 = queries::distance_m(&a1, &b1);
         proof.gap_now_m = Some(d1);
         if beyond(lower0 + d1) {
             proof.apart = true;
@@ -254,7 +254,7 @@ impl Interval<'_> {
             .map(|i| self.before.gaps[i].1);
         let d0 = cached.unwrap_or_else(|| {
             proof.tests += 1;
-            contact::distance_m(&a0, &b0)
+            queries::distance_m(&a0, &b0)
         });
         proof.apart = beyond(d0 + d1);
         proof
@@ -327,7 +327,7 @@ fn sweep_touches(
     } else {
         SmallVec::new()
     };
-    let first = contact::sweep(&a0, &a1, &b0, &b1);
+    let first = queries::sweep(&a0, &a1, &b0, &b1);
     let first = match (first, under.first()) {
         (Some(f), Some(r)) => Some(f.min(r.0)),
         (f, r) => f.or(r.map(|r| r.0)),
@@ -335,7 +335,7 @@ fn sweep_touches(
     let Some(first) = first else {
         return touches;
     };
-    let holds_now = contact::intersects(&vehicle.placed(), &body.placed())
+    let holds_now = queries::intersects(&vehicle.placed(), &body.placed())
         || solid_overlap(motion, body, v, vehicle_geometry).is_some();
     // A compound can be left and entered again within one interval (the wings of a building
     // at speed), and so can a surface when the vehicle travels more than its size (the ground
@@ -347,7 +347,7 @@ fn sweep_touches(
         || (body.is_surface() && travel_m > 2.0 * motion.radius_m)
         || !under.is_empty()
     {
-        crate::collision::spans::contact_spans(&a0, &a1, &b0, &b1, &under)
+        crate::collision::contact::spans::contact_spans(&a0, &a1, &b0, &b1, &under)
     } else {
         SmallVec::new()
     };
@@ -364,7 +364,7 @@ fn sweep_touches(
             // Went under the patch: the reference point is where it did.
             (p0.lerp(p1, fraction), DVec3::Z)
         } else {
-            contact::locate(&a0, &a1, &b0, &b1, fraction)
+            queries::locate(&a0, &a1, &b0, &b1, fraction)
         };
         touches.push(Touch {
             point_enu_m,

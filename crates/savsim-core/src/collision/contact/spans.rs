@@ -6,7 +6,8 @@
 use glam::DVec3;
 use parry3d::bounding_volume::BoundingVolume;
 
-use crate::collision::contact::{rotation_between, sweep, Placed, CONTACT_TOLERANCE_M};
+use crate::collision::contact::distance::CONTACT_TOLERANCE_M;
+use crate::collision::contact::queries::{rotation_between, sweep, Placed};
 
 /// The convex parts of a placed shape: a compound's parts, or the shape itself.
 fn convex_parts<'a>(p: &Placed<'a>) -> smallvec::SmallVec<[Placed<'a>; 8]> {

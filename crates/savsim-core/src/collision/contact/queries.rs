@@ -10,7 +10,9 @@ use parry3d::math::Pose;
 use parry3d::query::{self, NonlinearRigidMotion, PointQuery, Ray, ShapeCastOptions};
 use parry3d::shape::Shape;
 
-use crate::collision::distance::{shape_distance, shapes_intersect, Dispatcher};
+use crate::collision::contact::distance::{
+    shape_distance, shapes_intersect, Dispatcher, CONTACT_TOLERANCE_M,
+};
 use parry3d::query::QueryDispatcher;
 
 /// A shape placed in the scene.
@@ -125,11 +127,6 @@ pub(crate) fn rotation_between(from: &Placed<'_>, to: &Placed<'_>) -> DQuat {
         delta
     }
 }
-
-/// Two shapes this close count as touching, metres (plus the f32 resolution of the larger
-/// shape's coordinates): the same rule at every query, so that "resting exactly on a roof"
-/// is contact and a millimetre above is not.
-pub const CONTACT_TOLERANCE_M: f64 = 1e-4;
 
 /// Casts restarted after a hit that an exact distance query does not confirm (parry's
 /// conservative advancement can stop short of a contact on a near-grazing pass, and lose
@@ -361,7 +358,12 @@ pub fn ray_distance_m(
         // parry's height-field cast misses near-vertical rays: savsim's own, in f64.
         let to_shape = b.enu_from_shape.inverse();
         let origin = to_shape * (origin_enu_m - b.position_enu_m);
-        return crate::collision::ray_height_field::cast(field, origin, to_shape * dir_enu, max_m);
+        return crate::collision::contact::ray_height_field::cast(
+            field,
+            origin,
+            to_shape * dir_enu,
+            max_m,
+        );
     }
     let anchor = origin_enu_m;
     if let Some(mesh) = b

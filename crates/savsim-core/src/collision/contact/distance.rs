@@ -20,7 +20,10 @@ use parry3d::query::{
 };
 use parry3d::shape::{Cuboid, HeightField, Shape, Triangle};
 
-use crate::collision::contact::CONTACT_TOLERANCE_M;
+/// Two shapes this close count as touching, metres (plus the f32 resolution of the larger
+/// shape's coordinates): the same rule at every query, so that "resting exactly on a roof"
+/// is contact and a millimetre above is not.
+pub const CONTACT_TOLERANCE_M: f64 = 1e-4;
 
 /// parry's default dispatcher, except for the distance of two cuboids ([`cuboid_distance`]),
 /// which compounds of blocks reach for every pair of parts, and the queries of height fields.

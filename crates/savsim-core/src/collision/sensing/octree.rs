@@ -82,7 +82,7 @@ impl Octree {
     /// Build over `boxes` (object `i` has box `boxes[i]`).
     ///
     /// ```
-    /// use savsim_core::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+    /// use savsim_core::collision::sensing::octree::{Octree, OctreeConfig, OctreeWorkspace};
     /// use savsim_core::scene::Aabb64;
     /// use glam::DVec3;
     /// let boxes: Vec<Aabb64> = (0..100)
@@ -237,7 +237,7 @@ impl Octree {
     /// `limit_m`. Returns the object and distance of the nearest hit.
     ///
     /// ```
-    /// use savsim_core::collision::octree::{Octree, OctreeConfig, OctreeWorkspace};
+    /// use savsim_core::collision::sensing::octree::{Octree, OctreeConfig, OctreeWorkspace};
     /// use savsim_core::scene::Aabb64;
     /// use glam::DVec3;
     /// let boxes: Vec<Aabb64> = (0..100)

@@ -9,8 +9,9 @@ use parry3d::math::Pose;
 use parry3d::shape::{HeightField, SharedShape};
 use parry3d::utils::Array2;
 
-use crate::collision::bodies::{Body, BodyPose, Holder};
+use crate::collision::bodies::BodyPose;
 use crate::collision::meshes::MeshCache;
+use crate::collision::placed::{Body, Holder};
 use crate::scene::geometry::{Geometry, GeometrySource, TerrainPatch};
 
 /// The solids built for block geometries and the height fields for terrain patches, by

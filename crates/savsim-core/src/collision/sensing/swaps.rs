@@ -4,11 +4,12 @@
 //!
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
 
-use crate::collision::bodies::{view, ObstacleRef};
+use crate::collision::bodies::ObstacleRef;
+use crate::collision::contact::shapes::ExactShapes;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::sensing::{Active, Frame, Rules, SensingState};
-use crate::collision::shapes::ExactShapes;
+use crate::collision::view::view;
 use crate::collision::ColliderKind;
 
 /// Steps 4-5: the threat of what the rays see, and the box <-> mesh rule with the hold.

@@ -1,7 +1,7 @@
 //! The contact layer: what the vehicle touched in one interval, and how close it came to what it
 //! did not touch. One strategy per mode, chosen once per tick:
 //!
-//! - `exact` (`collision::swept`): every obstacle the swept vehicle can reach (the static
+//! - `exact` (`collision::contact::swept`): every obstacle the swept vehicle can reach (the static
 //!   `Bvh` for static obstacles, the moving bodies' broad phase), as its exact shape, swept
 //!   between the two samples. The truth savsim reports.
 //! - `box`, `mesh`, `paper` (`Contacts::discrete` with a `Colliders`): every obstacle near
@@ -9,16 +9,31 @@
 //!   sample. `exact` without a previous sample is also discrete, with the exact shapes.
 //!
 //! Pure and synchronous; imports no I/O, no tokio, no rerun.
+//!
+//! - [`queries`]: exact f64-anchored queries between placed shapes (intersection, sweep with
+//!   confirmation, the closing bound, ray).
+//! - [`distance`]: savsim's query dispatcher: parry's, cuboid pairs repaired, height fields'
+//!   missing queries added.
+//! - [`shapes`]: the exact shapes (cuboids, compounds, height fields, meshes).
+//! - [`ray_height_field`]: exact rays against terrain height fields.
+//! - [`spans`]: every span of contact within an interval, part by part.
+//! - [`swept`]: the `exact` strategy (proofs, then sweeps).
+
+pub mod distance;
+pub mod queries;
+pub mod ray_height_field;
+pub mod shapes;
+pub mod spans;
+pub mod swept;
 
 use glam::DVec3;
 
-use crate::collision::bodies::{
-    inside_solid, view, Body, BodyPose, Holder, ObstacleRef, ObstacleView, World,
-};
+use crate::collision::bodies::{BodyPose, ObstacleRef};
 use crate::collision::config::{CollisionConfig, Mode};
-use crate::collision::contact;
 use crate::collision::meshes::MeshCache;
+use crate::collision::placed::{inside_solid, Body, Holder};
 use crate::collision::sensing::SensingState;
+use crate::collision::view::{view, ObstacleView, World};
 use crate::collision::ColliderKind;
 use crate::scene::geometry::Geometry;
 use crate::scene::Aabb64;
@@ -233,7 +248,7 @@ impl Contacts {
             }
             if near_miss_candidate {
                 tests += 1;
-                let d = contact::distance_m(&vehicle.placed(), &body.placed());
+                let d = queries::distance_m(&vehicle.placed(), &body.placed());
                 if d < band_m {
                     self.near.push((o, d));
                 }
@@ -252,9 +267,9 @@ fn discrete_touch(
     vehicle_geometry: &Geometry,
 ) -> Option<Touch> {
     let (a, b) = (vehicle.placed(), body.placed());
-    let point_enu_m = if contact::intersects(&a, &b) {
+    let point_enu_m = if queries::intersects(&a, &b) {
         let (point_enu_m, normal_enu) =
-            contact::contact_point(&a, &b).unwrap_or((motion.now.position_enu_m, DVec3::Z));
+            queries::contact_point(&a, &b).unwrap_or((motion.now.position_enu_m, DVec3::Z));
         return Some(Touch {
             point_enu_m,
             normal_enu,
@@ -276,7 +291,7 @@ fn discrete_touch(
 
 /// One solid holds the other though no surfaces touch: the vehicle under terrain, or a
 /// surface-meshed obstacle inside the vehicle's solid. Exact shapes of boxes and blocks are
-/// solids already, and so are closed meshes (the query dispatcher, `collision::distance`, finds
+/// solids already, and so are closed meshes (the query dispatcher, `collision::contact::distance`, finds
 /// a body inside one); open meshes and terrain need this.
 pub(crate) fn solid_overlap(
     motion: &Motion,
