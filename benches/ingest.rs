@@ -5,9 +5,9 @@
 #![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use savsim::ingest::frame::{scan, Scan};
-use savsim::ingest::tlog::TlogReader;
-use savsim::ingest::Ingestor;
+use savsim::codec::frame::{scan, Scan};
+use savsim::codec::Ingestor;
+use savsim::logs::tlog::TlogReader;
 
 fn decode_tlog(c: &mut Criterion) {
     let bytes = std::fs::read(savsim::bundled::bundled(savsim::bundled::DEMO_FLIGHT)).unwrap();

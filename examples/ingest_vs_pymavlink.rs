@@ -6,8 +6,8 @@
 use std::process::Command;
 use std::time::Instant;
 
-use savsim::ingest::tlog::TlogReader;
-use savsim::ingest::Ingestor;
+use savsim::codec::Ingestor;
+use savsim::logs::tlog::TlogReader;
 
 fn main() {
     let path = std::env::args().nth(1).unwrap_or_else(|| {

@@ -7,8 +7,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result};
-use crate::ingest::flightlog::{read_dataflash, read_ulog, FlightLog, LogKind};
-use crate::ingest::tlog::TlogReader;
+use crate::logs::flightlog::{read_dataflash, read_ulog, FlightLog, LogKind};
+use crate::logs::tlog::TlogReader;
 use crate::session::Session;
 
 /// How fast a replay runs.

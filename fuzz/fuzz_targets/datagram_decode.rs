@@ -4,7 +4,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use savsim::pipeline::CollisionConfig;
-use savsim::ingest::stream::{frames_in_datagram, StreamFramer};
+use savsim::links::stream::{frames_in_datagram, StreamFramer};
 use savsim::session::Session;
 
 fuzz_target!(|data: &[u8]| {

@@ -8,10 +8,10 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = savsim::ingest::flightlog::LogKind::of(data);
-    if let Ok(log) = savsim::ingest::flightlog::read_ulog(data) {
+    let _ = savsim::logs::flightlog::LogKind::of(data);
+    if let Ok(log) = savsim::logs::flightlog::read_ulog(data) {
         assert!(log.reports.windows(2).all(|w| w[0].t_us <= w[1].t_us));
     }
-    let log = savsim::ingest::flightlog::read_dataflash(data);
+    let log = savsim::logs::flightlog::read_dataflash(data);
     assert!(log.reports.windows(2).all(|w| w[0].t_us <= w[1].t_us));
 });

@@ -15,10 +15,10 @@ use libfuzzer_sys::fuzz_target;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use savsim::live::LiveSession;
 use savsim::pipeline::CollisionConfig;
-use savsim::ingest::forward::Forwarder;
-use savsim::ingest::live::{Chunk, ChunkKind};
-use savsim::ingest::signing::{Signing, SigningKey};
-use savsim::ingest::supervisor::{Supervisor, SupervisorConfig, DEFAULT_GCS};
+use savsim::links::forward::Forwarder;
+use savsim::links::sockets::{Chunk, ChunkKind};
+use savsim::links::signing::{Signing, SigningKey};
+use savsim::links::supervisor::{Supervisor, SupervisorConfig, DEFAULT_GCS};
 use savsim::session::Session;
 
 fuzz_target!(|data: &[u8]| {

@@ -6,7 +6,7 @@ use std::sync::{Arc, OnceLock};
 
 use libfuzzer_sys::fuzz_target;
 use savsim::pipeline::{CollisionConfig, Pipeline};
-use savsim::ingest::tlog::TlogReader;
+use savsim::logs::tlog::TlogReader;
 use savsim::scene::Scene;
 use savsim::session::Session;
 

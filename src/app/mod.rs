@@ -13,14 +13,14 @@ use crate::cli::{
 use crate::collision::events::EventKind;
 use crate::collision::sensing::threat::AhpWeights;
 use crate::error::{Error, Result};
-use crate::ingest::address::ConnectAddress;
-use crate::ingest::signing::SigningKey;
-use crate::ingest::stats::SenderId;
+use crate::links::address::ConnectAddress;
+use crate::links::signing::SigningKey;
 use crate::live::{self, LiveOptions, LiveRun};
 use crate::pipeline::{CollisionConfig, SensorFan};
 use crate::replay::{replay, Speed};
 use crate::scene::{self, gen, Scene};
 use crate::session::{write_json_atomic, Session};
+use crate::world::SenderId;
 use savsim_core::bounds::{positive, MAX_DURATION_S};
 
 fn collision_config(args: &CollisionArgs) -> Result<CollisionConfig> {
@@ -116,13 +116,16 @@ fn start_feed(session: &mut Session, args: &FeedArgs) -> Result<Option<f64>> {
 
 #[cfg(feature = "viz")]
 fn start_viz(session: &mut Session, target: &str, whole_octree: bool) -> Result<()> {
-    session.start_viz(
-        &target.parse()?,
-        crate::viz::VizOptions {
-            whole_octree,
-            ..Default::default()
-        },
-    )
+    let target: crate::viz::RerunTarget = target.parse()?;
+    let start = session
+        .run_start()
+        .ok_or_else(|| Error::Usage("--rerun needs --scene".into()))?;
+    let options = crate::viz::VizOptions {
+        whole_octree,
+        ..Default::default()
+    };
+    session.observe(Box::new(crate::viz::logger(&target, options, start)?));
+    Ok(())
 }
 
 #[cfg(not(feature = "viz"))]

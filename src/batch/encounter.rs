@@ -9,13 +9,13 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::batch::error::{DaaTracksError, TrackError};
+use crate::codec::stats::IngestStats;
+use crate::codec::Ingestor;
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::digest::EventDigest;
 use crate::daa::approach::Approaches;
 use crate::geo::LocalTangentPlane;
-use crate::ingest::stats::IngestStats;
-use crate::ingest::tlog::TlogReader;
-use crate::ingest::Ingestor;
+use crate::logs::tlog::TlogReader;
 use crate::pipeline::{DynamicBody, MovingBodies, Pipeline, VehicleKey};
 use crate::scene::{DynamicSource, Kind, Scene, Waypoint};
 use crate::world::{Attitude, TrackSample, WorldConfig, WorldStore, WorldUpdate};

@@ -16,15 +16,15 @@ use crate::batch::error::RowError;
 use crate::batch::manifest::Run;
 use crate::batch::row::RunRow;
 use crate::batch::run::{mode_of, prepare, well_clear, Flight, Scenes};
+use crate::codec::decode::{AttitudeReport, PositionReport, Report};
 use crate::daa::approach::Approaches;
 use crate::geo::LocalTangentPlane;
-use crate::ingest::decode::{AttitudeReport, PositionReport, Report};
-use crate::ingest::stats::SenderId;
 use crate::pipeline::Pipeline;
 use crate::replay::{replay, Speed};
 use crate::runs::recordings::{keep, recording_path, RowChoice};
 use crate::scene::Scene;
 use crate::session::Session;
+use crate::world::SenderId;
 
 /// Which rows `--rerun-rows` records, and where.
 #[derive(Debug, Clone, Copy)]
@@ -99,21 +99,8 @@ fn recording_session(
 ) -> Result<Session, RowError> {
     let mut session = Session::with_pipeline(scene, pipeline, None)?;
     session.set_approaches(Approaches::with_volume(volume));
-    record_to(&mut session, path)?;
+    crate::runs::recordings::record_to(&mut session, path)?;
     Ok(session)
-}
-
-/// Record `session` to `path` for the rerun viewer.
-#[cfg(feature = "viz")]
-fn record_to(session: &mut Session, path: &Path) -> Result<(), RowError> {
-    Ok(session.record_to_file(path)?)
-}
-
-#[cfg(not(feature = "viz"))]
-fn record_to(_: &mut Session, _: &Path) -> Result<(), RowError> {
-    Err(RowError::Recording(
-        "--rerun-rows: this savsim was built without rerun (feature viz)".into(),
-    ))
 }
 
 /// The encounter flown through a recording session: its intruders pushed onto the scene as
@@ -135,7 +122,7 @@ fn fly_recorded(
     let mut session = Session::with_pipeline(Arc::new(with), pipeline, None)?;
     session.use_vehicle_clock();
     session.set_approaches(Approaches::with_volume(encounter.well_clear));
-    record_to(&mut session, path)?;
+    crate::runs::recordings::record_to(&mut session, path)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let sender = SenderId {
         system_id: OWNSHIP,

@@ -4,9 +4,9 @@
 use serde::Serialize;
 
 use crate::batch::manifest::Run;
+use crate::codec::stats::IngestStats;
 use crate::collision::digest::EventDigest;
 use crate::daa::approach::Approaches;
-use crate::ingest::stats::IngestStats;
 use crate::pipeline::PipelineTotals;
 use crate::runs::measured::Measured;
 

@@ -114,7 +114,7 @@ impl Feed {
         v.next_adsb_ms = Some(f.stamp.wrapping_add(period_ms));
         for (aircraft, body) in aircraft(f.input) {
             if f.within_adsb_radius(body.current.position_enu_m) {
-                f.push(wire::adsb_vehicle(&aircraft, 0.0));
+                f.push_adsb(&aircraft, 0.0);
             }
         }
     }

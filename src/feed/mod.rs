@@ -36,11 +36,11 @@ use mavlink::dialects::ardupilotmega::MavMessage;
 use serde::Serialize;
 
 use crate::geo::LocalTangentPlane;
-use crate::ingest::stats::SenderId;
 use crate::pipeline::{MovingBodies, Pipeline, VehicleKey};
 use crate::scene::Scene;
 use crate::world::clock::{self, ClockStep};
-use crate::world::report::Report;
+use crate::world::inputs::Report;
+use crate::world::SenderId;
 use crate::world::TrackSample;
 use aircraft::is_feed_icao;
 pub use config::{sensors_for, FeedConfig, FeedError, FeedKinds};
@@ -99,6 +99,18 @@ pub struct Reading {
     pub distance_m: Option<f64>,
 }
 
+/// One ADS-B report the feed sent, for the viewer: the aircraft's address, a label (the address
+/// and its callsign) and where the report put it (scene ENU metres, its errors included).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdsbSent {
+    /// ICAO address (24 bits).
+    pub icao_address: u32,
+    /// The address and the callsign, as a person reads them.
+    pub label: String,
+    /// Where the report put the aircraft, scene ENU metres.
+    pub position_enu_m: DVec3,
+}
+
 /// The feed's per-vehicle pacing and its scratch buffers.
 #[derive(Debug, Clone)]
 pub struct Feed {
@@ -111,6 +123,7 @@ pub struct Feed {
     dirs: [DVec3; BINS],
     bins: [Option<f64>; BINS],
     readings: Vec<Reading>,
+    adsb_sent: Vec<AdsbSent>,
     /// The modelled devices, unless the sensors are `ideal`.
     devices: Option<devices::Devices>,
 }
@@ -149,6 +162,7 @@ impl Feed {
             dirs: [DVec3::ZERO; BINS],
             bins: [None; BINS],
             readings: Vec::new(),
+            adsb_sent: Vec::new(),
             devices,
         }
     }
@@ -181,6 +195,11 @@ impl Feed {
     /// none): what the viewer draws.
     pub fn readings(&self) -> &[Reading] {
         &self.readings
+    }
+
+    /// The ADS-B reports the last [`Feed::on_sample`] sent: what the viewer draws.
+    pub fn adsb_sent(&self) -> &[AdsbSent] {
+        &self.adsb_sent
     }
 
     /// True when a frame is due for `sender` at its sample stamped `time_boot_ms`: one per
@@ -250,6 +269,7 @@ impl Feed {
         out: &mut Vec<FeedMessage>,
     ) {
         self.readings.clear();
+        self.adsb_sent.clear();
         if self.devices.is_some() && self.config.kinds.any() {
             self.on_sample_devices(pipeline, input, out);
             return;
@@ -259,12 +279,14 @@ impl Feed {
         }
         let first = out.len();
         let stamp = self.stamp(input.sender, input.current.time_boot_ms);
+        let mut adsb_sent = std::mem::take(&mut self.adsb_sent);
         let mut frame = Frame {
             input,
             stamp,
             up_enu: input.plane.up_at(&input.current.position),
             adsb_radius_m: self.config.adsb_radius_m,
             out,
+            adsb_sent: &mut adsb_sent,
         };
         let kinds = self.config.kinds;
         if kinds.needs_bins() || kinds.rangefinder {
@@ -277,6 +299,7 @@ impl Feed {
             self.collisions(&mut frame);
         }
         let made = (frame.out.len() - first) as u64;
+        self.adsb_sent = adsb_sent;
         self.vehicles
             .entry(input.sender)
             .or_default()
@@ -301,12 +324,14 @@ impl Feed {
         } else {
             time_boot_ms
         };
+        let mut adsb_sent = std::mem::take(&mut self.adsb_sent);
         let mut frame = Frame {
             input,
             stamp,
             up_enu: input.plane.up_at(&input.current.position),
             adsb_radius_m: self.config.adsb_radius_m,
             out,
+            adsb_sent: &mut adsb_sent,
         };
         let Some(devices) = self.devices.as_mut() else {
             return;
@@ -322,6 +347,7 @@ impl Feed {
             self.collisions(&mut frame);
         }
         let made = (frame.out.len() - first) as u64;
+        self.adsb_sent = adsb_sent;
         self.vehicles
             .entry(input.sender)
             .or_default()
@@ -344,6 +370,8 @@ struct Frame<'i, 'o> {
     /// Aircraft sent as ADS-B farther than this from the vehicle are not sent, metres.
     adsb_radius_m: f64,
     out: &'o mut Vec<FeedMessage>,
+    /// The ADS-B reports sent, for the viewer.
+    adsb_sent: &'o mut Vec<AdsbSent>,
 }
 
 impl Frame<'_, '_> {
@@ -352,6 +380,16 @@ impl Frame<'_, '_> {
     /// of it) within the radius of the vehicle's position at this frame.
     fn within_adsb_radius(&self, position_enu_m: DVec3) -> bool {
         (position_enu_m - self.input.current.position_enu_m).length() <= self.adsb_radius_m
+    }
+
+    /// Send `aircraft` as ADSB_VEHICLE, `tslc_s` after its fix, and keep where it was put.
+    fn push_adsb(&mut self, aircraft: &wire::Aircraft<'_>, tslc_s: f64) {
+        self.push(wire::adsb_vehicle(aircraft, tslc_s));
+        self.adsb_sent.push(AdsbSent {
+            icao_address: aircraft.icao_address & 0x00FF_FFFF,
+            label: wire::label(aircraft),
+            position_enu_m: self.input.plane.enu_m_from_geodetic(&aircraft.position),
+        });
     }
 
     fn push(&mut self, message: MavMessage) {

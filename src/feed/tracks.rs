@@ -81,5 +81,5 @@ pub(super) fn send_report(
         velocity_ned_mps: plane.ned_vector_at(&position, r.velocity_enu_mps),
         kind,
     };
-    f.push(wire::adsb_vehicle(&aircraft, age_s.max(0.0)));
+    f.push_adsb(&aircraft, age_s.max(0.0));
 }

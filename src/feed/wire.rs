@@ -153,6 +153,28 @@ pub struct Aircraft<'a> {
     pub kind: Kind,
 }
 
+/// An aircraft as a person reads it: its address and the callsign ADSB_VEHICLE carries (its
+/// first 8 characters).
+///
+/// ```
+/// use savsim::feed::wire::{label, Aircraft};
+/// let a = Aircraft {
+///     icao_address: 0xF00001,
+///     callsign: "SAVSIM-INTRUDER",
+///     position: savsim::geo::Geodetic::new(0.0, 0.0, 0.0),
+///     velocity_ned_mps: glam::DVec3::ZERO,
+///     kind: savsim::scene::Kind::Dji,
+/// };
+/// assert_eq!(label(&a), "F00001 SAVSIM-I");
+/// ```
+pub fn label(a: &Aircraft<'_>) -> String {
+    let callsign: Vec<u8> = a.callsign.bytes().take(8).collect();
+    let callsign = String::from_utf8_lossy(&callsign);
+    format!("{:06X} {}", a.icao_address & 0x00FF_FFFF, callsign.trim())
+        .trim()
+        .to_string()
+}
+
 /// ADSB_VEHICLE for `a`, reported `tslc_s` seconds after its last fix: every validity flag set
 /// (as ArduPilot's own ADS-B simulator sends), marked simulated.
 pub fn adsb_vehicle(a: &Aircraft<'_>, tslc_s: f64) -> MavMessage {

@@ -5,11 +5,11 @@ use std::io::BufWriter;
 use std::path::PathBuf;
 
 use super::{latency, new_histogram, FeedLinkReport};
-use crate::ingest::live::{Network, Outgoing};
-use crate::ingest::outbox::Outbox;
-use crate::ingest::stats::SenderId;
-use crate::ingest::supervisor::Endpoint;
-use crate::ingest::tlog::TlogWriter;
+use crate::codec::outbox::Outbox;
+use crate::links::sockets::{Network, Outgoing};
+use crate::links::supervisor::Endpoint;
+use crate::logs::tlog::TlogWriter;
+use crate::world::SenderId;
 
 /// Sends the session's feed messages to each vehicle's route, as the feed's identity.
 pub(super) struct FeedSender {

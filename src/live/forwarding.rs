@@ -2,10 +2,10 @@
 //! at hand until they are handed to the links.
 
 use super::new_histogram;
-use crate::ingest::forward::Forwarder;
-use crate::ingest::frame::RawFrame;
-use crate::ingest::live::{unix_now_s, Chunk, Outgoing, Sender};
-use crate::ingest::supervisor::{Endpoint, Supervisor};
+use crate::codec::frame::RawFrame;
+use crate::links::forward::Forwarder;
+use crate::links::sockets::{unix_now_s, Chunk, Outgoing, Sender};
+use crate::links::supervisor::{Endpoint, Supervisor};
 
 /// The router's state on the session thread.
 pub(super) struct Forwarding {

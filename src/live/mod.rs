@@ -2,7 +2,7 @@
 //! `savsim record` and every study row. It sits below `app` (the commands' wiring) and
 //! `study`, which both use it; it imports neither.
 //!
-//! The network runtime's worker runs one task per link ([`crate::ingest::live`]); this thread
+//! The network runtime's worker runs one task per link ([`crate::links::sockets`]); this thread
 //! frames each chunk (one framer per TCP link, restarted at each connection), lets the
 //! [`Supervisor`] route and supervise, records, runs the session, and sends what the
 //! supervisor says is due to the endpoint it names. It stops on SIGINT/SIGTERM, at the
@@ -20,26 +20,26 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::codec::outbox::Outbox;
 use crate::error::{Error, Result};
-use crate::ingest::address::ConnectAddress;
-use crate::ingest::forward::Forwarder;
-use crate::ingest::live::{unix_now_s, Chunk, Link, LinkCounters, Network, Outgoing};
-use crate::ingest::outbox::Outbox;
-use crate::ingest::signing::{Signing, SigningKey};
-use crate::ingest::stats::SenderId;
-use crate::ingest::supervisor::Endpoint;
-use crate::ingest::supervisor::{LinkId, Supervisor, SupervisorConfig};
-use crate::ingest::tlog::TlogWriter;
+use crate::links::address::ConnectAddress;
+use crate::links::forward::Forwarder;
+use crate::links::signing::{Signing, SigningKey};
+use crate::links::sockets::{unix_now_s, Chunk, Link, LinkCounters, Network, Outgoing};
+use crate::links::supervisor::Endpoint;
+use crate::links::supervisor::{LinkId, Supervisor, SupervisorConfig};
+use crate::logs::tlog::TlogWriter;
 use crate::session::Session;
+use crate::world::SenderId;
 
 mod feed;
 mod forwarding;
-mod report;
+mod link_summary;
 mod session;
 
 use feed::FeedSender;
-use report::{latency, link_report, new_histogram, Ending};
-pub use report::{FeedLinkReport, ForwardReport, Latency, LinkReport};
+use link_summary::{latency, link_report, new_histogram, Ending};
+pub use link_summary::{FeedLinkReport, ForwardReport, Latency, LinkReport};
 pub use session::LiveSession;
 
 /// How a live run behaves.
@@ -52,7 +52,7 @@ pub struct LiveOptions {
     /// Stop after this long (default: run until shutdown).
     pub duration: Option<Duration>,
     /// savsim's own identity as a GCS (`--sysid`, `--compid`). Default 245/190
-    /// ([`crate::ingest::supervisor::DEFAULT_GCS`]).
+    /// ([`crate::links::supervisor::DEFAULT_GCS`]).
     pub gcs: SenderId,
     /// Chunks the channel to the session thread holds before dropping. Default 65536.
     pub queue_len: usize,
@@ -119,7 +119,7 @@ pub const FEED_COMPONENT: u8 = 196;
 /// The feed's identity by default: savsim's default system, [`FEED_COMPONENT`]. Never the
 /// vehicle's own (ArduPilot drops its own system's messages as a routing loop).
 pub const FEED_FROM: SenderId = SenderId {
-    system_id: crate::ingest::supervisor::DEFAULT_GCS.system_id,
+    system_id: crate::links::supervisor::DEFAULT_GCS.system_id,
     component_id: FEED_COMPONENT,
 };
 

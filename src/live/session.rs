@@ -8,16 +8,16 @@ use std::sync::Arc;
 use super::feed::FeedSender;
 use super::forwarding::Forwarding;
 use super::{new_histogram, FEED_FROM};
+use crate::codec::frame::{scan, FrameStatus, RawFrame, Scan};
 use crate::error::{Error, Result};
-use crate::ingest::forward::Forwarder;
-use crate::ingest::frame::{scan, FrameStatus, RawFrame, Scan};
-use crate::ingest::live::{unix_now_s, Chunk, ChunkKind, Network, Outgoing, Sender};
-use crate::ingest::signing::{Signing, SigningCounts};
-use crate::ingest::stats::SenderId;
-use crate::ingest::stream::{frames_in_datagram, Skipped, StreamFramer};
-use crate::ingest::supervisor::{Endpoint, LinkId, Supervisor};
-use crate::ingest::tlog::TlogWriter;
+use crate::links::forward::Forwarder;
+use crate::links::signing::{Signing, SigningCounts};
+use crate::links::sockets::{unix_now_s, Chunk, ChunkKind, Network, Outgoing, Sender};
+use crate::links::stream::{frames_in_datagram, Skipped, StreamFramer};
+use crate::links::supervisor::{Endpoint, LinkId, Supervisor};
+use crate::logs::tlog::TlogWriter;
 use crate::session::Session;
+use crate::world::SenderId;
 
 /// What the session thread holds while a run lasts: the session, the supervisor, the
 /// recording, a framer per TCP link and the latency histogram. The fuzz target `live_links`

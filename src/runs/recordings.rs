@@ -96,6 +96,27 @@ pub fn keep(made: &Path, out: &Path, index: u64, id: &str) -> std::io::Result<Pa
     Ok(kept)
 }
 
+/// Record `session` for the rerun viewer to an .rrd file at `path` (a batch or study row's
+/// recording). Needs a scene.
+#[cfg(feature = "viz")]
+pub fn record_to(session: &mut crate::session::Session, path: &Path) -> crate::error::Result<()> {
+    use crate::viz::{logger, RerunTarget, VizOptions};
+    let start = session
+        .run_start()
+        .ok_or_else(|| crate::error::Error::Usage("a recording needs a scene".into()))?;
+    let target = RerunTarget::Save(path.to_path_buf());
+    session.observe(Box::new(logger(&target, VizOptions::default(), start)?));
+    Ok(())
+}
+
+/// Without the viewer's build (feature `viz`), no recording.
+#[cfg(not(feature = "viz"))]
+pub fn record_to(_: &mut crate::session::Session, _: &Path) -> crate::error::Result<()> {
+    Err(crate::error::Error::Usage(
+        "--rerun-rows: this savsim was built without rerun (feature viz)".into(),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

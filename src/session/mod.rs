@@ -1,9 +1,11 @@
 //! A run: decoded messages in, world state and collision ticks through, events and a summary
 //! out. Synchronous; replay drives it directly, live from its own named thread.
 //!
-//! One collision tick is `tick`; the bodies a tick watches, `traffic`; the summary a run
-//! writes, `summary`.
+//! One collision tick is `tick`; the bodies a tick watches, `traffic`; what it shows whoever
+//! watches it (an `observe::Observer`: the viewer), `observed`; the summary a run writes,
+//! `summary`.
 
+mod observed;
 mod summary;
 mod tick;
 mod traffic;
@@ -16,18 +18,19 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::codec::frame::{FrameStatus, RawFrame};
+use crate::codec::outbox::Outbox;
+use crate::codec::Ingestor;
 use crate::collision::digest::EventDigest;
 use crate::collision::events::{Event, EventKind};
 use crate::daa::approach::{Approaches, WellClearChange};
 use crate::error::{Error, Result};
 use crate::feed::{Feed, FeedConfig, FeedMessage};
-use crate::ingest::frame::{FrameStatus, RawFrame};
-use crate::ingest::outbox::Outbox;
-use crate::ingest::stats::SenderId;
-use crate::ingest::tlog::TlogWriter;
-use crate::ingest::Ingestor;
+use crate::logs::tlog::TlogWriter;
+use crate::observe::{Observer, RunStart};
 use crate::pipeline::{CollisionConfig, MovingBodies, Pipeline};
 use crate::scene::Scene;
+use crate::world::SenderId;
 use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 
 /// Most collision, near-miss and well-clear events kept in memory for the run's printed
@@ -35,7 +38,6 @@ use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 /// comes from [`EventDigest`], which takes them all.
 const NOTABLE_KEPT: usize = 1000;
 /// Notes held for senders with no position yet, at most.
-#[cfg(feature = "viz")]
 const HELD_NOTES: usize = 64;
 
 /// A run's state.
@@ -74,17 +76,15 @@ pub struct Session {
     /// Set when the run was stopped by a signal.
     interrupted: bool,
     /// What an autopilot log held, when the input is one (the summary's `log`).
-    log: Option<crate::ingest::flightlog::LogSummary>,
-    /// The rerun logger, when `--rerun` is on.
-    #[cfg(feature = "viz")]
-    viz: Option<crate::viz::Logger>,
-    /// What the vehicles say (STATUSTEXT, mode changes, COLLISION), for the logger.
-    #[cfg(feature = "viz")]
-    notes: crate::ingest::notes::Notes,
+    log: Option<crate::logs::flightlog::LogSummary>,
+    /// Whoever watches the run (the viewer, `--rerun`): handed a frame at each tick, each line
+    /// a vehicle says, and the run's end.
+    observer: Option<Box<dyn Observer>>,
+    /// What the vehicles say (STATUSTEXT, mode changes, COLLISION), for the observer.
+    notes: crate::codec::notes::Notes,
     /// Notes of senders with no position yet, held until their first (at most
     /// [`HELD_NOTES`]).
-    #[cfg(feature = "viz")]
-    held_notes: Vec<(f64, crate::ingest::notes::Note)>,
+    held_notes: Vec<(f64, crate::codec::notes::Note)>,
     ticks: u64,
     /// The closed-loop feed, when `--feed` is on.
     feed: Option<Feed>,
@@ -160,11 +160,8 @@ impl Session {
             started: Instant::now(),
             interrupted: false,
             log: None,
-            #[cfg(feature = "viz")]
-            viz: None,
-            #[cfg(feature = "viz")]
-            notes: crate::ingest::notes::Notes::default(),
-            #[cfg(feature = "viz")]
+            observer: None,
+            notes: crate::codec::notes::Notes::default(),
             held_notes: Vec::new(),
             ticks: 0,
             feed: None,
@@ -203,12 +200,12 @@ impl Session {
     }
 
     /// What decoding counted.
-    pub fn stats(&self) -> &crate::ingest::stats::IngestStats {
+    pub fn stats(&self) -> &crate::codec::stats::IngestStats {
         &self.ingestor.stats
     }
 
     /// What decoding counted, for a reader or a link that counts what it skipped or dropped.
-    pub fn stats_mut(&mut self) -> &mut crate::ingest::stats::IngestStats {
+    pub fn stats_mut(&mut self) -> &mut crate::codec::stats::IngestStats {
         &mut self.ingestor.stats
     }
 
@@ -265,7 +262,7 @@ impl Session {
     }
 
     /// Say what the autopilot log being replayed held (the summary's `log`).
-    pub fn set_log(&mut self, log: crate::ingest::flightlog::LogSummary) {
+    pub fn set_log(&mut self, log: crate::logs::flightlog::LogSummary) {
         self.log = Some(log);
     }
 
@@ -300,52 +297,23 @@ impl Session {
         self.own = own;
     }
 
-    /// Stream this run to rerun. Needs a scene.
-    #[cfg(feature = "viz")]
-    pub fn start_viz(
-        &mut self,
-        target: &crate::viz::RerunTarget,
-        options: crate::viz::VizOptions,
-    ) -> Result<()> {
-        if self.pipeline.is_none() {
-            return Err(Error::Usage("--rerun needs --scene".into()));
-        }
-        let live = !matches!(target, crate::viz::RerunTarget::Save(_));
-        self.start_viz_stream(
-            crate::viz::open(target)?,
-            crate::viz::VizOptions { live, ..options },
-        )
+    /// Hand every frame of this run to `observer` (the viewer): a tick's, a vehicle's line,
+    /// the closest approaches at its end.
+    pub fn observe(&mut self, observer: Box<dyn Observer>) {
+        self.observer = Some(observer);
     }
 
-    /// Record this run to an .rrd file at `path` (a study row's recording). Needs a scene.
-    #[cfg(feature = "viz")]
-    pub fn record_to_file(&mut self, path: &std::path::Path) -> Result<()> {
-        let target = crate::viz::RerunTarget::Save(path.to_path_buf());
-        self.start_viz(&target, crate::viz::VizOptions::default())
-    }
-
-    /// Stream this run into an already open rerun stream (tests use a memory stream).
-    #[cfg(feature = "viz")]
-    pub fn start_viz_stream(
-        &mut self,
-        rec: rerun::RecordingStream,
-        options: crate::viz::VizOptions,
-    ) -> Result<()> {
+    /// What an observer is told of this run before its first frame: its scene, the scene's
+    /// octree, its clock. `None` without a scene (nothing is drawn of a run without one).
+    pub fn run_start(&self) -> Option<RunStart> {
         let (Some(scene), Some(pipeline)) = (&self.scene, &self.pipeline) else {
-            return Err(Error::Usage("--rerun needs --scene".into()));
+            return None;
         };
-        let leaves = pipeline.octree().leaves().map(|(_, b, _)| b).collect();
-        let options = crate::viz::VizOptions {
-            vehicle_clock: options.vehicle_clock || self.vehicle_clock,
-            ..options
-        };
-        self.viz = Some(crate::viz::Logger::with_stream(
-            rec,
-            scene.clone(),
-            leaves,
-            options,
-        )?);
-        Ok(())
+        Some(RunStart {
+            scene: scene.clone(),
+            octree_leaves: pipeline.octree().leaves().map(|(_, b, _)| b).collect(),
+            vehicle_clock: self.vehicle_clock,
+        })
     }
 
     /// Turn the closed-loop feed on (docs/closed-loop.md). Needs a scene.
@@ -407,9 +375,8 @@ impl Session {
         } else {
             t_s
         };
-        #[cfg(feature = "viz")]
         if frame.status == FrameStatus::Valid {
-            self.note_for_viewer(t_s, frame);
+            self.note_for_observer(t_s, frame);
         }
         let Some(decoded) = self.ingestor.frame(frame) else {
             return Ok(());
@@ -425,71 +392,13 @@ impl Session {
         self.on_report(t_s, decoded.sender, &decoded.report)
     }
 
-    /// What a vehicle said in `frame` (received at `t_s`), to the logger at the vehicle's last
-    /// clock; held until its first position when it has none yet. Nothing without a logger
-    /// or from savsim's own senders.
-    #[cfg(feature = "viz")]
-    fn note_for_viewer(&mut self, t_s: f64, frame: &RawFrame<'_>) {
-        if self.viz.is_none() {
-            return;
-        }
-        let Some(note) = self.notes.take(frame) else {
-            return;
-        };
-        if self.own.contains(&note.sender) {
-            return;
-        }
-        let latest = self
-            .world
-            .vehicles
-            .get(&note.sender)
-            .and_then(|v| v.history.latest());
-        match latest {
-            Some(at) => {
-                let time_boot_ms = at.time_boot_ms;
-                self.send_note(t_s, time_boot_ms, note);
-            }
-            None if self.held_notes.len() < HELD_NOTES => self.held_notes.push((t_s, note)),
-            None => {}
-        }
-    }
-
-    /// Send `note` to the logger at `t_s` and the vehicle's clock `time_boot_ms`.
-    #[cfg(feature = "viz")]
-    fn send_note(&mut self, t_s: f64, time_boot_ms: u32, note: crate::ingest::notes::Note) {
-        let Some(viz) = &mut self.viz else { return };
-        viz.send(crate::viz::VizMsg::Note(Box::new(crate::viz::NoteFrame {
-            tick: self.ticks,
-            t_s,
-            time_boot_ms,
-            system_id: note.sender.system_id,
-            severity: note.severity,
-            text: note.text,
-        })));
-    }
-
-    /// The notes `sender` said before its first position, sent at `time_boot_ms`.
-    #[cfg(feature = "viz")]
-    fn send_held_notes(&mut self, sender: SenderId, time_boot_ms: u32) {
-        if self.held_notes.is_empty() {
-            return;
-        }
-        let held = std::mem::take(&mut self.held_notes);
-        let (mine, others): (Vec<_>, Vec<_>) =
-            held.into_iter().partition(|(_, n)| n.sender == sender);
-        self.held_notes = others;
-        for (t_s, note) in mine {
-            self.send_note(t_s, time_boot_ms, note);
-        }
-    }
-
     /// Take one report from `sender` at `t_s` (seconds on the source's clock): what a frame
-    /// decodes to, or what an autopilot log holds (`crate::ingest::flightlog`).
+    /// decodes to, or what an autopilot log holds (`crate::logs::flightlog`).
     pub fn on_report(
         &mut self,
         t_s: f64,
         sender: SenderId,
-        report: &crate::ingest::decode::Report,
+        report: &crate::codec::decode::Report,
     ) -> Result<()> {
         if let WorldUpdate::VehicleMoved(sender) = self.world.apply(t_s, sender, report) {
             self.tick(sender)?;
@@ -538,23 +447,7 @@ impl Session {
         if let Some((path, out, _)) = &mut self.feed_tlog {
             out.flush().map_err(|e| Error::file(path.clone(), e))?;
         }
-        #[cfg(feature = "viz")]
-        if let Some(viz) = &mut self.viz {
-            let approaches = self.approaches.pairs().into_iter().map(|(own, pair)| {
-                let a = pair.approach;
-                crate::viz::ApproachFrame {
-                    system_id: own,
-                    track: pair.id.to_string(),
-                    t_s: a.t_s,
-                    distance_m: a.distance_m,
-                    horizontal_m: a.horizontal_m,
-                    vertical_m: a.vertical_m,
-                    nmac: a.nmac,
-                }
-            });
-            viz.send(crate::viz::VizMsg::Approaches(approaches.collect()));
-            viz.finish()?;
-        }
+        self.observe_end()?;
         Ok(())
     }
 }

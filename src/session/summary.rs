@@ -171,16 +171,11 @@ impl Session {
         }))
     }
 
-    /// Frames sent to the viewer and dropped, when `--rerun` is on.
-    #[cfg(feature = "viz")]
+    /// Frames handed to the viewer and dropped, when the run is watched (`--rerun`).
     fn rerun_summary(&self) -> Option<Value> {
-        self.viz
-            .as_ref()
-            .map(|v| json!({ "sent": v.sent(), "dropped": v.dropped() }))
-    }
-
-    #[cfg(not(feature = "viz"))]
-    fn rerun_summary(&self) -> Option<Value> {
-        None
+        self.observer.as_ref().map(|o| {
+            let (sent, dropped) = o.counts();
+            json!({ "sent": sent, "dropped": dropped })
+        })
     }
 }

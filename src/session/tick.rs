@@ -1,8 +1,7 @@
 //! One collision tick of a session, for the vehicle whose position just arrived: its samples,
 //! the moving bodies within its watch range, well clear, the pipeline's step, the feed, and
-//! the viewer's frame. Its buffers (the moving bodies, the well-clear changes, the events) are
-//! the session's, reused from tick to tick; the viewer's frame, when `--rerun` is on, is built
-//! anew for the logger thread.
+//! what it shows its observer (`session::observed`). Its buffers (the moving bodies, the
+//! well-clear changes, the events) are the session's, reused from tick to tick.
 
 use std::time::Instant;
 
@@ -12,19 +11,19 @@ use crate::daa::approach::{Approaches, WellClearChange};
 use crate::daa::episodes::Change;
 use crate::error::Result;
 use crate::feed::FrameInput;
-use crate::ingest::stats::SenderId;
 use crate::pipeline::{TickReport, VehicleKey};
 use crate::scene::Scene;
+use crate::world::SenderId;
 use crate::world::TrackSample;
 
 /// The tick at hand: whose it is and its two samples.
-struct TickInput {
-    sender: SenderId,
-    key: VehicleKey,
-    previous: Option<TrackSample>,
-    current: TrackSample,
+pub(super) struct TickInput {
+    pub(super) sender: SenderId,
+    pub(super) key: VehicleKey,
+    pub(super) previous: Option<TrackSample>,
+    pub(super) current: TrackSample,
     /// When the flight started, seconds of the samples' clock.
-    flight_start_t_s: f64,
+    pub(super) flight_start_t_s: f64,
 }
 
 impl Session {
@@ -40,13 +39,9 @@ impl Session {
         let first_event = self.events.len();
         self.judge_well_clear(&tick);
         let (report, cost_ns) = self.step_pipeline(&scene, &tick);
-        let first_feed = self.feed_out.len();
         self.feed_sample(&scene, &tick);
         self.ticks += 1;
-        #[cfg(not(feature = "viz"))]
-        let _ = (first_event, first_feed, report, cost_ns);
-        #[cfg(feature = "viz")]
-        self.send_viz_frame(&scene, &tick, (first_event, first_feed), report, cost_ns);
+        self.observe_tick(&scene, &tick, first_event, report, cost_ns);
         self.write_feed()?;
         self.flush_events()
     }
@@ -110,13 +105,10 @@ impl Session {
         );
     }
 
-    /// Whether the viewer draws this run: it draws the traffic and the colliders of every
+    /// Whether the run is watched: the viewer draws the traffic and the colliders of every
     /// tick's bodies, so every tick takes them all (the answers are the same either way).
     fn draws_traffic(&self) -> bool {
-        #[cfg(feature = "viz")]
-        return self.viz.is_some();
-        #[cfg(not(feature = "viz"))]
-        false
+        self.observer.is_some()
     }
 
     /// Closest approaches and well clear against the moving bodies within the approach reach;
@@ -178,110 +170,6 @@ impl Session {
         };
         feed.on_sample(pipeline, &input, &mut self.feed_out);
     }
-
-    /// What the viewer draws of this tick, sent to the logger thread (dropped and counted when
-    /// its queue is full).
-    #[cfg(feature = "viz")]
-    fn send_viz_frame(
-        &mut self,
-        scene: &Scene,
-        tick: &TickInput,
-        (first_event, first_feed): (usize, usize),
-        report: TickReport,
-        cost_ns: u64,
-    ) {
-        let adsb_sent = adsb_sent(&self.feed_out[first_feed..], self.world.plane());
-        self.send_held_notes(tick.sender, tick.current.time_boot_ms);
-        let (Some(viz), Some(pipeline)) = (&mut self.viz, &self.pipeline) else {
-            return;
-        };
-        let (sender, key, current) = (tick.sender, tick.key, &tick.current);
-        let sensing = pipeline
-            .vehicle(key.vehicle, key.component_id)
-            .map(|v| &v.sensing);
-        viz.send(crate::viz::VizMsg::Tick(Box::new(crate::viz::TickFrame {
-            tick: self.ticks,
-            t_s: current.t_s,
-            t0_s: self
-                .ingestor
-                .stats
-                .time_span_s
-                .map_or(current.t_s, |(first, _)| first),
-            time_boot_ms: current.time_boot_ms,
-            system_id: sender.system_id,
-            pose: crate::pipeline::BodyPose::of(current),
-            model: scene.vehicle_model(sender.system_id),
-            rays: sensing.map_or_else(Vec::new, |s| {
-                s.rays
-                    .iter()
-                    .map(|(dir, hit)| (*dir, hit.map(|h| h.distance_m)))
-                    .collect()
-            }),
-            ray_length_m: pipeline.config().ray_length_m,
-            feed: self
-                .feed
-                .as_ref()
-                .map_or_else(Vec::new, |f| f.readings().to_vec()),
-            feed_max_m: self.feed.as_ref().map_or(0.0, |f| f.config.range.max_m),
-            adsb_sent,
-            node: sensing
-                .and_then(|s| s.node())
-                .map(|n| pipeline.octree().node_aabb(n)),
-            colliders: sensing.map_or_else(Vec::new, |s| s.colliders().collect()),
-            dynamic: self
-                .dynamic
-                .as_slice()
-                .iter()
-                .map(|d| (d.key, d.id.to_string(), d.kind, d.geometry_index, d.current))
-                .collect(),
-            events: self.events[first_event..]
-                .iter()
-                .filter(|e| {
-                    matches!(
-                        e.kind,
-                        EventKind::Collision { .. }
-                            | EventKind::NearMiss { .. }
-                            | EventKind::WellClearLost { .. }
-                    )
-                })
-                .cloned()
-                .collect(),
-            well_clear_m: self.approaches.volume().map(|v| (v.dthr_m, v.zthr_m)),
-            report,
-            cost_us: cost_ns as f64 / 1e3,
-        })));
-    }
-}
-
-/// The ADS-B reports among `sent`: each its ICAO address, a label (the address and the
-/// callsign) and the position it gave, in `plane`'s ENU metres.
-#[cfg(feature = "viz")]
-fn adsb_sent(
-    sent: &[crate::feed::FeedMessage],
-    plane: &crate::geo::LocalTangentPlane,
-) -> Vec<(u32, String, glam::DVec3)> {
-    use mavlink::dialects::ardupilotmega::MavMessage;
-    sent.iter()
-        .filter_map(|m| match &m.message {
-            MavMessage::ADSB_VEHICLE(a) => {
-                let at = crate::geo::Geodetic::new(
-                    f64::from(a.lat) * 1e-7,
-                    f64::from(a.lon) * 1e-7,
-                    f64::from(a.altitude) * 1e-3,
-                );
-                let callsign = a
-                    .callsign
-                    .to_str()
-                    .unwrap_or("")
-                    .trim_end_matches('\0')
-                    .trim();
-                let label = format!("{:06X} {callsign}", a.ICAO_address);
-                let at_enu_m = plane.enu_m_from_geodetic(&at);
-                Some((a.ICAO_address, label.trim().to_string(), at_enu_m))
-            }
-            _ => None,
-        })
-        .collect()
 }
 
 /// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a

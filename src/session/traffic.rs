@@ -18,9 +18,9 @@ use std::sync::Arc;
 use crate::collision::bodies::radius_m;
 use crate::daa::well_clear::{Volume, FT_M};
 use crate::feed::FeedConfig;
-use crate::ingest::stats::SenderId;
 use crate::pipeline::{BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies};
 use crate::scene::{Aabb64, DynamicSource, Kind, Scene};
+use crate::world::SenderId;
 use crate::world::{Track, TrackSample, WorldStore, PREDICT_MAX_S};
 
 /// NMAC's horizontal threshold (500 ft), metres: the widest NMAC reaches.

@@ -14,8 +14,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant, SystemTime};
 
 use crate::geo::{Geodetic, LocalTangentPlane};
-use crate::ingest::stats::SenderId;
 use crate::study::pilot::{Pilot, PilotError};
+use crate::world::SenderId;
 
 /// SITL's SERIAL1 TCP port for instance `instance`.
 pub fn serial1_port(instance: u16) -> u16 {

@@ -17,8 +17,9 @@ use rerun::components::FillMode;
 use rerun::{Clear, Color, Mesh3D, RecordingStream, RecordingStreamResult};
 
 use super::draw::{beta_color, box_of_geometry, boxes_of, local, pose_of_static, see_through};
-use super::{paths, TickFrame};
+use super::paths;
 use crate::collision::ColliderKind;
+use crate::observe::TickFrame;
 use crate::pipeline::{BodyPose, ObstacleRef};
 use crate::scene::geometry::Geometry;
 use crate::scene::Scene;

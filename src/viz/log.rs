@@ -17,8 +17,9 @@ use super::draw::{
 };
 use super::markers::{Markers, Where, FOCUS_AFTER_S, FOCUS_BEFORE_S};
 use super::rows::Rows;
-use super::{paths, NoteFrame, TickFrame, VizMsg, VizOptions};
+use super::{paths, VizOptions};
 use crate::collision::bodies::BodySource;
+use crate::observe::{ApproachFrame, Frame, NoteFrame, TickFrame};
 use crate::scene::{Aabb64, Kind, Scene};
 
 /// Static scenes with at most this many triangles are drawn as meshes, larger ones as boxes.
@@ -65,7 +66,7 @@ struct State<'s> {
 /// The thread's body: the scene, then every tick, then the final layout.
 pub fn run(
     rec: RecordingStream,
-    rx: std::sync::mpsc::Receiver<VizMsg>,
+    rx: std::sync::mpsc::Receiver<Frame>,
     scene: &Scene,
     leaves: &[Aabb64],
     options: &VizOptions,
@@ -90,9 +91,9 @@ pub fn run(
     log_scene(&rec, &state).map_err(text)?;
     for msg in rx {
         match msg {
-            VizMsg::Tick(frame) => log_tick(&rec, &mut state, &frame).map_err(text)?,
-            VizMsg::Note(note) => log_note(&rec, &mut state.rows, &note).map_err(text)?,
-            VizMsg::Approaches(list) => log_approaches(&rec, &mut state, &list).map_err(text)?,
+            Frame::Tick(frame) => log_tick(&rec, &mut state, &frame).map_err(text)?,
+            Frame::Note(note) => log_note(&rec, &mut state.rows, &note).map_err(text)?,
+            Frame::Approaches(list) => log_approaches(&rec, &mut state, &list).map_err(text)?,
         }
     }
     state.rows.flush(&rec).map_err(text)?;
@@ -464,7 +465,8 @@ fn log_feed(rec: &RecordingStream, f: &TickFrame, position: Vec3) -> RecordingSt
 /// The ADS-B reports the feed sent at this tick, each where it put its aircraft (orange,
 /// labelled), one entity per aircraft: each aircraft's last report stays drawn until its next.
 fn log_adsb_sent(rec: &RecordingStream, offset: DVec3, f: &TickFrame) -> RecordingStreamResult<()> {
-    for (icao, label, p) in &f.adsb_sent {
+    for sent in &f.adsb_sent {
+        let (icao, label, p) = (&sent.icao_address, &sent.label, &sent.position_enu_m);
         rec.log(
             paths::vehicle_part(f.system_id, &format!("feed/adsb/{icao:06X}")),
             &Points3D::new([local(offset, *p).to_array()])
@@ -484,7 +486,7 @@ fn log_adsb_sent(rec: &RecordingStream, offset: DVec3, f: &TickFrame) -> Recordi
 fn log_approaches(
     rec: &RecordingStream,
     state: &mut State<'_>,
-    list: &[super::ApproachFrame],
+    list: &[ApproachFrame],
 ) -> RecordingStreamResult<()> {
     let mut closest: Option<(f64, f64)> = None;
     for a in list {

@@ -9,8 +9,9 @@ use rerun::components::FillMode;
 use rerun::{Arrows3D, Color, Cylinders3D, Points3D, RecordingStream, RecordingStreamResult};
 
 use super::draw::local;
-use super::{paths, TickFrame};
+use super::paths;
 use crate::collision::events::{Event, EventKind};
+use crate::observe::TickFrame;
 
 /// The time selection around the first collision: seconds before and after.
 pub(super) const FOCUS_BEFORE_S: f64 = 4.0;

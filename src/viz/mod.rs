@@ -1,9 +1,10 @@
 //! The rerun logger: streams what the collision core does so a flight can be scrubbed in the
 //! rerun viewer (entity paths in [`paths`], documented in docs/rerun.md).
 //!
-//! The core never waits for it: the session sends [`VizMsg`]s over a bounded channel to a
-//! dedicated thread (`viz::log`) that owns the `RecordingStream` (rerun's time cursor is per
-//! thread); a full channel drops the message and counts it. Positions are logged in the scene's
+//! The core never waits for it: a [`Logger`] is the session's `observe::Observer`, and passes
+//! the frames it is handed over a bounded channel to a dedicated thread (`viz::log`) that owns
+//! the `RecordingStream` (rerun's time cursor is per thread); a full channel drops the frame
+//! and counts it. Positions are logged in the scene's
 //! ENU metres minus a fixed offset (the scene's centre, rounded, when that is far from the
 //! origin), so f32 stays precise; the 3D views are Z up. The layout is in [`blueprint`].
 
@@ -25,14 +26,10 @@ use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use glam::DVec3;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
-use crate::collision::events::Event;
-use crate::collision::ColliderKind;
 use crate::error::{Error, Result};
-use crate::pipeline::{BodyKey, BodyPose, ObstacleRef, TickReport};
-use crate::scene::{Aabb64, Kind, Scene};
+use crate::observe::{Frame, Observer, RunStart};
 
 /// Where the recording goes (`--rerun`).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -88,102 +85,6 @@ pub fn open(target: &RerunTarget) -> Result<RecordingStream> {
     .map_err(|e| Error::Usage(format!("--rerun: {e}")))
 }
 
-/// One vehicle's tick, as the logger needs it.
-#[derive(Debug, Clone)]
-pub struct TickFrame {
-    /// Tick number over the run (all vehicles).
-    pub tick: u64,
-    /// Receive/tlog time, UNIX seconds.
-    pub t_s: f64,
-    /// The first message's time, UNIX seconds: labels say "+N s" from it, as the report does.
-    pub t0_s: f64,
-    /// Vehicle clock, ms.
-    pub time_boot_ms: u32,
-    /// Vehicle system id.
-    pub system_id: u8,
-    /// Pose now.
-    pub pose: BodyPose,
-    /// Geometry index of the vehicle's model.
-    pub model: usize,
-    /// The sensing rays: direction (ENU unit vector) and hit distance (None: no hit within
-    /// the ray length), in the fan's order.
-    pub rays: Vec<(DVec3, Option<f64>)>,
-    /// Ray length, metres.
-    pub ray_length_m: f64,
-    /// The closed-loop feed's readings cast at this tick (empty when none was): direction and
-    /// what the autopilot was sent (docs/closed-loop.md).
-    pub feed: Vec<crate::feed::Reading>,
-    /// The feed's range, metres (a reading of nothing is drawn this long).
-    pub feed_max_m: f64,
-    /// The ADS-B reports the feed sent the vehicle at this tick: the ICAO address, a label
-    /// (the address and the callsign) and where the report put the aircraft (scene ENU
-    /// metres, its errors included).
-    pub adsb_sent: Vec<(u32, String, DVec3)>,
-    /// The vehicle's octree leaf.
-    pub node: Option<Aabb64>,
-    /// Obstacles with a collider: which, and beta.
-    pub colliders: Vec<(ObstacleRef, ColliderKind, f64)>,
-    /// Moving obstacles this tick: key, id, kind, model, pose.
-    pub dynamic: Vec<(BodyKey, String, Kind, usize, BodyPose)>,
-    /// Collisions and near misses reported at this tick.
-    pub events: Vec<Event>,
-    /// The well-clear volume losses are judged with: its horizontal and vertical thresholds
-    /// (DTHR, ZTHR), metres.
-    pub well_clear_m: Option<(f64, f64)>,
-    /// The pipeline's counts for the tick.
-    pub report: TickReport,
-    /// What the tick cost, microseconds.
-    pub cost_us: f64,
-}
-
-/// A line a vehicle said (a STATUSTEXT, a mode change, a COLLISION message), at its clock's
-/// last position.
-#[derive(Debug, Clone)]
-pub struct NoteFrame {
-    /// Ticks so far (all vehicles).
-    pub tick: u64,
-    /// Receive/tlog time, UNIX seconds.
-    pub t_s: f64,
-    /// The vehicle's clock at its last position, ms.
-    pub time_boot_ms: u32,
-    /// The vehicle's system id.
-    pub system_id: u8,
-    /// MAV_SEVERITY: 0 emergency .. 7 debug.
-    pub severity: u8,
-    /// The line.
-    pub text: String,
-}
-
-/// A vehicle's closest approach to a moving body over the run (sent when the run ends).
-#[derive(Debug, Clone)]
-pub struct ApproachFrame {
-    /// The vehicle's system id.
-    pub system_id: u8,
-    /// The body: a traffic id, a scripted track, another vehicle.
-    pub track: String,
-    /// When, seconds on the samples' clock (`tlog_time`).
-    pub t_s: f64,
-    /// Least 3D separation, metres.
-    pub distance_m: f64,
-    /// Horizontal and vertical separation then, metres.
-    pub horizontal_m: f64,
-    /// See `horizontal_m`.
-    pub vertical_m: f64,
-    /// Whether the two were ever within NMAC (500 ft and 100 ft at once).
-    pub nmac: bool,
-}
-
-/// What goes to the logger thread.
-#[derive(Debug)]
-pub enum VizMsg {
-    /// A vehicle's tick.
-    Tick(Box<TickFrame>),
-    /// A line a vehicle said.
-    Note(Box<NoteFrame>),
-    /// The closest approaches of the run, at its end.
-    Approaches(Vec<ApproachFrame>),
-}
-
 /// What the logger draws beyond the defaults.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct VizOptions {
@@ -201,7 +102,7 @@ pub struct VizOptions {
 
 /// The running logger.
 pub struct Logger {
-    tx: Option<SyncSender<VizMsg>>,
+    tx: Option<SyncSender<Frame>>,
     dropped: Arc<AtomicU64>,
     sent: u64,
     thread: Option<JoinHandle<Result<(), String>>>,
@@ -211,14 +112,19 @@ pub struct Logger {
 const QUEUE_LEN: usize = 4096;
 
 impl Logger {
-    /// Start the logger thread on a stream (see [`open`]; tests pass a memory stream); the
-    /// scene is logged first.
-    pub fn with_stream(
-        rec: RecordingStream,
-        scene: Arc<Scene>,
-        octree_leaves: Vec<Aabb64>,
-        options: VizOptions,
-    ) -> Result<Self> {
+    /// Start the logger thread on a stream (see [`open`]; tests pass a memory stream) for the
+    /// run `start` tells of; its scene is logged first. On the vehicle's clock (a study row's),
+    /// the time panel opens on `vehicle_time`.
+    pub fn with_stream(rec: RecordingStream, start: RunStart, options: VizOptions) -> Result<Self> {
+        let RunStart {
+            scene,
+            octree_leaves,
+            vehicle_clock,
+        } = start;
+        let options = VizOptions {
+            vehicle_clock: options.vehicle_clock || vehicle_clock,
+            ..options
+        };
         let (tx, rx) = sync_channel(QUEUE_LEN);
         let dropped = Arc::new(AtomicU64::new(0));
         let thread = std::thread::Builder::new()
@@ -232,11 +138,13 @@ impl Logger {
             thread: Some(thread),
         })
     }
+}
 
-    /// Queue a message; never blocks. A full queue drops it (counted).
-    pub fn send(&mut self, msg: VizMsg) {
+impl Observer for Logger {
+    /// Queue a frame; never blocks. A full queue drops it (counted).
+    fn take(&mut self, frame: Frame) {
         let Some(tx) = &self.tx else { return };
-        match tx.try_send(msg) {
+        match tx.try_send(frame) {
             Ok(()) => self.sent += 1,
             Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
                 self.dropped.fetch_add(1, Ordering::Relaxed);
@@ -244,18 +152,13 @@ impl Logger {
         }
     }
 
-    /// Messages dropped so far.
-    pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
-    }
-
-    /// Messages queued so far.
-    pub fn sent(&self) -> u64 {
-        self.sent
+    /// Frames queued so far, and frames dropped.
+    fn counts(&self) -> (u64, u64) {
+        (self.sent, self.dropped.load(Ordering::Relaxed))
     }
 
     /// Stop: the thread logs what is queued, flushes, and ends.
-    pub fn finish(&mut self) -> Result<()> {
+    fn finish(&mut self) -> Result<()> {
         self.tx = None;
         match self.thread.take().map(JoinHandle::join) {
             Some(Ok(Ok(()))) | None => Ok(()),
@@ -263,6 +166,13 @@ impl Logger {
             Some(Err(_)) => Err(Error::Usage("rerun logger: the thread panicked".into())),
         }
     }
+}
+
+/// A logger for the run `start` tells of, streaming to `target` (a file is not watched as it
+/// is written: rows go out by count, so it is the same however fast the run was).
+pub fn logger(target: &RerunTarget, options: VizOptions, start: RunStart) -> Result<Logger> {
+    let live = !matches!(target, RerunTarget::Save(_));
+    Logger::with_stream(open(target)?, start, VizOptions { live, ..options })
 }
 
 impl Drop for Logger {

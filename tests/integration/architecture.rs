@@ -194,7 +194,16 @@ fn savsim_imports_downward_only() {
     must_not(
         &app,
         "session",
-        &["app", "live", "study", "batch", "bench", "runs", "replay"],
+        &[
+            "app", "live", "study", "batch", "bench", "runs", "replay", "viz",
+        ],
+    );
+    must_not(
+        &app,
+        "observe",
+        &[
+            "app", "live", "study", "batch", "bench", "runs", "replay", "viz", "session",
+        ],
     );
     must_not(&app, "live", &["app", "study", "batch", "bench", "runs"]);
     must_not(&app, "replay", &["app", "live", "study", "batch", "bench"]);

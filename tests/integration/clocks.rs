@@ -9,8 +9,8 @@ use std::time::Duration;
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavType};
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::address::ConnectAddress;
-use savsim::ingest::live::Link;
+use savsim::links::address::ConnectAddress;
+use savsim::links::sockets::Link;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 
@@ -196,7 +196,7 @@ fn one_far_future_tlog_timestamp_does_not_freeze_the_clock() {
     let dir = tempfile::tempdir().unwrap();
     let flight = dir.path().join("f.tlog");
     let plane = LocalTangentPlane::new(ORIGIN);
-    let mut w = savsim::ingest::tlog::TlogWriter::new(std::fs::File::create(&flight).unwrap());
+    let mut w = savsim::logs::tlog::TlogWriter::new(std::fs::File::create(&flight).unwrap());
     let mut seq = 0u8;
     for i in 0..100u32 {
         let t_us = 1_700_000_000_000_000 + u64::from(i) * 100_000;

@@ -9,8 +9,8 @@ use mavlink::dialects::ardupilotmega::{
     GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
 };
 use mavlink::{MavHeader, MavlinkVersion};
+use savsim::codec::frame::{scan, Scan};
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::frame::{scan, Scan};
 use savsim::scene::{parse, Scene};
 use savsim::session::Session;
 use savsim::world::{Attitude, TrackSample};
@@ -279,7 +279,7 @@ pub fn feed(session: &mut Session, t_s: f64, bytes: &[u8]) {
 /// Run savsim's live path on links already open on `runtime` for `duration`, with no scene.
 pub fn run_live(
     runtime: &tokio::runtime::Runtime,
-    links: Vec<savsim::ingest::live::Link>,
+    links: Vec<savsim::links::sockets::Link>,
     duration: std::time::Duration,
     session: Session,
     record: Option<&Path>,
@@ -291,7 +291,7 @@ pub fn run_live(
 /// [`run_live`] until `shutdown` is raised, or `limit` passes.
 pub fn run_live_until(
     runtime: &tokio::runtime::Runtime,
-    links: Vec<savsim::ingest::live::Link>,
+    links: Vec<savsim::links::sockets::Link>,
     limit: std::time::Duration,
     session: Session,
     record: Option<&Path>,
@@ -321,15 +321,15 @@ pub fn runtime() -> tokio::runtime::Runtime {
 /// A UDP link bound to 127.0.0.1:0 on `runtime`, with its address.
 pub fn udp_link(
     runtime: &tokio::runtime::Runtime,
-) -> (savsim::ingest::live::Link, std::net::SocketAddr) {
-    let address = savsim::ingest::address::ConnectAddress::UdpIn(
+) -> (savsim::links::sockets::Link, std::net::SocketAddr) {
+    let address = savsim::links::address::ConnectAddress::UdpIn(
         "127.0.0.1:0"
             .parse::<std::net::SocketAddr>()
             .unwrap()
             .into(),
     );
     let link = runtime
-        .block_on(savsim::ingest::live::Link::open(&address))
+        .block_on(savsim::links::sockets::Link::open(&address))
         .unwrap();
     let local = link.local_addr().unwrap();
     (link, local)
@@ -380,7 +380,7 @@ pub fn wait_until(deadline: std::time::Instant, mut condition: impl FnMut() -> b
 
 /// The identity of [`until_processed`]'s marker: a companion computer (MAV_COMP_ID_ONBOARD...
 /// 191) of system 250, never an autopilot, so savsim never asks it for streams.
-pub const MARKER: savsim::ingest::stats::SenderId = savsim::ingest::stats::SenderId {
+pub const MARKER: savsim::world::SenderId = savsim::world::SenderId {
     system_id: 250,
     component_id: 191,
 };

@@ -10,9 +10,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, GLOBAL_POSITION_INT_DATA};
-use savsim::ingest::stats::SenderId;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
+use savsim::world::SenderId;
 
 /// One GLOBAL_POSITION_INT frame (v2) from `system_id` with sequence `seq`.
 fn position(system_id: u8, seq: u8, time_boot_ms: u32, n: i32) -> Vec<u8> {

@@ -12,10 +12,10 @@ use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
 use savsim::feed::{FeedConfig, FeedKinds, FeedMessage};
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::stats::SenderId;
-use savsim::ingest::tlog::TlogWriter;
+use savsim::logs::tlog::TlogWriter;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
+use savsim::world::SenderId;
 use tokio::net::UdpSocket;
 
 use crate::common::{

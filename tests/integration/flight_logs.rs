@@ -5,10 +5,10 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use savsim::ingest::dataflash::DataflashReader;
-use savsim::ingest::decode::Report;
-use savsim::ingest::flightlog::{read_dataflash, read_ulog, FlightLog};
-use savsim::ingest::ulog::UlogReader;
+use savsim::codec::decode::Report;
+use savsim::logs::dataflash::DataflashReader;
+use savsim::logs::flightlog::{read_dataflash, read_ulog, FlightLog};
+use savsim::logs::ulog::UlogReader;
 use serde_json::Value;
 
 use crate::common::shared_fixtures;
@@ -199,7 +199,7 @@ fn bad_logs_get_an_error_or_a_counted_skip() {
     assert!(UlogReader::new(b"ULo").is_err());
     assert_eq!(
         UlogReader::new(b"ULog\x01\x12\x35\x01").err(),
-        Some(savsim::ingest::ulog::UlogError::CutHeader)
+        Some(savsim::logs::ulog::UlogError::CutHeader)
     );
     assert!(read_ulog(b"not a ulog file at all").is_err());
     // Garbage after a valid header, and every cut of a small DataFlash log: no panic.

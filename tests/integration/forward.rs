@@ -16,7 +16,7 @@ use mavlink::dialects::ardupilotmega::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, PARAM_VALUE_DATA, SYS_STATUS_DATA,
 };
 use mavlink::Message;
-use savsim::ingest::address::ConnectAddress;
+use savsim::links::address::ConnectAddress;
 use savsim::live::{run_links, LiveOptions, LiveRun};
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
@@ -183,7 +183,7 @@ fn through_savsim(station_port: u16, run_for: Duration, forward_own: bool) -> (L
             .into(),
     );
     let station_link = rt
-        .block_on(savsim::ingest::live::Link::open(&station))
+        .block_on(savsim::links::sockets::Link::open(&station))
         .unwrap();
     let log = Arc::new(Mutex::new(Vehicle::default()));
     let socket = rt.block_on(UdpSocket::bind("127.0.0.1:0")).unwrap();

@@ -3,15 +3,16 @@
 use std::collections::BTreeMap;
 
 use glam::DVec3;
+use savsim::codec::decode::{decode, Rejection, Report};
+use savsim::codec::frame::{scan, FrameStatus, Scan};
+use savsim::codec::stats::{IngestStats, SequenceCounts};
+use savsim::codec::Ingestor;
 use savsim::geo::Geodetic;
-use savsim::ingest::decode::{decode, Rejection, Report};
-use savsim::ingest::frame::{scan, FrameStatus, Scan};
-use savsim::ingest::stats::{IngestStats, SenderId, SequenceCounts};
-use savsim::ingest::stream::frames_in_datagram;
-use savsim::ingest::tlog::{TlogReader, TlogWriter};
-use savsim::ingest::Ingestor;
+use savsim::links::stream::frames_in_datagram;
+use savsim::logs::tlog::{TlogReader, TlogWriter};
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
+use savsim::world::SenderId;
 use savsim::world::{WorldConfig, WorldStore};
 
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA};
@@ -332,7 +333,7 @@ fn adsb_reports_are_read_by_their_flags_and_altitude_type() {
     assert!(traffic[&0x14].pressure_altitude && !traffic[&0x10].pressure_altitude);
     let rejected = &session.stats().rejected;
     assert_eq!(
-        rejected.get(&savsim::ingest::decode::Rejection::AdsbNoPosition),
+        rejected.get(&savsim::codec::decode::Rejection::AdsbNoPosition),
         Some(&2)
     );
 }

@@ -18,12 +18,12 @@ use mavlink::dialects::ardupilotmega::{
     GLOBAL_POSITION_INT_DATA,
 };
 use savsim::geo::Geodetic;
-use savsim::ingest::address::ConnectAddress;
-use savsim::ingest::live::Link;
-use savsim::ingest::stats::SenderId;
+use savsim::links::address::ConnectAddress;
+use savsim::links::sockets::Link;
 use savsim::live::LiveRun;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
+use savsim::world::SenderId;
 use tokio::net::UdpSocket;
 
 use crate::common::{

@@ -17,10 +17,10 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
-use savsim::ingest::stats::SenderId;
 use savsim::live::LiveRun;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
+use savsim::world::SenderId;
 
 const INSIDE: &str = "SAVSIM_SITL_INSIDE_NETNS";
 /// Set (to anything) in CI: a SITL test that cannot run fails instead of skipping.

@@ -23,7 +23,7 @@ use mavlink::dialects::ardupilotmega::{
     SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use savsim::feed::{FeedConfig, FeedKinds};
-use savsim::ingest::live::Link;
+use savsim::links::sockets::Link;
 use savsim::live::{run_links, LiveOptions, LiveRun};
 use savsim::pipeline::CollisionConfig;
 use savsim::scene::Scene;

@@ -19,10 +19,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use savsim::ingest::address::ConnectAddress;
-use savsim::ingest::live::Link;
-use savsim::ingest::signing::SigningKey;
-use savsim::ingest::supervisor::RequestState;
+use savsim::links::address::ConnectAddress;
+use savsim::links::signing::SigningKey;
+use savsim::links::sockets::Link;
+use savsim::links::supervisor::RequestState;
 use savsim::live::{run_links, LiveOptions, LiveRun};
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;

@@ -23,13 +23,13 @@ use std::time::{Duration, Instant};
 
 use mavlink::dialects::ardupilotmega::{MavAutopilot, MavMessage, MavType};
 use savsim::geo::Geodetic;
-use savsim::ingest::address::ConnectAddress;
-use savsim::ingest::live::Link;
-use savsim::ingest::stats::SenderId;
-use savsim::ingest::supervisor::RequestState;
+use savsim::links::address::ConnectAddress;
+use savsim::links::sockets::Link;
+use savsim::links::supervisor::RequestState;
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;
 use savsim::study::sitl::{Px4, Sitl, Start};
+use savsim::world::SenderId;
 
 use crate::common::{frame_v2, heartbeat};
 use crate::sitl::{reboot_shutdown, sitl_test, two_vehicles_to_the_end, Autopilot, Netns, Turn};

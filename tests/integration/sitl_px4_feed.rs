@@ -28,8 +28,8 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavType, COMMAND_INT_DATA,
     MANUAL_CONTROL_DATA,
 };
-use savsim::ingest::address::ConnectAddress;
-use savsim::ingest::live::Link;
+use savsim::links::address::ConnectAddress;
+use savsim::links::sockets::Link;
 use savsim::live::LiveRun;
 use savsim::scene::Scene;
 use savsim::study::sitl::Sitl;

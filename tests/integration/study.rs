@@ -966,8 +966,8 @@ fn ray_study_example_gives_the_rows_savsim_study_gives() {
 fn adsb_reports(tlog: &Path) -> Vec<mavlink::dialects::ardupilotmega::ADSB_VEHICLE_DATA> {
     use mavlink::dialects::ardupilotmega::MavMessage;
     let file = std::fs::File::open(tlog).unwrap();
-    let mut reader = savsim::ingest::tlog::TlogReader::new(file);
-    let mut stats = savsim::ingest::stats::IngestStats::default();
+    let mut reader = savsim::logs::tlog::TlogReader::new(file);
+    let mut stats = savsim::codec::stats::IngestStats::default();
     let mut out = Vec::new();
     while let Some(record) = reader.next_record(&mut stats).unwrap() {
         let mut frame = mavlink::MavlinkReader::new(record.frame.bytes);

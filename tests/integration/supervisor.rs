@@ -8,9 +8,9 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavMessage, MavResult, MavType, ATTITUDE_DATA, COMMAND_ACK_DATA,
     GLOBAL_POSITION_INT_DATA,
 };
-use savsim::ingest::frame::{scan, Scan};
-use savsim::ingest::stats::SenderId;
-use savsim::ingest::supervisor::{Endpoint, RequestState, Supervisor, SupervisorConfig};
+use savsim::codec::frame::{scan, Scan};
+use savsim::links::supervisor::{Endpoint, RequestState, Supervisor, SupervisorConfig};
+use savsim::world::SenderId;
 
 use crate::common::{frame_v2, heartbeat};
 

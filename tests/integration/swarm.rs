@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 use savsim::geo::{Geodetic, LocalTangentPlane};
-use savsim::ingest::tlog::TlogWriter;
+use savsim::logs::tlog::TlogWriter;
 
 use crate::cli::savsim;
 use crate::common::{assert_ran, frame_v2, pose_messages};

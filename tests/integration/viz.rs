@@ -125,7 +125,9 @@ fn session_in_memory(
     let (rec, storage) = rerun::RecordingStreamBuilder::new("savsim-test")
         .memory()
         .unwrap();
-    session.start_viz_stream(rec, options).unwrap();
+    let start = session.run_start().unwrap();
+    let logger = savsim::viz::Logger::with_stream(rec, start, options).unwrap();
+    session.observe(Box::new(logger));
     (session, storage)
 }
 

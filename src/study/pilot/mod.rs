@@ -30,9 +30,9 @@ use mavlink::dialects::ardupilotmega::{
     SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 
+use crate::codec::outbox::Outbox;
 use crate::geo::{Geodetic, LocalTangentPlane};
-use crate::ingest::outbox::Outbox;
-use crate::ingest::stats::SenderId;
+use crate::world::SenderId;
 use heard::{hear, Fix, Heard, News, RowClock};
 
 /// Positions asked for on the pilot's link, Hz of the vehicle's clock.

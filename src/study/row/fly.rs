@@ -11,7 +11,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::geo::LocalTangentPlane;
-use crate::ingest::stats::SenderId;
 use crate::live::{Flag, LiveOptions};
 use crate::study::manifest::StudyRow;
 use crate::study::pilot::fly::{fly, fly_px4, Flown};
@@ -19,6 +18,7 @@ use crate::study::pilot::heard::RowClock;
 use crate::study::pilot::pace::Pace;
 use crate::study::pilot::{Pilot, PilotError};
 use crate::study::result::StudyResult;
+use crate::world::SenderId;
 
 pub(super) fn fly_row(
     row: &StudyRow,

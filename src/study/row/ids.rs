@@ -1,8 +1,8 @@
 //! Who a row's vehicles are: the SITL instance each runs on (so its ports and folder) and its
 //! MAVLink system id, for up to [`MAX_VEHICLES`] vehicles a row and [`MAX_JOBS`] rows at once.
 
-use crate::ingest::stats::SenderId;
 use crate::study::sitl::px4_autopilot;
+use crate::world::SenderId;
 
 /// The most SITLs at once.
 pub const MAX_JOBS: usize = 64;

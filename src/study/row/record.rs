@@ -8,13 +8,13 @@ use std::path::Path;
 /// What one vehicle flew: how far, what it said, and the row's clock less its own (s).
 pub(super) type FlownBy = (Flown, Heard, f64);
 
-use crate::ingest::notes::{arducopter_mode_name, px4_mode_name};
-use crate::ingest::stats::SenderId;
+use crate::codec::notes::{arducopter_mode_name, px4_mode_name};
 use crate::live::LiveRun;
 use crate::study::pilot::fly::Flown;
 use crate::study::pilot::heard::Heard;
 use crate::study::pilot::mode;
 use crate::study::result::{AutopilotDid, StudyResult, VehicleResult};
+use crate::world::SenderId;
 
 /// A vehicle's part of the row after its first (`by`: what it flew and heard, and the row's
 /// clock less its own).

@@ -12,13 +12,13 @@ use crate::daa::approach::Approaches;
 use crate::daa::well_clear::Volume;
 use crate::feed::{FeedConfig, FeedKinds};
 use crate::geo::{Geodetic, LocalTangentPlane};
-use crate::ingest::live::Link;
-use crate::ingest::stats::SenderId;
+use crate::links::sockets::Link;
 use crate::live::{run_links, LiveOptions, LiveRun};
 use crate::pipeline::CollisionConfig;
 use crate::scene::Scene;
 use crate::session::Session;
 use crate::study::manifest::StudyRow;
+use crate::world::SenderId;
 
 /// The session for a row: its scene, on the vehicle's clock, small-UAS well clear, its feed
 /// from its sensors, their errors drawn with `sensor_seed`.
@@ -55,19 +55,11 @@ pub(super) fn session_for(
 pub const RECORDING: &str = "row.rrd";
 
 /// Record the row's session for the rerun viewer, to [`RECORDING`] in `dir` (made).
-#[cfg(feature = "viz")]
 pub(super) fn record_to(session: &mut Session, dir: &Path) -> Result<(), RowError> {
     let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
     std::fs::create_dir_all(dir)
         .map_err(|e| RowError::Savsim(format!("{}: {e}", dir.display())))?;
-    session.record_to_file(&dir.join(RECORDING)).map_err(savsim)
-}
-
-#[cfg(not(feature = "viz"))]
-pub(super) fn record_to(_: &mut Session, _: &Path) -> Result<(), RowError> {
-    Err(RowError::Savsim(
-        "--rerun-rows: this savsim was built without rerun (feature viz)".into(),
-    ))
+    crate::runs::recordings::record_to(session, &dir.join(RECORDING)).map_err(savsim)
 }
 
 /// The row's scene, with its intruder as a scripted track `intruder`.

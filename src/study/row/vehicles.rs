@@ -10,12 +10,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::geo::LocalTangentPlane;
-use crate::ingest::address::ConnectAddress;
-use crate::ingest::live::Link;
-use crate::ingest::stats::SenderId;
+use crate::links::address::ConnectAddress;
+use crate::links::sockets::Link;
 use crate::scene::Scene;
 use crate::study::pilot::{Pilot, PilotError};
 use crate::study::sitl::{px4_gcs_port, px4_onboard_ports, Sitl, Start};
+use crate::world::SenderId;
 
 /// The row's vehicles started: vehicle `k` (from 0) on `instance + k x INSTANCE_OFFSET`, the
 /// first in `dir`, the others in `dir/vehicle-K` (K from 2).

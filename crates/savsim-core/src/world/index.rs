@@ -19,7 +19,7 @@ use parry3d::bounding_volume::Aabb;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
 
 use crate::scene::Aabb64;
-use crate::world::report::SenderId;
+use crate::world::inputs::SenderId;
 use crate::world::{History, PREDICT_MAX_S};
 
 /// An index older than this (receive clock, seconds) is rebuilt before it is queried.
@@ -203,7 +203,7 @@ mod tests {
 
     use crate::geo::Geodetic;
     use crate::scene::Aabb64;
-    use crate::world::report::{PositionReport, Report, SenderId};
+    use crate::world::inputs::{PositionReport, Report, SenderId};
     use crate::world::{Track, WorldConfig, WorldStore, PREDICT_MAX_S};
 
     fn world() -> WorldStore {

@@ -14,11 +14,12 @@ use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::scene::Aabb64;
 pub mod clock;
 pub mod index;
-pub mod report;
+pub mod inputs;
 pub mod timeline;
 
 use index::{TrackIndex, TrackKey};
-use report::{AdsbReport, AttitudeReport, PositionReport, Report, SenderId};
+pub use inputs::SenderId;
+use inputs::{AdsbReport, AttitudeReport, PositionReport, Report};
 
 /// How far past a track's newest sample [`History::predict`] carries it, seconds: traffic
 /// reports slower than the vehicles it is traffic to.
@@ -298,7 +299,7 @@ pub struct VehicleTrack {
     /// Who it is.
     pub id: SenderId,
     /// MAV_TYPE and MAV_AUTOPILOT from its HEARTBEAT, if one came.
-    pub heartbeat: Option<report::HeartbeatReport>,
+    pub heartbeat: Option<inputs::HeartbeatReport>,
     /// The latest ATTITUDE, converted; positions take it until the next one.
     pub latest_attitude: Option<Attitude>,
     /// Position history.
@@ -458,7 +459,7 @@ impl WorldStore {
     ///
     /// ```
     /// use savsim_core::{geo::Geodetic, scene::Aabb64, world::{Track, WorldStore, WorldConfig}};
-    /// use savsim_core::world::report::{PositionReport, Report, SenderId};
+    /// use savsim_core::world::inputs::{PositionReport, Report, SenderId};
     /// let origin = Geodetic::new(-35.363261, 149.165230, 584.0);
     /// let mut world = WorldStore::new(origin, WorldConfig::default());
     /// for (id, east_m) in [(1u8, 0.0), (2, 5000.0)] {
@@ -549,7 +550,7 @@ impl WorldStore {
     ///
     /// ```
     /// use savsim_core::{geo::Geodetic, world::{WorldStore, WorldConfig, WorldUpdate}};
-    /// use savsim_core::world::report::{PositionReport, Report, SenderId};
+    /// use savsim_core::world::inputs::{PositionReport, Report, SenderId};
     /// let origin = Geodetic::new(-35.363261, 149.165230, 584.0);
     /// let mut world = WorldStore::new(origin, WorldConfig::default());
     /// let sender = SenderId { system_id: 1, component_id: 1 };

@@ -222,7 +222,7 @@ impl SkewWindow {
 mod tests {
     use super::*;
     use crate::geo::Geodetic;
-    use crate::world::report::{PositionReport, Report, SenderId};
+    use crate::world::inputs::{PositionReport, Report, SenderId};
     use crate::world::{WorldConfig, WorldStore};
 
     fn at(world: &mut WorldStore, system_id: u8, time_boot_ms: u32, receive_s: f64) -> bool {

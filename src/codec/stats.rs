@@ -9,9 +9,9 @@ use std::collections::BTreeMap;
 use mavlink::MavlinkVersion;
 use serde::Serialize;
 
-use crate::ingest::decode::Rejection;
-use crate::ingest::frame::{message_info, FrameStatus, RawFrame};
-pub use crate::world::report::SenderId;
+use crate::codec::decode::Rejection;
+use crate::codec::frame::{message_info, FrameStatus, RawFrame};
+use crate::world::SenderId;
 
 /// Ids below this are counted in an array (every common.xml message and ArduPilot's 150-230);
 /// the rest (ArduPilot's 11000s, 42000s) in a map. 4 KiB per input instead of 512 KiB keeps a
@@ -123,8 +123,8 @@ impl IngestStats {
                     .entry(sender)
                     .or_insert_with(|| SequenceCounts::starting_at(frame.sequence))
                     .observe_at(frame.sequence, t_s);
-                if frame.message_id == crate::ingest::decode::ID_HEARTBEAT
-                    && crate::ingest::decode::heartbeat_from(frame.payload).is_autopilot()
+                if frame.message_id == crate::codec::decode::ID_HEARTBEAT
+                    && crate::codec::decode::heartbeat_from(frame.payload).is_autopilot()
                 {
                     self.autopilots.insert(sender);
                 }
@@ -169,7 +169,7 @@ impl IngestStats {
     /// (`clock_jumps`: two recordings joined).
     ///
     /// ```
-    /// let mut stats = savsim::ingest::stats::IngestStats::default();
+    /// let mut stats = savsim::codec::stats::IngestStats::default();
     /// assert_eq!(stats.observe_time(100.0), 100.0);
     /// assert_eq!(stats.observe_time(9e9), 100.0); // one bad timestamp...
     /// assert_eq!(stats.observe_time(100.1), 100.1); // ...is not followed
@@ -437,7 +437,7 @@ pub struct SequenceSummary {
 /// restarts: what a silence lost cannot be told.
 ///
 /// ```
-/// use savsim::ingest::stats::SequenceCounts;
+/// use savsim::codec::stats::SequenceCounts;
 /// let mut s = SequenceCounts::starting_at(10);
 /// for seq in [10, 11, 14, 14, 12, 15, 100] {
 ///     s.observe(seq);

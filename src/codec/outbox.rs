@@ -7,9 +7,9 @@ use std::sync::Arc;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
 
-use crate::ingest::frame::MAX_FRAME_LEN;
-use crate::ingest::signing::Signing;
-use crate::ingest::stats::SenderId;
+use crate::codec::frame::MAX_FRAME_LEN;
+use crate::links::signing::Signing;
+use crate::world::SenderId;
 
 /// Encodes one identity's messages.
 #[derive(Debug)]

@@ -5,8 +5,8 @@
 //! the search resumes one byte later (a frame hidden behind a false start is found), unlike
 //! tlogs, where a bad frame is skipped by its length as pymavlink does.
 
-use crate::ingest::frame::{scan, FrameStatus, RawFrame, Scan, MAX_FRAME_LEN};
-use crate::ingest::stats::IngestStats;
+use crate::codec::frame::{scan, FrameStatus, RawFrame, Scan, MAX_FRAME_LEN};
+use crate::codec::stats::IngestStats;
 
 /// Bytes that were no frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -26,10 +26,10 @@ impl Skipped {
 }
 
 /// Every complete frame in one datagram, valid or not (count them with
-/// [`crate::ingest::Ingestor::frame`]); returns the bytes that were no frame.
+/// [`crate::codec::Ingestor::frame`]); returns the bytes that were no frame.
 ///
 /// ```
-/// use savsim::ingest::stream::frames_in_datagram;
+/// use savsim::links::stream::frames_in_datagram;
 /// let heartbeat = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
 /// let mut datagram = vec![0x55, 0x55];
 /// datagram.extend_from_slice(&heartbeat);
@@ -95,7 +95,7 @@ impl StreamFramer {
     /// Take the bytes of one read, in order, and hand every frame they complete to `on_frame`.
     ///
     /// ```
-    /// use savsim::ingest::stream::StreamFramer;
+    /// use savsim::links::stream::StreamFramer;
     /// let heartbeat = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
     /// let mut framer = StreamFramer::default();
     /// let mut n = 0;

@@ -14,8 +14,8 @@ use mavlink::{MAVLinkV2MessageRaw, MavHeader, SigningConfig, SigningData};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
+use crate::codec::frame::{RawFrame, IFLAG_SIGNED, MAX_FRAME_LEN};
 use crate::error::{Error, Result};
-use crate::ingest::frame::{RawFrame, IFLAG_SIGNED, MAX_FRAME_LEN};
 
 /// Why a key file gives no key.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -52,7 +52,7 @@ impl SigningKey {
     /// derive it: SHA-256 of its UTF-8 bytes.
     ///
     /// ```
-    /// use savsim::ingest::signing::SigningKey;
+    /// use savsim::links::signing::SigningKey;
     /// let key = SigningKey::from_passphrase("abc");
     /// assert_eq!(key.0[..4], [0xba, 0x78, 0x16, 0xbf]);
     /// ```

@@ -10,9 +10,9 @@ use mavlink::dialects::ardupilotmega::{
 };
 use mavlink::{MavlinkVersion, MessageData};
 
-use crate::ingest::frame::RawFrame;
-use crate::ingest::stats::SenderId;
-use crate::world::report::HeartbeatReport;
+use crate::codec::frame::RawFrame;
+use crate::world::inputs::HeartbeatReport;
+use crate::world::SenderId;
 
 /// MAV_SEVERITY_WARNING: a COLLISION message.
 pub const WARNING: u8 = 4;
@@ -49,7 +49,7 @@ impl Notes {
     ///
     /// ```
     /// use mavlink::dialects::ardupilotmega::{MavMessage, STATUSTEXT_DATA, MavSeverity};
-    /// use savsim::ingest::{frame::{scan, Scan}, notes::Notes};
+    /// use savsim::codec::{frame::{scan, Scan}, notes::Notes};
     /// let mut text = [0u8; 50];
     /// text[..13].copy_from_slice(b"ADSB: avoid 1");
     /// let m = MavMessage::STATUSTEXT(STATUSTEXT_DATA {

@@ -166,7 +166,7 @@ pub struct DataflashCounts {
 /// Reads the messages of a DataFlash log held in memory.
 ///
 /// ```
-/// use savsim::ingest::dataflash::DataflashReader;
+/// use savsim::logs::dataflash::DataflashReader;
 /// // A FMT describing type 0x81 "TST" with one uint16 column "V", then a TST message.
 /// let mut log = vec![0xA3, 0x95, 0x80, 0x81, 5];
 /// let field = |s: &str, n: usize| { let mut v = s.as_bytes().to_vec(); v.resize(n, 0); v };

@@ -1,7 +1,7 @@
 //! Per-vehicle link state, kept the way a MAVLink router keeps it: where each autopilot was
 //! last heard (link and address), what it was asked for and what it answered, and when to ask
 //! again. Pure: frames and receive times in, addressed messages out; the sockets are in
-//! [`crate::ingest::live`], the wiring in `app`.
+//! [`crate::links::sockets`], the wiring in `app`.
 //!
 //! - **Routing.** Every frame updates its sender's endpoint, so a link may carry many systems
 //!   and each vehicle's replies (requests, later the sensor feed) go where it was last heard.
@@ -31,13 +31,13 @@ use mavlink::dialects::ardupilotmega::{MavDataStream, REQUEST_DATA_STREAM_DATA};
 use mavlink::MessageData;
 use serde::Serialize;
 
-use crate::ingest::decode::{
+use crate::codec::decode::{
     heartbeat_from, heartbeat_names, ID_ATTITUDE, ID_GLOBAL_POSITION_INT, ID_HEARTBEAT,
 };
-use crate::ingest::frame::{message_info, FrameStatus, RawFrame};
-use crate::ingest::stats::SenderId;
+use crate::codec::frame::{message_info, FrameStatus, RawFrame};
 use crate::world::clock::{self, ClockStep};
-use crate::world::report::HeartbeatReport;
+use crate::world::inputs::HeartbeatReport;
+use crate::world::SenderId;
 
 /// Index of a link among those a run opened (the order of `--connect`).
 pub type LinkId = u16;

@@ -1,6 +1,6 @@
 //! What the world store is fed: a sender's identity and the decoded reports of the messages
-//! savsim uses, in SI units. `ingest::decode` makes them from MAVLink frames (the only place
-//! MAVLink units appear); the world store takes them and knows nothing of frames or sockets.
+//! savsim uses, in SI units. savsim's `codec::decode` makes them from MAVLink frames; the world
+//! store takes them and knows nothing of frames or sockets.
 
 use glam::DVec3;
 
@@ -82,7 +82,7 @@ impl HeartbeatReport {
     /// link's.
     ///
     /// ```
-    /// use savsim_core::world::report::HeartbeatReport;
+    /// use savsim_core::world::inputs::HeartbeatReport;
     /// let copter = HeartbeatReport { mav_type: 2, autopilot: 3 }; // quadrotor, ArduPilot
     /// let companion = HeartbeatReport { mav_type: 18, autopilot: 8 }; // onboard, invalid
     /// let gcs = HeartbeatReport { mav_type: 6, autopilot: 0 };

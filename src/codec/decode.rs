@@ -2,7 +2,7 @@
 //!
 //! Turns a valid [`RawFrame`] into a typed [`Report`] in SI units (degrees and metres for
 //! positions, m/s, radians, seconds), or says why the values were rejected. Pure: no I/O, no
-//! clocks, no allocation. Counting lives in [`crate::ingest::stats`].
+//! clocks, no allocation. Counting lives in [`crate::codec::stats`].
 
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{
@@ -10,13 +10,13 @@ use mavlink::dialects::ardupilotmega::{
     HEARTBEAT_DATA,
 };
 
-pub use crate::world::report::{
+pub use crate::world::inputs::{
     AdsbReport, AttitudeReport, HeartbeatReport, PositionReport, Report,
 };
 use mavlink::MessageData;
 
+use crate::codec::frame::RawFrame;
 use crate::geo::Geodetic;
-use crate::ingest::frame::RawFrame;
 
 /// MAVLink id of HEARTBEAT.
 pub const ID_HEARTBEAT: u32 = HEARTBEAT_DATA::ID;
@@ -59,7 +59,7 @@ impl Rejection {
 /// Decode a frame whose status is `Valid`. `Ok(None)` for messages savsim does not use.
 ///
 /// ```
-/// use savsim::ingest::{decode::{decode, Report}, frame::{scan, Scan}};
+/// use savsim::codec::{decode::{decode, Report}, frame::{scan, Scan}};
 /// let bytes = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
 /// let Scan::Frame(frame) = scan(&bytes) else { panic!() };
 /// assert!(matches!(decode(&frame), Ok(Some(Report::Heartbeat(_)))));

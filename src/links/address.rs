@@ -95,7 +95,7 @@ impl FromStr for ConnectAddress {
     type Err = Error;
 
     /// ```
-    /// use savsim::ingest::address::{ConnectAddress, HostPort};
+    /// use savsim::links::address::{ConnectAddress, HostPort};
     /// let a: ConnectAddress = "udpin:0.0.0.0:14550".parse().unwrap();
     /// assert_eq!(a, ConnectAddress::UdpIn(HostPort { host: "0.0.0.0".into(), port: 14550 }));
     /// let b: ConnectAddress = "udpin:localhost:14550".parse().unwrap();

@@ -1,6 +1,6 @@
 //! Live links: sockets in, timestamped chunks out; addressed bytes in, datagrams and TCP
 //! writes out. Nothing here frames, decodes or decides what to send: that is the session
-//! thread's (`live`) with [`crate::ingest::supervisor`].
+//! thread's (`live`) with [`crate::links::supervisor`].
 //!
 //! Each link is one tokio task on the network runtime's worker. A datagram (or a TCP read)
 //! goes, stamped with its receive time, over a bounded channel to the session thread; a full
@@ -20,8 +20,8 @@ use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 
 use crate::error::{Error, Result};
-use crate::ingest::address::{ConnectAddress, HostPort};
-use crate::ingest::supervisor::{Endpoint, LinkId};
+use crate::links::address::{ConnectAddress, HostPort};
+use crate::links::supervisor::{Endpoint, LinkId};
 
 /// An open link.
 pub enum Link {
@@ -205,8 +205,8 @@ pub struct LinkCounters {
 /// during a run moves no stamp backwards or forwards.
 ///
 /// ```
-/// let a = savsim::ingest::live::unix_now_s();
-/// let b = savsim::ingest::live::unix_now_s();
+/// let a = savsim::links::sockets::unix_now_s();
+/// let b = savsim::links::sockets::unix_now_s();
 /// assert!(b >= a && a > 1.6e9);
 /// ```
 pub fn unix_now_s() -> f64 {

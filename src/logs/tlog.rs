@@ -7,8 +7,8 @@
 
 use std::io::{self, Read, Write};
 
-use crate::ingest::frame::{frame_known, scan, FrameStatus, RawFrame, Scan, MAX_FRAME_LEN};
-use crate::ingest::stats::IngestStats;
+use crate::codec::frame::{frame_known, scan, FrameStatus, RawFrame, Scan, MAX_FRAME_LEN};
+use crate::codec::stats::IngestStats;
 
 /// Bytes of a tlog timestamp.
 pub const TIMESTAMP_LEN: usize = 8;
@@ -22,14 +22,14 @@ pub struct TlogRecord<'a> {
     pub offset: u64,
     /// The record's timestamp, microseconds since the UNIX epoch.
     pub timestamp_us: u64,
-    /// The frame (count and decode it with [`crate::ingest::Ingestor::frame`]).
+    /// The frame (count and decode it with [`crate::codec::Ingestor::frame`]).
     pub frame: RawFrame<'a>,
 }
 
 /// Streams the records of a tlog.
 ///
 /// ```
-/// use savsim::ingest::{stats::IngestStats, tlog::TlogReader};
+/// use savsim::{codec::stats::IngestStats, logs::tlog::TlogReader};
 /// let heartbeat = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
 /// let mut bytes = 1_600_000_000_000_000u64.to_be_bytes().to_vec();
 /// bytes.extend_from_slice(&heartbeat);

@@ -1,42 +1,26 @@
-//! Ingest: MAVLink bytes in, decoded reports out. The only mavlink-aware code in savsim.
+//! The MAVLink codec: frames found and checked in bytes, decoded to SI reports and counted
+//! ([`Ingestor`]: the one decode path for every source, live links and logs alike), what an
+//! autopilot says as text, and what savsim sends encoded as one identity. The bytes come from
+//! `links` (sockets) and `logs` (tlog files); autopilot logs join at the reports
+//! (`Session::on_report`). MAVLink messages are also written by the feed (`feed::wire`) and the
+//! study's pilot, each for its own purpose.
 //!
 //! - [`frame`]: find and check frames in bytes.
 //! - [`decode`]: frames to typed reports in SI units.
 //! - [`stats`]: counts of everything seen, for `--summary-json`.
-//! - [`tlog`]: tlog reading (with resync) and writing.
-//! - [`ulog`], [`dataflash`]: PX4 ULog and ArduPilot DataFlash files, read generically.
-//! - [`flightlog`]: those logs to the same reports, in time order (they skip the framer).
-//! - [`stream`]: datagrams and byte streams (UDP, TCP) through the same framer.
-//! - [`address`]: `--connect` addresses.
-//! - [`live`]: tokio sockets: chunks in, addressed bytes out.
-//! - [`outbox`]: what savsim sends, encoded as one identity.
-//! - [`supervisor`]: per-vehicle routes, stream requests and their supervision (pure).
-//! - [`forward`]: `--forward`, routing between vehicles and ground stations (pure).
-//! - [`signing`]: MAVLink 2 signing of what savsim sends, and judging what it receives.
 //! - [`notes`]: what an autopilot says (STATUSTEXT, mode changes, COLLISION) as text.
-//!
-//! Every MAVLink frame funnels into [`Ingestor::frame`], so replay and live decode identically;
-//! autopilot logs join at the reports (`Session::on_report`).
+//! - [`outbox`]: what savsim sends, encoded as one identity.
 
-pub mod address;
-pub mod dataflash;
 pub mod decode;
-pub mod flightlog;
-pub mod forward;
 pub mod frame;
-pub mod live;
 pub mod notes;
 pub mod outbox;
-pub mod signing;
 pub mod stats;
-pub mod stream;
-pub mod supervisor;
-pub mod tlog;
-pub mod ulog;
 
+use crate::world::SenderId;
 use decode::Report;
 use frame::RawFrame;
-use stats::{IngestStats, SenderId};
+use stats::IngestStats;
 
 /// A valid frame turned into a report savsim uses, with who sent it.
 #[derive(Debug, Clone, Copy, PartialEq)]

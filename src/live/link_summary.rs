@@ -6,10 +6,10 @@ use std::sync::atomic::Ordering;
 use serde::Serialize;
 
 use super::LiveSession;
-use crate::ingest::forward::ForwardCounts;
-use crate::ingest::live::LinkCounters;
-use crate::ingest::signing::SigningCounts;
-use crate::ingest::supervisor::{SupervisorCounts, VehicleLink};
+use crate::links::forward::ForwardCounts;
+use crate::links::signing::SigningCounts;
+use crate::links::sockets::LinkCounters;
+use crate::links::supervisor::{SupervisorCounts, VehicleLink};
 
 /// Datagram (or TCP read) received -> its frames decoded, run through the session and their
 /// events written, microseconds.

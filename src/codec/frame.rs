@@ -46,7 +46,7 @@ fn lookup(id: u32) -> Option<MessageInfo> {
 /// The dialect's knowledge of message `id`, or `None` for an id it does not define.
 ///
 /// ```
-/// use savsim::ingest::frame::message_info;
+/// use savsim::codec::frame::message_info;
 /// assert_eq!(message_info(33).unwrap().name, "GLOBAL_POSITION_INT");
 /// assert_eq!(message_info(33).unwrap().extra_crc, 104);
 /// assert!(message_info(9_999_999).is_none());
@@ -111,7 +111,7 @@ pub enum Scan<'a> {
 /// Look at the start of `bytes` for one MAVLink frame.
 ///
 /// ```
-/// use savsim::ingest::frame::{scan, Scan, FrameStatus};
+/// use savsim::codec::frame::{scan, Scan, FrameStatus};
 /// // A v1 HEARTBEAT from sysid 1, compid 1 (the bytes pymavlink writes).
 /// let bytes = [0xfe, 9, 0, 1, 1, 0, 4, 0, 0, 0, 2, 3, 81, 3, 3, 0xe4, 0xe1];
 /// match scan(&bytes) {

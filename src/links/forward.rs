@@ -26,9 +26,9 @@ use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::Message;
 use serde::Serialize;
 
-use crate::ingest::frame::{FrameStatus, RawFrame};
-use crate::ingest::stats::SenderId;
-use crate::ingest::supervisor::{Endpoint, LinkId};
+use crate::codec::frame::{FrameStatus, RawFrame};
+use crate::links::supervisor::{Endpoint, LinkId};
+use crate::world::SenderId;
 
 /// A udpin station address heard within this long gets the vehicles' traffic, s.
 pub const HEARD_FOR_S: f64 = 10.0;
@@ -226,7 +226,7 @@ impl Forwarder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ingest::frame::{scan, Scan};
+    use crate::codec::frame::{scan, Scan};
     use mavlink::dialects::ardupilotmega::{
         MavCmd, MavMessage, COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
     };

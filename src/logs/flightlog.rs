@@ -8,11 +8,11 @@
 
 use glam::{DQuat, DVec3, EulerRot};
 
+use crate::codec::decode::{AdsbReport, AttitudeReport, PositionReport, Report};
 use crate::geo::{Geodetic, LocalTangentPlane};
-use crate::ingest::dataflash::{DataflashCounts, DataflashReader, Message};
-use crate::ingest::decode::{AdsbReport, AttitudeReport, PositionReport, Report};
-use crate::ingest::stats::SenderId;
-use crate::ingest::ulog::{Sample, UlogCounts, UlogError, UlogReader, MAGIC};
+use crate::logs::dataflash::{DataflashCounts, DataflashReader, Message};
+use crate::logs::ulog::{Sample, UlogCounts, UlogError, UlogReader, MAGIC};
+use crate::world::SenderId;
 
 /// Which kind of log a file is, by its first bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -30,7 +30,7 @@ impl LogKind {
     /// The kind of a file that starts with `head` (its first 16 bytes or fewer).
     ///
     /// ```
-    /// use savsim::ingest::flightlog::LogKind;
+    /// use savsim::logs::flightlog::LogKind;
     /// assert_eq!(LogKind::of(b"ULog\x01\x12\x35\x01"), LogKind::Ulog);
     /// assert_eq!(LogKind::of(&[0xA3, 0x95, 0x80]), LogKind::Dataflash);
     /// assert_eq!(LogKind::of(&[0, 5, 0xFD]), LogKind::Tlog);
