@@ -17,7 +17,7 @@ use savsim::live::LiveSession;
 use savsim::pipeline::CollisionConfig;
 use savsim::links::forward::Forwarder;
 use savsim::links::sockets::{Chunk, ChunkKind};
-use savsim::links::signing::{Signing, SigningKey};
+use savsim::codec::signing::{Signing, SigningKey};
 use savsim::links::supervisor::{Supervisor, SupervisorConfig, DEFAULT_GCS};
 use savsim::session::Session;
 

@@ -7,14 +7,14 @@ use std::time::Duration;
 
 use crate::bundled::{bundled, DEMO_FLIGHT, DEMO_SCENE};
 use crate::cli::{
-    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, IdentityArgs, LiveArgs,
-    NetworkArgs, RecordArgs, ReplayArgs, SceneCommand, SceneKind, SigningMode,
+    BenchArgs, Cli, CollisionArgs, Command, DemoArgs, FeedArgs, LinkArgs, LiveArgs, RecordArgs,
+    ReplayArgs, SceneCommand, SceneKind, SigningMode,
 };
+use crate::codec::signing::SigningKey;
 use crate::collision::events::EventKind;
 use crate::collision::sensing::threat::AhpWeights;
 use crate::error::{Error, Result};
 use crate::links::address::ConnectAddress;
-use crate::links::signing::SigningKey;
 use crate::live::{self, LiveOptions, LiveRun};
 use crate::pipeline::{CollisionConfig, SensorFan};
 use crate::replay::{replay, Speed};
@@ -238,19 +238,21 @@ fn bench_command(args: &BenchArgs) -> Result<()> {
 }
 
 fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
-    let speed: Speed = args.speed.parse()?;
-    if let Some(until_s) = args.until_s {
+    let playback = &args.playback;
+    let speed: Speed = playback.speed.parse()?;
+    if let Some(until_s) = playback.until_s {
         if !(until_s.is_finite() && until_s >= 0.0) {
             return Err(Error::Usage(format!(
-                "--until-s {until_s}: give seconds after the first message, 0 or more"
+                "--until-s {}: give seconds after the first message, 0 or more",
+                savsim_core::bounds::shown(until_s)
             )));
         }
     }
     let mut session = session_for(&args.collision)?;
-    start_feed(&mut session, &args.feed)?;
-    if let Some(path) = &args.feed_out {
+    start_feed(&mut session, &playback.feed)?;
+    if let Some(path) = &playback.feed_out {
         let from = SenderId {
-            system_id: args.identity.sysid,
+            system_id: playback.identity.sysid,
             component_id: live::FEED_COMPONENT,
         };
         session.write_feed_to(path, from)?;
@@ -259,7 +261,7 @@ fn replay_command(args: &ReplayArgs, shutdown: &AtomicBool) -> Result<()> {
         &args.flight,
         speed,
         !args.no_progress,
-        args.until_s,
+        playback.until_s,
         &mut session,
         shutdown,
     );
@@ -316,13 +318,9 @@ fn demo(mut args: DemoArgs, shutdown: &AtomicBool) -> Result<()> {
     replay_command(
         &ReplayArgs {
             flight,
-            speed: args.speed,
             collision: args.collision,
             no_progress: false,
-            until_s: args.until_s,
-            feed: args.feed,
-            feed_out: args.feed_out,
-            identity: args.identity,
+            playback: args.playback,
         },
         shutdown,
     )
@@ -407,13 +405,15 @@ pub fn print_report(session: &Session) {
     }
 }
 
-fn live_options(
-    connect: &[String],
-    rate_hz: f64,
-    duration_s: Option<f64>,
-    identity: IdentityArgs,
-    network: &NetworkArgs,
-) -> Result<LiveOptions> {
+fn live_options(link: &LinkArgs) -> Result<LiveOptions> {
+    let LinkArgs {
+        connect,
+        rate_hz,
+        duration_s,
+        identity,
+        network,
+    } = link;
+    let (rate_hz, duration_s) = (*rate_hz, *duration_s);
     let require = network.signing == SigningMode::Require;
     if require && network.signing_key.is_none() {
         return Err(Error::Usage(
@@ -428,7 +428,8 @@ fn live_options(
     }
     if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1000.0) {
         return Err(Error::Usage(format!(
-            "--rate-hz {rate_hz}: give 0 < rate <= 1000"
+            "--rate-hz {}: give 0 < rate <= 1000",
+            savsim_core::bounds::shown(rate_hz)
         )));
     }
     if let Some(d) = duration_s {
@@ -469,13 +470,7 @@ fn live_options(
 }
 
 fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let mut options = live_options(
-        &args.connect,
-        args.rate_hz,
-        args.duration_s,
-        args.identity,
-        &args.network,
-    )?;
+    let mut options = live_options(&args.link)?;
     options.feed_out = args.feed_out.clone();
     let mut session = session_for(&args.collision)?;
     if let Some(feed_hz) = start_feed(&mut session, &args.feed)? {
@@ -492,13 +487,7 @@ fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
 }
 
 fn record_command(args: &RecordArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let options = live_options(
-        &args.connect,
-        args.rate_hz,
-        args.duration_s,
-        args.identity,
-        &args.network,
-    )?;
+    let options = live_options(&args.link)?;
     let session = Session::new(None, CollisionConfig::default(), None)?;
     let mut run = live::run_blocking(&options, session, Some(&args.out), shutdown)?;
     let finished = run.session.finish();

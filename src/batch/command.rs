@@ -6,7 +6,7 @@ use std::path::Path;
 use crate::batch::gen::{self, GenOptions};
 use crate::batch::manifest;
 use crate::batch::row::RunRow;
-use crate::cli::{BatchArgs, BatchCommand};
+use crate::cli::{BatchArgs, BatchCommand, SummarizeArgs};
 use crate::error::{Error, Result};
 use crate::pipeline::Mode;
 use crate::runs::shard::Shard;
@@ -64,7 +64,7 @@ pub fn run(args: &BatchArgs) -> Result<()> {
             let runs = generate(options, model.as_deref(), pairing.as_deref(), *duration_s)?;
             write_manifest(&runs, out.as_deref())
         }
-        Some(BatchCommand::Summarize { dir, nominal, json }) => {
+        Some(BatchCommand::Summarize(SummarizeArgs { dir, nominal, json })) => {
             crate::batch::summarize::read_dir(dir)?.print(nominal, *json);
             Ok(())
         }
@@ -125,17 +125,17 @@ fn write_manifest(runs: &[manifest::Run], out: Option<&Path>) -> Result<()> {
 /// One shard of a manifest (`--shard`, or the scheduler's variables) run on `--jobs` threads
 /// into its Parquet file in `--out`; skipped when that file exists (unless `--force`).
 fn run_shard(args: &BatchArgs) -> Result<()> {
-    let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
+    let (Some(manifest_path), Some(out)) = (&args.runs.manifest, &args.runs.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };
     if let Some(jobs) = args.jobs.filter(|j| !(1..=1024).contains(j)) {
         return Err(Error::Usage(format!("--jobs {jobs}: give 1 to 1024")));
     }
     let runs = manifest::load(manifest_path)?;
-    let shard = Shard::from_args(args.shard.as_deref(), |v| std::env::var(v).ok())?;
+    let shard = Shard::from_args(args.runs.shard.as_deref(), |v| std::env::var(v).ok())?;
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let path = out.join(shard.file_name());
-    if path.exists() && !args.force {
+    if path.exists() && !args.runs.force {
         eprintln!(
             "batch: shard {}/{} is done ({} exists): skipped",
             shard.index,
@@ -148,12 +148,13 @@ fn run_shard(args: &BatchArgs) -> Result<()> {
     let bar = (!args.no_progress && std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .then(|| indicatif::ProgressBar::new(range.len() as u64));
     let recorder = args
+        .runs
         .rerun_rows
         .as_ref()
         .map(|choice| crate::batch::record::Recorder {
             choice,
             out,
-            nominal: &args.nominal,
+            nominal: &args.runs.nominal,
         });
     let rows = crate::batch::run_rows(
         &runs[range.clone()],

@@ -87,7 +87,7 @@ pub fn track_from_tlog(
             if *first_sender.get_or_insert(sender) != sender {
                 continue;
             }
-            let Some(s) = world.vehicles.get(&sender).and_then(|v| v.history.latest()) else {
+            let Some(s) = world.vehicle(&sender).and_then(|v| v.history.latest()) else {
                 continue;
             };
             let t = s.t_s - *first_t_s.get_or_insert(s.t_s);

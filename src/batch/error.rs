@@ -50,15 +50,47 @@ pub enum RowError {
     /// The replay or its session (a tlog that cannot be read, a session that cannot start).
     #[error(transparent)]
     Run(#[from] crate::error::Error),
-    /// The row's `daa_conf` or `sensors` that cannot be used.
-    #[error("{0}")]
-    Sensed(String),
+    /// The row's `daa_conf` that cannot be read.
+    #[error("daa_conf {path}: {source}")]
+    DaaConfRead {
+        /// The file, as the row names it.
+        path: String,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// The row's `daa_conf` that is not a DAIDALUS configuration.
+    #[error("daa_conf {path}: {source}")]
+    DaaConf {
+        /// The file, as the row names it.
+        path: String,
+        /// What is wrong with it.
+        source: crate::daa::conf::ConfError,
+    },
+    /// The row's `sensors` that cannot be used (exact ADS-B stands for `ideal`).
+    #[error(transparent)]
+    Sensors(#[from] crate::sensors::suite::SuiteError),
+    /// The row's `sensed_daa` that cannot be written.
+    #[error("sensed_daa {path}: {source}")]
+    SensedFile {
+        /// The file, as the row names it.
+        path: String,
+        /// What the system said.
+        source: std::io::Error,
+    },
     /// A panic caught while running the row: a bug.
     #[error("internal error, please report it: {0}")]
     Internal(String),
-    /// The row's recording could not be made (`--rerun-rows`).
-    #[error("recording: {0}")]
-    Recording(String),
+    /// The row's recording could not be kept where it goes (`--rerun-rows`).
+    #[error("recording: {}: {source}", path.display())]
+    RecordingFile {
+        /// Where.
+        path: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// An intruder of the row has the name of a track of its scene: no recording can show both.
+    #[error("recording: the scene has a track named {0} already")]
+    RecordingTrack(String),
 }
 
 /// Why a track (waypoints, a tlog or a trajectory file) could not be read.

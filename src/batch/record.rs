@@ -55,11 +55,18 @@ impl Recorder<'_> {
         let made = kept
             .parent()
             .map_or(Ok(()), std::fs::create_dir_all)
-            .map_err(|e| RowError::Recording(format!("{}: {e}", self.out.display())))
+            .map_err(|source| RowError::RecordingFile {
+                path: self.out.to_path_buf(),
+                source,
+            })
             .and_then(|()| record(row.index as usize, run, scenes, &part))
             .and_then(|()| {
-                keep(&part, self.out, row.index, &row.run_id)
-                    .map_err(|e| RowError::Recording(format!("{}: {e}", kept.display())))
+                keep(&part, self.out, row.index, &row.run_id).map_err(|source| {
+                    RowError::RecordingFile {
+                        path: kept.clone(),
+                        source,
+                    }
+                })
             });
         Some(match made {
             Ok(path) => format!("batch: {}: recording {}", row.run_id, path.display()),
@@ -114,9 +121,7 @@ fn fly_recorded(
     let mut with = scene.clone();
     for (id, track) in &encounter.intruders {
         if !with.push_track(id, encounter.intruder_kind, track.clone()) {
-            return Err(RowError::Recording(format!(
-                "the scene has a track named {id} already"
-            )));
+            return Err(RowError::RecordingTrack(id.to_string()));
         }
     }
     let mut session = Session::with_pipeline(Arc::new(with), pipeline, None)?;

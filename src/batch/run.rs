@@ -206,8 +206,10 @@ fn fly_encounter(
         let (found, file) = daa.finish();
         row.sensed = Some(found);
         if let (Some(text), Some(path)) = (file, run.sensed_daa.as_deref()) {
-            std::fs::write(path, text)
-                .map_err(|e| RowError::Sensed(format!("sensed_daa {path}: {e}")))?;
+            std::fs::write(path, text).map_err(|source| RowError::SensedFile {
+                path: path.to_owned(),
+                source,
+            })?;
         }
     }
     Ok(())
@@ -219,17 +221,21 @@ fn sensed_daa(run: &Run, sensor_seed: u64, scene: &Scene) -> Result<encounter::S
     let Some(conf) = run.daa_conf.as_deref().filter(|c| !c.is_empty()) else {
         return Ok(None);
     };
-    let bad = |e: String| RowError::Sensed(e);
-    let text = crate::files::read_text(Path::new(conf), 1 << 20)
-        .map_err(|e| bad(format!("daa_conf {conf}: {e}")))?;
-    let config =
-        crate::daa::conf::Config::parse(&text).map_err(|e| bad(format!("daa_conf {conf}: {e}")))?;
-    let suite = crate::feed::sensors_for(run.sensors.as_deref(), Some(scene))
-        .map_err(|e| bad(e.to_string()))?;
+    let path = || conf.to_owned();
+    let text = crate::files::read_text(Path::new(conf), 1 << 20).map_err(|source| {
+        RowError::DaaConfRead {
+            path: path(),
+            source,
+        }
+    })?;
+    let config = crate::daa::conf::Config::parse(&text).map_err(|source| RowError::DaaConf {
+        path: path(),
+        source,
+    })?;
+    let suite = crate::feed::sensors_for(run.sensors.as_deref(), Some(scene))?;
     let devices = match suite {
         crate::sensors::suite::Suite::Ideal => {
-            crate::sensors::suite::Suite::parse("ideal-adsb", |_| Err(String::new()))
-                .map_err(|e| bad(e.to_string()))?
+            crate::sensors::suite::Suite::parse("ideal-adsb", |_| Err(String::new()))?
                 .devices()
                 .to_vec()
         }

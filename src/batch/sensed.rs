@@ -18,7 +18,7 @@ use crate::daa::sum::Uncertainty;
 use crate::daa::well_clear::Relative;
 use crate::sensors::device::{Device, Model};
 use crate::sensors::draws::{mix, Draws};
-use crate::sensors::surveillance::{Own, Target, TargetReport, TargetState};
+use crate::sensors::surveillance::{Look, Own, Target, TargetReport, TargetState};
 
 /// What alerting on sensed states found.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -140,14 +140,14 @@ impl SensedDaa {
             let key = mix(mix(self.seed, 1), d as u64);
             for truth in intruders {
                 let state = self.targets[d].entry(truth.index).or_default();
-                let at = (k, dt_s);
-                let t = &truth.target;
-                let report = match &device.model {
-                    Model::Adsb(m) => m.report(state, &self.draws, key, at, own, t),
-                    Model::Radar(m) => m.report(state, &self.draws, key, at, own, t),
-                    Model::EoIr(m) => m.report(state, &self.draws, key, at, own, t),
-                    Model::Range(_) => None,
+                let look = Look {
+                    draws: &self.draws,
+                    key,
+                    k,
+                    dt_s,
+                    own,
                 };
+                let report = device.model.report(state, &look, &truth.target);
                 match report {
                     Some(r) => self.in_flight.push((
                         k as f64 * dt_s + device.latency_s + r.jitter_s,
@@ -162,19 +162,17 @@ impl SensedDaa {
 
     /// The ownship as its navigation knows it at `t_s`, with its uncertainty.
     fn own_sensed(&mut self, t_s: f64, own: &Own) -> (DVec3, DVec3, Uncertainty) {
-        let Some(nav) = &self.navigation else {
-            return (
-                own.position_enu_m,
-                own.velocity_enu_mps,
-                Uncertainty::default(),
-            );
-        };
-        let Model::Adsb(m) = &nav.model else {
-            return (
-                own.position_enu_m,
-                own.velocity_enu_mps,
-                Uncertainty::default(),
-            );
+        let exact = (
+            own.position_enu_m,
+            own.velocity_enu_mps,
+            Uncertainty::default(),
+        );
+        let Some(nav) = self
+            .navigation
+            .as_ref()
+            .filter(|n| matches!(n.model, Model::Adsb(_)))
+        else {
+            return exact;
         };
         let dt_s = 1.0 / nav.rate_hz;
         let k = (t_s * nav.rate_hz).round() as u64;
@@ -184,14 +182,16 @@ impl SensedDaa {
             velocity_enu_mps: own.velocity_enu_mps,
             altitude_m: own.position_enu_m.z,
         };
-        let key = mix(self.seed, 2);
-        match m.report(&mut self.own_state, &self.draws, key, (k, dt_s), own, &me) {
+        let look = Look {
+            draws: &self.draws,
+            key: mix(self.seed, 2),
+            k,
+            dt_s,
+            own,
+        };
+        match nav.model.report(&mut self.own_state, &look, &me) {
             Some(r) => (r.position_enu_m, r.velocity_enu_mps, uncertainty(&r)),
-            None => (
-                own.position_enu_m,
-                own.velocity_enu_mps,
-                Uncertainty::default(),
-            ),
+            None => exact,
         }
     }
 

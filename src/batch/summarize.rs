@@ -5,32 +5,26 @@
 
 use std::path::Path;
 
-use arrow_array::{Array, BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array};
+use arrow_array::{Array, Float64Array, RecordBatch, StringArray, UInt64Array};
 
-use crate::daa::ratios::Outcome;
 use crate::error::Result;
-use crate::runs::summary::{RowView, Summary};
-use crate::runs::table::{column, float_at, for_each_batch, optional, text_or};
+use crate::runs::summary::{OutcomeColumns, RowView, Summary};
+use crate::runs::table::{column, float_at, optional, text_or};
 
 /// Read every `*.parquet` in `dir`.
 pub fn read_dir(dir: &Path) -> Result<Summary> {
-    let mut all = Summary::default();
-    all.files = for_each_batch(dir, |batch, path| read_batch(batch, path, &mut all))?;
-    Ok(all)
+    crate::runs::summary::read_dir(dir, read_batch)
 }
 
 fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()> {
     let strings = |name: &str| column::<StringArray>(batch, name, path);
-    let bools = |name: &str| column::<BooleanArray>(batch, name, path);
     let (run_id, variant, pair, error) = (
         strings("run_id")?,
         strings("variant")?,
         strings("pair")?,
         strings("error")?,
     );
-    let w = column::<Float64Array>(batch, "w", path)?;
-    let (nmac, lowc) = (bools("nmac")?, bools("lowc")?);
-    let collisions = column::<UInt64Array>(batch, "collisions", path)?;
+    let outcomes = OutcomeColumns::of(batch, path)?;
     let number = |name: &str| optional::<Float64Array>(batch, name);
     let (cpa, near_miss, wall) = (
         number("cpa_m"),
@@ -55,14 +49,7 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
             all.add(row, None);
             continue;
         }
-        let outcome = Outcome {
-            pair: row.pair.clone(),
-            variant: row.variant.clone(),
-            weight: if w.is_valid(i) { w.value(i) } else { 1.0 },
-            nmac: nmac.value(i),
-            lowc: lowc.value(i),
-            collision: collisions.value(i) > 0,
-        };
+        let outcome = outcomes.at(&row, i);
         row.ended = if outcome.collision {
             "collision"
         } else if outcome.nmac {

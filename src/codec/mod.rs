@@ -10,11 +10,13 @@
 //! - [`stats`]: counts of everything seen, for `--summary-json`.
 //! - [`notes`]: what an autopilot says (STATUSTEXT, mode changes, COLLISION) as text.
 //! - [`outbox`]: what savsim sends, encoded as one identity.
+//! - [`signing`]: MAVLink 2 signing of what savsim sends, and judging what it receives.
 
 pub mod decode;
 pub mod frame;
 pub mod notes;
 pub mod outbox;
+pub mod signing;
 pub mod stats;
 
 use crate::world::SenderId;

@@ -4,11 +4,13 @@
 
 use std::sync::Arc;
 
-use mavlink::dialects::ardupilotmega::MavMessage;
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA,
+};
 use mavlink::{MavHeader, MavlinkVersion};
 
 use crate::codec::frame::MAX_FRAME_LEN;
-use crate::links::signing::Signing;
+use crate::codec::signing::Signing;
 use crate::world::SenderId;
 
 /// Encodes one identity's messages.
@@ -54,4 +56,17 @@ impl Outbox {
         self.header.sequence = self.header.sequence.wrapping_add(1);
         bytes
     }
+}
+
+/// A ground station's HEARTBEAT (savsim's GCS identity on a link, the study's pilot): what
+/// makes an autopilot stream to it and keep its GCS failsafe quiet.
+pub fn gcs_heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
 }

@@ -27,7 +27,7 @@ use glam::{DQuat, DVec3};
 use savsim_core::sensors::device::{Device, Model};
 use savsim_core::sensors::draws::{mix, Draws};
 use savsim_core::sensors::range::{Beam, BeamReading, BeamTruth, RangeState};
-use savsim_core::sensors::surveillance::{Own, Target, TargetReport, TargetState};
+use savsim_core::sensors::surveillance::{Look, Own, Target, TargetReport, TargetState};
 
 use super::aircraft::{aircraft, body_velocity, has_transponder};
 use super::picture::{bin_of, nearer, Picture};
@@ -339,12 +339,14 @@ impl Devices {
             };
             let range_m = (target.position_enu_m - own.position_enu_m).length();
             let t_state = state.targets.entry(target.key).or_default();
-            let report = match &device.model {
-                Model::Adsb(m) => m.report(t_state, &self.draws, key, (k, dt_s), &own, &target),
-                Model::Radar(m) => m.report(t_state, &self.draws, key, (k, dt_s), &own, &target),
-                Model::EoIr(m) => m.report(t_state, &self.draws, key, (k, dt_s), &own, &target),
-                Model::Range(_) => None,
+            let look = Look {
+                draws: &self.draws,
+                key,
+                k,
+                dt_s,
+                own: &own,
             };
+            let report = device.model.report(t_state, &look, &target);
             let told = v.told.entry(target.key).or_default();
             match report {
                 Some(report) => {

@@ -261,7 +261,8 @@ impl Feed {
     }
 
     /// After a collision tick: if a frame is due for this vehicle, cast it and push its
-    /// messages to `out`.
+    /// messages to `out`. Modelled devices read at every sample whose instant came (and send
+    /// the reports that arrived); the range picture goes out at the feed's pace.
     pub fn on_sample(
         &mut self,
         pipeline: &mut Pipeline,
@@ -270,15 +271,21 @@ impl Feed {
     ) {
         self.readings.clear();
         self.adsb_sent.clear();
-        if self.devices.is_some() && self.config.kinds.any() {
-            self.on_sample_devices(pipeline, input, out);
+        if !self.config.kinds.any() {
             return;
         }
-        if !self.config.kinds.any() || !self.due(input.sender, input.current.time_boot_ms) {
+        let modelled = self.devices.is_some();
+        let time_boot_ms = input.current.time_boot_ms;
+        let due = self.due(input.sender, time_boot_ms);
+        if !due && !modelled {
             return;
         }
+        let stamp = if due {
+            self.stamp(input.sender, time_boot_ms)
+        } else {
+            time_boot_ms
+        };
         let first = out.len();
-        let stamp = self.stamp(input.sender, input.current.time_boot_ms);
         let mut adsb_sent = std::mem::take(&mut self.adsb_sent);
         let mut frame = Frame {
             input,
@@ -288,15 +295,10 @@ impl Feed {
             out,
             adsb_sent: &mut adsb_sent,
         };
-        let kinds = self.config.kinds;
-        if kinds.needs_bins() || kinds.rangefinder {
-            self.range_readings(pipeline, &mut frame);
-        }
-        if kinds.adsb {
-            self.adsb(&mut frame);
-        }
-        if kinds.collision {
-            self.collisions(&mut frame);
+        if modelled {
+            self.cast_modelled(pipeline, due, &mut frame);
+        } else {
+            self.cast_ideal(pipeline, &mut frame);
         }
         let made = (frame.out.len() - first) as u64;
         self.adsb_sent = adsb_sent;
@@ -307,52 +309,36 @@ impl Feed {
             .messages += made;
     }
 
-    /// [`Feed::on_sample`] with modelled devices: they read at every sample whose instant
-    /// came (and send the reports that arrived); the range picture goes out at the feed's
-    /// pace.
-    fn on_sample_devices(
-        &mut self,
-        pipeline: &mut Pipeline,
-        input: &FrameInput<'_>,
-        out: &mut Vec<FeedMessage>,
-    ) {
-        let time_boot_ms = input.current.time_boot_ms;
-        let due = self.due(input.sender, time_boot_ms);
-        let first = out.len();
-        let stamp = if due {
-            self.stamp(input.sender, time_boot_ms)
-        } else {
-            time_boot_ms
-        };
-        let mut adsb_sent = std::mem::take(&mut self.adsb_sent);
-        let mut frame = Frame {
-            input,
-            stamp,
-            up_enu: input.plane.up_at(&input.current.position),
-            adsb_radius_m: self.config.adsb_radius_m,
-            out,
-            adsb_sent: &mut adsb_sent,
-        };
+    /// The exact feed's frame: the levelled ring, ADS-B and COLLISION, as asked.
+    fn cast_ideal(&mut self, pipeline: &mut Pipeline, frame: &mut Frame<'_, '_>) {
+        let kinds = self.config.kinds;
+        if kinds.needs_bins() || kinds.rangefinder {
+            self.range_readings(pipeline, frame);
+        }
+        if kinds.adsb {
+            self.adsb(frame);
+        }
+        if kinds.collision {
+            self.collisions(frame);
+        }
+    }
+
+    /// The modelled devices at this sample; when the feed's frame is `due`, their range
+    /// picture and COLLISION.
+    fn cast_modelled(&mut self, pipeline: &mut Pipeline, due: bool, frame: &mut Frame<'_, '_>) {
         let Some(devices) = self.devices.as_mut() else {
             return;
         };
-        let v = self.vehicles.entry(input.sender).or_default();
-        let picture = devices.on_sample(&mut v.devices, pipeline, &mut frame);
+        let v = self.vehicles.entry(frame.input.sender).or_default();
+        let picture = devices.on_sample(&mut v.devices, pipeline, frame);
         let kinds = self.config.kinds;
         if due && (kinds.needs_bins() || kinds.rangefinder) {
-            picture::send_picture(&picture, devices.range, &self.config, &mut frame);
-            self.readings.extend(picture::readings_of(&picture, &frame));
+            picture::send_picture(&picture, devices.range, &self.config, frame);
+            self.readings.extend(picture::readings_of(&picture, frame));
         }
         if due && kinds.collision {
-            self.collisions(&mut frame);
+            self.collisions(frame);
         }
-        let made = (frame.out.len() - first) as u64;
-        self.adsb_sent = adsb_sent;
-        self.vehicles
-            .entry(input.sender)
-            .or_default()
-            .counts
-            .messages += made;
     }
 }
 

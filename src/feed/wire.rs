@@ -91,21 +91,8 @@ pub fn obstacle_distance(
     bins_m: &[Option<f64>; BINS],
     sensor_type: u8,
 ) -> MavMessage {
-    let mut distances = [0u16; BINS];
-    for (out, d) in distances.iter_mut().zip(bins_m) {
-        *out = range.reading_cm(*d);
-    }
-    MavMessage::OBSTACLE_DISTANCE(OBSTACLE_DISTANCE_DATA {
-        time_usec: u64::from(time_boot_ms) * 1000,
-        distances,
-        sensor_type: MavDistanceSensor::from_u8(sensor_type).unwrap_or_default(),
-        max_distance: range.max_cm(),
-        min_distance: range.min_cm(),
-        increment: BIN_DEG as u8,
-        increment_f: BIN_DEG as f32,
-        angle_offset: BIN0_DEG as f32,
-        frame: MavFrame::MAV_FRAME_BODY_FRD,
-    })
+    let distances = bins_m.map(|d| range.reading_cm(d));
+    obstacle_distance_cm(time_boot_ms, range, distances, sensor_type)
 }
 
 /// OBSTACLE_DISTANCE from modelled devices' bins: a return in centimetres, clear as max + 1,
@@ -117,14 +104,21 @@ pub fn obstacle_distance_cells(
     sensor_type: u8,
 ) -> MavMessage {
     use savsim_core::sensors::range::BeamReading;
-    let mut distances = [0u16; BINS];
-    for (out, cell) in distances.iter_mut().zip(bins) {
-        *out = match cell {
-            BeamReading::Range(d) => range.reading_cm(Some(*d)),
-            BeamReading::Clear => range.reading_cm(None),
-            BeamReading::NoData => u16::MAX,
-        };
-    }
+    let distances = bins.map(|cell| match cell {
+        BeamReading::Range(d) => range.reading_cm(Some(d)),
+        BeamReading::Clear => range.reading_cm(None),
+        BeamReading::NoData => u16::MAX,
+    });
+    obstacle_distance_cm(time_boot_ms, range, distances, sensor_type)
+}
+
+/// OBSTACLE_DISTANCE of bins already in centimetres.
+fn obstacle_distance_cm(
+    time_boot_ms: u32,
+    range: Range,
+    distances: [u16; BINS],
+    sensor_type: u8,
+) -> MavMessage {
     MavMessage::OBSTACLE_DISTANCE(OBSTACLE_DISTANCE_DATA {
         time_usec: u64::from(time_boot_ms) * 1000,
         distances,

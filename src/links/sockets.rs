@@ -418,15 +418,29 @@ impl Task {
         self.counters.unsent.fetch_add(1, Ordering::Relaxed);
     }
 
+    /// Send what is queued for the link before it stops (UDP).
+    async fn flush_udp(&mut self, socket: &UdpSocket, fixed_peer: Option<SocketAddr>) {
+        while let Ok(out) = self.outgoing.try_recv() {
+            self.send_udp(socket, out, fixed_peer).await;
+        }
+    }
+
+    /// Write what is queued for the link before it stops (TCP).
+    async fn flush_tcp(&mut self, stream: &mut TcpStream) {
+        while let Ok(out) = self.outgoing.try_recv() {
+            if stream.write_all(&out.bytes).await.is_err() {
+                self.unsent();
+            }
+        }
+    }
+
     async fn udp(mut self, socket: UdpSocket, fixed_peer: Option<SocketAddr>) -> Result<()> {
         let mut buf = vec![0u8; 65_536];
         loop {
             let receiving = self.chunks.is_some();
             tokio::select! {
                 changed = self.stop.changed() => if self.stopped(changed) {
-                    while let Ok(out) = self.outgoing.try_recv() {
-                        self.send_udp(&socket, out, fixed_peer).await;
-                    }
+                    self.flush_udp(&socket, fixed_peer).await;
                     return Ok(());
                 },
                 received = socket.recv_from(&mut buf), if receiving => match received {
@@ -551,11 +565,7 @@ impl Task {
             let receiving = self.chunks.is_some();
             tokio::select! {
                 changed = self.stop.changed() => if self.stopped(changed) {
-                    while let Ok(out) = self.outgoing.try_recv() {
-                        if stream.write_all(&out.bytes).await.is_err() {
-                            self.unsent();
-                        }
-                    }
+                    self.flush_tcp(&mut stream).await;
                     return Ok(true);
                 },
                 received = stream.read(&mut buf), if receiving => match received {

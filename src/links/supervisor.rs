@@ -22,8 +22,7 @@ use std::collections::BTreeMap;
 use std::net::SocketAddr;
 
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, COMMAND_ACK_DATA,
-    COMMAND_LONG_DATA, HEARTBEAT_DATA,
+    MavCmd, MavMessage, MavResult, COMMAND_ACK_DATA, COMMAND_LONG_DATA,
 };
 // REQUEST_DATA_STREAM is deprecated, and is exactly the fallback older ArduPilot needs.
 #[allow(deprecated)]
@@ -35,6 +34,7 @@ use crate::codec::decode::{
     heartbeat_from, heartbeat_names, ID_ATTITUDE, ID_GLOBAL_POSITION_INT, ID_HEARTBEAT,
 };
 use crate::codec::frame::{message_info, FrameStatus, RawFrame};
+use crate::codec::outbox::gcs_heartbeat;
 use crate::world::clock::{self, ClockStep};
 use crate::world::inputs::HeartbeatReport;
 use crate::world::SenderId;
@@ -525,17 +525,6 @@ impl Supervisor {
             })
             .collect()
     }
-}
-
-fn gcs_heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
 }
 
 fn set_message_interval(to: SenderId, message_id: u32, rate_hz: f64, attempt: u8) -> MavMessage {

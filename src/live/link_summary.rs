@@ -6,8 +6,8 @@ use std::sync::atomic::Ordering;
 use serde::Serialize;
 
 use super::LiveSession;
+use crate::codec::signing::SigningCounts;
 use crate::links::forward::ForwardCounts;
-use crate::links::signing::SigningCounts;
 use crate::links::sockets::LinkCounters;
 use crate::links::supervisor::{SupervisorCounts, VehicleLink};
 

@@ -21,10 +21,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::codec::outbox::Outbox;
+use crate::codec::signing::{Signing, SigningKey};
 use crate::error::{Error, Result};
 use crate::links::address::ConnectAddress;
 use crate::links::forward::Forwarder;
-use crate::links::signing::{Signing, SigningKey};
 use crate::links::sockets::{unix_now_s, Chunk, Link, LinkCounters, Network, Outgoing};
 use crate::links::supervisor::Endpoint;
 use crate::links::supervisor::{LinkId, Supervisor, SupervisorConfig};

@@ -152,10 +152,19 @@ fn attitude(t_us: u64, roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> Option<Re
         }))
 }
 
-/// Sort by time, stably.
-fn in_time_order(mut reports: Vec<Timed>) -> Vec<Timed> {
-    reports.sort_by_key(|r| r.t_us);
-    reports
+/// The reports of a log, each from the vehicle (traffic from its ADS-B receiver), sorted by
+/// time, stably.
+fn timed(reports: Vec<(u64, Report)>, vehicle: SenderId) -> Vec<Timed> {
+    let mut timed: Vec<Timed> = reports
+        .into_iter()
+        .map(|(t_us, report)| Timed {
+            t_us,
+            sender: traffic_sender(&report, vehicle),
+            report,
+        })
+        .collect();
+    timed.sort_by_key(|r| r.t_us);
+    timed
 }
 
 /// The vehicle's identity: its system id parameter (SYSID_THISMAV, MAV_SYS_ID) if the log
@@ -238,16 +247,8 @@ pub fn read_ulog(data: &[u8]) -> Result<FlightLog, UlogError> {
     summary.position_source = position_topic;
     summary.attitude_source = (summary.attitudes > 0).then_some("vehicle_attitude");
     summary.ulog = Some(reader.counts());
-    let reports = taken
-        .into_iter()
-        .map(|(t_us, report)| Timed {
-            t_us,
-            sender: traffic_sender(&report, sender),
-            report,
-        })
-        .collect();
     Ok(FlightLog {
-        reports: in_time_order(reports),
+        reports: timed(taken, sender),
         summary,
     })
 }
@@ -381,16 +382,8 @@ pub fn read_dataflash(data: &[u8]) -> FlightLog {
     summary.position_source = position;
     summary.attitude_source = attitude_source;
     summary.dataflash = Some(reader.counts());
-    let reports = reports
-        .into_iter()
-        .map(|(t_us, report)| Timed {
-            t_us,
-            sender: traffic_sender(&report, sender),
-            report,
-        })
-        .collect();
     FlightLog {
-        reports: in_time_order(reports),
+        reports: timed(reports, sender),
         summary,
     }
 }

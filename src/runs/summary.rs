@@ -6,9 +6,13 @@
 //! counted (`error`) and left out of the rates.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+use arrow_array::{Array, BooleanArray, Float64Array, RecordBatch, UInt64Array};
 use serde_json::json;
+
+use crate::error::Result;
+use crate::runs::table::{column, for_each_batch};
 
 use crate::daa::ratios::{
     rates, ratios, Estimate, Outcome, VariantRates, VariantRatios, RESAMPLES,
@@ -192,5 +196,52 @@ impl Summary {
             );
         }
         text
+    }
+}
+/// Every `*.parquet` of `dir`, each record batch read into one summary by `read_batch` (a
+/// command's own columns).
+pub fn read_dir(
+    dir: &Path,
+    mut read_batch: impl FnMut(&RecordBatch, &Path, &mut Summary) -> Result<()>,
+) -> Result<Summary> {
+    let mut all = Summary::default();
+    all.files = for_each_batch(dir, |batch, path| read_batch(batch, path, &mut all))?;
+    Ok(all)
+}
+
+/// The columns a row's outcome is read from, the same in batch and study results: `w`, `nmac`,
+/// `lowc`, `collisions`.
+pub struct OutcomeColumns<'a> {
+    w: &'a Float64Array,
+    nmac: &'a BooleanArray,
+    lowc: &'a BooleanArray,
+    collisions: &'a UInt64Array,
+}
+
+impl<'a> OutcomeColumns<'a> {
+    /// The columns of `batch` (read from `path`); an error names a missing one.
+    pub fn of(batch: &'a RecordBatch, path: &Path) -> Result<Self> {
+        Ok(Self {
+            w: column::<Float64Array>(batch, "w", path)?,
+            nmac: column::<BooleanArray>(batch, "nmac", path)?,
+            lowc: column::<BooleanArray>(batch, "lowc", path)?,
+            collisions: column::<UInt64Array>(batch, "collisions", path)?,
+        })
+    }
+
+    /// Row `i`'s outcome, for the pair and variant `row` names (weight 1 when it has none).
+    pub fn at(&self, row: &RowView, i: usize) -> Outcome {
+        Outcome {
+            pair: row.pair.clone(),
+            variant: row.variant.clone(),
+            weight: if self.w.is_valid(i) {
+                self.w.value(i)
+            } else {
+                1.0
+            },
+            nmac: self.nmac.value(i),
+            lowc: self.lowc.value(i),
+            collision: self.collisions.value(i) > 0,
+        }
     }
 }

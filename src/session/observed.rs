@@ -30,8 +30,7 @@ impl Session {
         }
         let latest = self
             .world
-            .vehicles
-            .get(&note.sender)
+            .vehicle(&note.sender)
             .and_then(|v| v.history.latest());
         match latest {
             Some(at) => {

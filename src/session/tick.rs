@@ -49,7 +49,7 @@ impl Session {
     /// The track's last two samples and its generation; the flight's start, fixed at the
     /// first tick.
     fn tick_input(&mut self, sender: SenderId) -> Option<TickInput> {
-        let track = self.world.vehicles.get(&sender)?;
+        let track = self.world.vehicle(&sender)?;
         let current = track.history.latest().copied()?;
         let previous = track.history.previous().copied();
         let generation = track.generation;
@@ -95,14 +95,11 @@ impl Session {
             flight_start_t_s: tick.flight_start_t_s,
             sensing: pipeline.senses_at(tick.key, tick.current.t_s) || self.draws_traffic(),
         };
-        traffic::fill_dynamic(
-            &mut self.dynamic,
-            &mut self.approached,
-            scene,
-            &mut self.world,
-            &watch,
-            &interval,
-        );
+        let into = traffic::Filling {
+            out: &mut self.dynamic,
+            approached: &mut self.approached,
+        };
+        traffic::fill_dynamic(into, scene, &mut self.world, &watch, &interval);
     }
 
     /// Whether the run is watched: the viewer draws the traffic and the colliders of every

@@ -122,22 +122,35 @@ impl Interval<'_> {
 /// [`BodyKey`] orders them); `approached[i]` says whether `out`'s body `i` is within the
 /// approach reach (the scene's tracks always are). Ids are shared (`Arc<str>`).
 pub(crate) fn fill_dynamic(
-    out: &mut MovingBodies,
-    approached: &mut Vec<bool>,
+    into: Filling<'_>,
     scene: &Scene,
     world: &mut WorldStore,
     watch: &Watch,
     interval: &Interval<'_>,
 ) {
+    let Filling { out, approached } = into;
     out.clear();
     approached.clear();
     let claims = fill_scripted(out, scene, world, interval);
     approached.resize(out.len(), true);
-    fill_nearby(out, approached, scene, world, watch, interval, &claims);
+    let nearby = Filling {
+        out: &mut *out,
+        approached,
+    };
+    fill_nearby(nearby, scene, world, (watch, interval), &claims);
     debug_assert!(
         out.as_slice().is_sorted_by_key(|b| b.key),
         "bodies out of key order"
     );
+}
+
+/// Where a tick's moving bodies go: the bodies, and beside each whether it is within the
+/// approach reach.
+pub(crate) struct Filling<'a> {
+    /// The bodies.
+    pub out: &'a mut MovingBodies,
+    /// Whether `out`'s body `i` is within the approach reach.
+    pub approached: &'a mut Vec<bool>,
 }
 
 /// The vehicles and aircraft the scene's tracks stand for (they are not traffic twice).
@@ -192,8 +205,7 @@ fn fill_scripted(
             DynamicSource::Icao(icao) => {
                 claims.icao.push(*icao);
                 world
-                    .traffic
-                    .get(icao)
+                    .aircraft(*icao)
                     .and_then(|tr| predicted(&tr.history, who(tr.generation), times))
             }
         };
@@ -206,14 +218,13 @@ fn fill_scripted(
 /// `out` (and whether each is within the approach reach, into `approached`), in the order of
 /// their keys (the order the world visits them in).
 fn fill_nearby(
-    out: &mut MovingBodies,
-    approached: &mut Vec<bool>,
+    into: Filling<'_>,
     scene: &Scene,
     world: &mut WorldStore,
-    watch: &Watch,
-    interval: &Interval<'_>,
+    (watch, interval): (&Watch, &Interval<'_>),
     claims: &Claims,
 ) {
+    let Filling { out, approached } = into;
     let current = interval.current;
     let before = interval.previous.unwrap_or(current);
     let times = interval.times();

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use crate::cli::{StudyArgs, StudyCommand, StudyGenKind};
+use crate::cli::{StudyArgs, StudyCommand, StudyGenKind, SummarizeArgs};
 use crate::error::{Error, Result};
 use crate::runs::shard::Shard;
 use crate::runs::table::Settings;
@@ -19,7 +19,9 @@ use crate::study::{converge, manifest};
 /// Run `savsim study ...`.
 pub fn run(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     match &args.command {
-        Some(StudyCommand::Summarize { dir, nominal, json }) => summarize(dir, nominal, *json),
+        Some(StudyCommand::Summarize(SummarizeArgs { dir, nominal, json })) => {
+            summarize(dir, nominal, *json)
+        }
         Some(StudyCommand::Report(report)) => {
             let summary = crate::study::summarize::read_dir(&report.dir)?;
             let options = crate::runs::report::Options {
@@ -60,13 +62,13 @@ fn summarize(dir: &Path, nominal: &str, json: bool) -> Result<()> {
 /// the rounds of `--until-converged`; the study run in a network namespace of its own where
 /// one can be made.
 fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
-    let (Some(manifest_path), Some(out)) = (&args.manifest, &args.out) else {
+    let (Some(manifest_path), Some(out)) = (&args.runs.manifest, &args.runs.out) else {
         return Err(Error::Usage("give a manifest and --out DIR".into()));
     };
     check_flags(args)?;
     let rows = manifest::load(manifest_path)?;
     let plan = match args.until_converged {
-        None => Plan::Shard(Shard::from_args(args.shard.as_deref(), |v| {
+        None => Plan::Shard(Shard::from_args(args.runs.shard.as_deref(), |v| {
             std::env::var(v).ok()
         })?),
         Some(pct) => Plan::Rounds(pct),
@@ -74,7 +76,7 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     if let Plan::Shard(shard) = plan {
         let path = out.join(shard.file_name());
-        if path.exists() && !args.force {
+        if path.exists() && !args.runs.force {
             eprintln!(
                 "study: shard {}/{} is done ({} exists): skipped",
                 shard.index,
@@ -101,15 +103,15 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let mut setup = Setup::new(
         flown,
         (
-            arducopter(args.arducopter.as_deref()),
-            px4(args.px4.as_deref()),
+            arducopter(args.sitl.arducopter.as_deref()),
+            px4(args.sitl.px4.as_deref()),
         ),
         args.speedup,
         work,
         shutdown,
     );
     setup.record_feed = args.keep_work;
-    setup.record_rows = args.rerun_rows.clone();
+    setup.record_rows = args.runs.rerun_rows.clone();
     let study = Study {
         args,
         manifest: manifest_path,
@@ -155,7 +157,7 @@ fn check_flags(args: &StudyArgs) -> Result<()> {
                 "--until-converged {pct}: give a percentage above 0 and at most 100"
             )));
         }
-        if args.shard.is_some() {
+        if args.runs.shard.is_some() {
             return Err(Error::Usage(
                 "--until-converged flies its rounds one after another: not with --shard".into(),
             ));
@@ -199,7 +201,7 @@ impl Study<'_> {
     /// second on; stops when they are within `pct`, or when the manifest is flown.
     fn until_converged(&self, pct: f64) -> Result<()> {
         let rounds = converge::rounds(self.rows, self.args.round_pairs);
-        let nominal = self.args.nominal.as_str();
+        let nominal = self.args.runs.nominal.as_str();
         let mut pairs = 0;
         for (k, indexes) in rounds.iter().enumerate() {
             let path = self.out.join(converge::file_name(k));
@@ -207,7 +209,7 @@ impl Study<'_> {
                 index: k,
                 count: rounds.len(),
             };
-            if path.exists() && !self.args.force {
+            if path.exists() && !self.args.runs.force {
                 eprintln!("study: round {k} is done ({} exists): kept", path.display());
             } else {
                 self.fly_part(indexes, part, &path)?;
@@ -310,7 +312,7 @@ fn fly_rows(
             r.wall_s
         );
         let folder = setup.work.join(crate::runs::row_name(r.index, &r.row_id));
-        keep_recording(r, &folder, setup, &args.nominal);
+        keep_recording(r, &folder, setup, &args.runs.nominal);
         if !args.keep_work && r.outcome != Outcome::Error {
             let _ = std::fs::remove_dir_all(folder);
         }

@@ -74,7 +74,55 @@ pub struct PlanError {
     /// The leg as written.
     pub text: String,
     /// What is wrong.
-    pub why: String,
+    pub why: LegError,
+}
+
+/// What is wrong with a leg.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LegError {
+    /// A plan with no leg.
+    #[error("no legs: give e.g. \"takeoff 30; goto 0 50 30; land\"")]
+    NoLegs,
+    /// A word where a number goes.
+    #[error("{0:?} is not a number")]
+    NotANumber(String),
+    /// Too few or too many numbers: how the leg is written.
+    #[error("give {0}")]
+    Usage(&'static str),
+    /// A coordinate or a velocity beyond its bound.
+    #[error("a {what} is beyond +/-{max}")]
+    Beyond {
+        /// Which.
+        what: &'static str,
+        /// Its bound.
+        max: f64,
+    },
+    /// A leg's time out of bounds.
+    #[error("give more than 0 and at most {MAX_LEG_S} s")]
+    Seconds,
+    /// A takeoff out of bounds.
+    #[error("take off to 1 m to {MAX_ENU_M} m above home")]
+    TakeoffHeight,
+    /// A goto's speed out of bounds.
+    #[error("give a speed of more than 0 and at most {MAX_SPEED_MPS} m/s")]
+    Speed,
+    /// Not a leg's verb.
+    #[error("{0:?} is not a leg: takeoff, goto, velocity, hold, until or land")]
+    NotALeg(String),
+}
+
+/// What is wrong with a row's parameters.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamError {
+    /// No `=` or space between a name and its value.
+    #[error("parameter {0:?}: give NAME=VALUE")]
+    NoValue(String),
+    /// A name that is not an autopilot parameter's.
+    #[error("parameter {0:?}: a name is letters, digits and _, at most 16 characters")]
+    BadName(String),
+    /// A value that is not a number.
+    #[error("parameter {0:?}: the value is not a number")]
+    NotANumber(String),
 }
 
 /// Read a plan. An empty plan is an error: a row must fly something.
@@ -88,7 +136,7 @@ pub fn parse(text: &str) -> Result<Vec<Leg>, PlanError> {
         return Err(PlanError {
             leg: 0,
             text: text.into(),
-            why: "no legs: give e.g. \"takeoff 30; goto 0 50 30; land\"".into(),
+            why: LegError::NoLegs,
         });
     }
     legs.iter()
@@ -104,7 +152,7 @@ pub fn parse(text: &str) -> Result<Vec<Leg>, PlanError> {
 }
 
 /// One leg.
-fn leg(text: &str) -> Result<Leg, String> {
+fn leg(text: &str) -> Result<Leg, LegError> {
     let mut words = text.split_whitespace();
     let verb = words.next().unwrap_or_default().to_ascii_lowercase();
     let numbers: Vec<f64> = words
@@ -112,28 +160,28 @@ fn leg(text: &str) -> Result<Leg, String> {
             w.parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("{w:?} is not a number"))
+                .ok_or_else(|| LegError::NotANumber(w.to_string()))
         })
         .collect::<Result<_, _>>()?;
-    let count = |n: &[usize], usage: &str| {
+    let count = |n: &[usize], usage: &'static str| {
         if n.contains(&numbers.len()) {
             Ok(())
         } else {
-            Err(format!("give {usage}"))
+            Err(LegError::Usage(usage))
         }
     };
-    let within = |v: f64, max: f64, what: &str| {
+    let within = |v: f64, max: f64, what: &'static str| {
         if v.abs() <= max {
             Ok(v)
         } else {
-            Err(format!("a {what} is beyond +/-{max}"))
+            Err(LegError::Beyond { what, max })
         }
     };
     let seconds = |v: f64| {
         if v > 0.0 && v <= MAX_LEG_S {
             Ok(v)
         } else {
-            Err(format!("give more than 0 and at most {MAX_LEG_S} s"))
+            Err(LegError::Seconds)
         }
     };
     match verb.as_str() {
@@ -141,7 +189,7 @@ fn leg(text: &str) -> Result<Leg, String> {
             count(&[1], "takeoff U (metres above home)")?;
             let up_m = numbers[0];
             if !(1.0..=MAX_ENU_M).contains(&up_m) {
-                return Err(format!("take off to 1 m to {MAX_ENU_M} m above home"));
+                return Err(LegError::TakeoffHeight);
             }
             Ok(Leg::Takeoff { up_m })
         }
@@ -149,9 +197,7 @@ fn leg(text: &str) -> Result<Leg, String> {
             count(&[3, 4], "goto E N U [SPEED]")?;
             let speed_mps = numbers.get(3).copied().unwrap_or(GOTO_SPEED_MPS);
             if !(speed_mps > 0.0 && speed_mps <= MAX_SPEED_MPS) {
-                return Err(format!(
-                    "give a speed of more than 0 and at most {MAX_SPEED_MPS} m/s"
-                ));
+                return Err(LegError::Speed);
             }
             let mut enu_m = [0.0; 3];
             for (axis, v) in enu_m.iter_mut().zip(&numbers) {
@@ -186,9 +232,7 @@ fn leg(text: &str) -> Result<Leg, String> {
             count(&[0], "land (no numbers)")?;
             Ok(Leg::Land)
         }
-        other => Err(format!(
-            "{other:?} is not a leg: takeoff, goto, velocity, hold, until or land"
-        )),
+        other => Err(LegError::NotALeg(other.to_string())),
     }
 }
 
@@ -200,7 +244,7 @@ fn leg(text: &str) -> Result<Leg, String> {
 /// assert_eq!(p, [("AVOID_ENABLE".to_string(), 3.0), ("PRX1_TYPE".to_string(), 2.0)]);
 /// assert!(savsim::study::plan::parse_params("AVOID ENABLE=3").is_err());
 /// ```
-pub fn parse_params(text: &str) -> Result<Vec<(String, f64)>, String> {
+pub fn parse_params(text: &str) -> Result<Vec<(String, f64)>, ParamError> {
     text.split(';')
         .map(str::trim)
         .filter(|p| !p.is_empty())
@@ -208,22 +252,20 @@ pub fn parse_params(text: &str) -> Result<Vec<(String, f64)>, String> {
             let (name, value) = p
                 .split_once('=')
                 .or_else(|| p.split_once(char::is_whitespace))
-                .ok_or_else(|| format!("parameter {p:?}: give NAME=VALUE"))?;
+                .ok_or_else(|| ParamError::NoValue(p.to_string()))?;
             let name = name.trim().to_ascii_uppercase();
             let good = !name.is_empty()
                 && name.len() <= 16
                 && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
             if !good {
-                return Err(format!(
-                    "parameter {p:?}: a name is letters, digits and _, at most 16 characters"
-                ));
+                return Err(ParamError::BadName(p.to_string()));
             }
             let value = value
                 .trim()
                 .parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("parameter {p:?}: the value is not a number"))?;
+                .ok_or_else(|| ParamError::NotANumber(p.to_string()))?;
             Ok((name, value))
         })
         .collect()

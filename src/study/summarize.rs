@@ -5,18 +5,15 @@
 
 use std::path::Path;
 
-use arrow_array::{Array, BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array};
+use arrow_array::{Float64Array, RecordBatch, StringArray, UInt64Array};
 
-use crate::daa::ratios::Outcome;
 use crate::error::Result;
-use crate::runs::summary::{RowView, Summary};
-use crate::runs::table::{column, float_at, for_each_batch, optional, text_at, text_or};
+use crate::runs::summary::{OutcomeColumns, RowView, Summary};
+use crate::runs::table::{column, float_at, optional, text_at, text_or};
 
 /// Read every `*.parquet` in `dir`.
 pub fn read_dir(dir: &Path) -> Result<Summary> {
-    let mut all = Summary::default();
-    all.files = for_each_batch(dir, |batch, path| read_batch(batch, path, &mut all))?;
-    Ok(all)
+    crate::runs::summary::read_dir(dir, read_batch)
 }
 
 fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()> {
@@ -27,12 +24,7 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
         strings("pair")?,
         strings("outcome")?,
     );
-    let w = column::<Float64Array>(batch, "w", path)?;
-    let (nmac, lowc) = (
-        column::<BooleanArray>(batch, "nmac", path)?,
-        column::<BooleanArray>(batch, "lowc", path)?,
-    );
-    let collisions = column::<UInt64Array>(batch, "collisions", path)?;
+    let outcomes = OutcomeColumns::of(batch, path)?;
     let number = |name: &str| optional::<Float64Array>(batch, name);
     let (cpa, obstacle, acted, speedup, wall) = (
         number("cpa_m"),
@@ -68,14 +60,7 @@ fn read_batch(batch: &RecordBatch, path: &Path, all: &mut Summary) -> Result<()>
             cpa_t_s: float_at(cpa_t, i),
             first_collision_t_s: float_at(collision_t, i),
         };
-        let flew = (row.ended != "error").then(|| Outcome {
-            pair: row.pair.clone(),
-            variant: row.variant.clone(),
-            weight: if w.is_valid(i) { w.value(i) } else { 1.0 },
-            nmac: nmac.value(i),
-            lowc: lowc.value(i),
-            collision: collisions.value(i) > 0,
-        });
+        let flew = (row.ended != "error").then(|| outcomes.at(&row, i));
         all.add(row, flew);
     }
     Ok(())

@@ -160,7 +160,26 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
     columns.extend(cpa_columns(rows, m));
     columns.push(("vehicle_track", strings(rows, |r| r.track.clone())));
     columns.extend(lowc_columns(rows, m));
+    columns.extend([]);
+    columns.extend(autopilot_columns(rows));
+    columns.extend(told_columns(rows));
+    columns.extend(other_vehicle_columns(rows));
     columns.extend([
+        ("vehicles", vehicles(rows)),
+        ("sim_s", floats(rows, |r| Some(r.sim_s))),
+        ("wall_s", floats(rows, |r| Some(r.wall_s))),
+        (
+            "achieved_speedup",
+            floats(rows, |r| Some(r.achieved_speedup)),
+        ),
+    ]);
+    columns
+}
+
+/// What the autopilot did: when it armed, how far its plan got, its modes, COLLISION
+/// messages and avoidance texts, when it first acted, its version.
+fn autopilot_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
+    vec![
         ("armed_t_s", floats(rows, |r| r.armed_t_s)),
         ("legs_completed", counts(rows, |r| Some(r.legs_completed))),
         ("plan_completed", bools(rows, |r| r.plan_completed)),
@@ -188,6 +207,13 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             "autopilot_version",
             strings(rows, |r| r.autopilot_did.version.clone()),
         ),
+    ]
+}
+
+/// What the feed told the vehicle: its frames, the first report and the closest reported
+/// approach, reports received and lost, how late the feed was.
+fn told_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
+    vec![
         ("feed_frames", counts(rows, |r| Some(r.feed_frames))),
         (
             "first_detection_s",
@@ -214,6 +240,12 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             "feed_latency_max_us",
             counts(rows, |r| r.feed_latency_max_us),
         ),
+    ]
+}
+
+/// A row of several vehicles: its clocks, who acted first, and the second vehicle's own.
+fn other_vehicle_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
+    vec![
         ("clock_skew_s", floats(rows, |r| r.clock_skew_s)),
         ("clock_speedup", floats(rows, |r| r.clock_speedup)),
         (
@@ -255,15 +287,7 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
                 r.others.first().and_then(|s| s.did.version.clone())
             }),
         ),
-        ("vehicles", vehicles(rows)),
-        ("sim_s", floats(rows, |r| Some(r.sim_s))),
-        ("wall_s", floats(rows, |r| Some(r.wall_s))),
-        (
-            "achieved_speedup",
-            floats(rows, |r| Some(r.achieved_speedup)),
-        ),
-    ]);
-    columns
+    ]
 }
 
 /// The results as one record batch (the full schema when there are no rows).

@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, VecDeque};
 use glam::{DQuat, DVec3, Vec3};
 use rerun::components::FillMode;
 use rerun::{
-    Arrows3D, Boxes3D, Clear, Color, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
+    Arrows3D, Clear, Color, Mesh3D, Points3D, RecordingStream, RecordingStreamResult,
     ViewCoordinates,
 };
 
@@ -17,9 +17,9 @@ use super::draw::{
 };
 use super::markers::{Markers, Where, FOCUS_AFTER_S, FOCUS_BEFORE_S};
 use super::rows::Rows;
+use super::surroundings::{log_adsb_sent, log_feed, log_metrics, log_note, log_traffic};
 use super::{paths, VizOptions};
-use crate::collision::bodies::BodySource;
-use crate::observe::{ApproachFrame, Frame, NoteFrame, TickFrame};
+use crate::observe::{ApproachFrame, Frame, TickFrame};
 use crate::scene::{Aabb64, Kind, Scene};
 
 /// Static scenes with at most this many triangles are drawn as meshes, larger ones as boxes.
@@ -63,6 +63,17 @@ struct State<'s> {
     t0_s: f64,
 }
 
+/// Why the logger thread stopped short.
+#[derive(Debug, thiserror::Error)]
+pub enum LoggerError {
+    /// Logging to the recording stream failed.
+    #[error(transparent)]
+    Stream(#[from] rerun::RecordingStreamError),
+    /// The stream could not be flushed at the end.
+    #[error(transparent)]
+    Flush(#[from] rerun::sink::SinkFlushError),
+}
+
 /// The thread's body: the scene, then every tick, then the final layout.
 pub fn run(
     rec: RecordingStream,
@@ -70,7 +81,7 @@ pub fn run(
     scene: &Scene,
     leaves: &[Aabb64],
     options: &VizOptions,
-) -> Result<(), String> {
+) -> Result<(), LoggerError> {
     let mut state = State {
         scene,
         options,
@@ -86,24 +97,23 @@ pub fn run(
         rows: Rows::new(options.live),
         t0_s: 0.0,
     };
-    let text = |e: rerun::RecordingStreamError| e.to_string();
-    blueprint::send(&rec, &state.layout).map_err(text)?;
-    log_scene(&rec, &state).map_err(text)?;
+    blueprint::send(&rec, &state.layout)?;
+    log_scene(&rec, &state)?;
     for msg in rx {
         match msg {
-            Frame::Tick(frame) => log_tick(&rec, &mut state, &frame).map_err(text)?,
-            Frame::Note(note) => log_note(&rec, &mut state.rows, &note).map_err(text)?,
-            Frame::Approaches(list) => log_approaches(&rec, &mut state, &list).map_err(text)?,
+            Frame::Tick(frame) => log_tick(&rec, &mut state, &frame)?,
+            Frame::Note(note) => log_note(&rec, &mut state.rows, &note)?,
+            Frame::Approaches(list) => log_approaches(&rec, &mut state, &list)?,
         }
     }
-    state.rows.flush(&rec).map_err(text)?;
+    state.rows.flush(&rec)?;
     if state.layout.vehicles.is_empty() {
         // Nothing flew (`scene show`): the overview frames the scene.
         state.layout.overview = scene_area(scene, state.offset);
         state.layout.scene_only = true;
     }
-    blueprint::send(&rec, &state.layout).map_err(text)?;
-    rec.flush_blocking().map_err(|e| e.to_string())
+    blueprint::send(&rec, &state.layout)?;
+    Ok(rec.flush_blocking()?)
 }
 
 /// The static scene's bounds, logged (viz-offset) metres; `None` without obstacles.
@@ -436,48 +446,6 @@ fn log_rays(
     Ok(())
 }
 
-/// The closed-loop feed's readings at a feed frame: what the autopilot was told, green where
-/// something was seen (drawn to it), grey where nothing was (drawn to the range's end).
-fn log_feed(rec: &RecordingStream, f: &TickFrame, position: Vec3) -> RecordingStreamResult<()> {
-    if f.feed.is_empty() {
-        return Ok(());
-    }
-    let vectors = f.feed.iter().map(|r| {
-        (r.dir_enu * r.distance_m.unwrap_or(f.feed_max_m))
-            .as_vec3()
-            .to_array()
-    });
-    let colors = f.feed.iter().map(|r| {
-        if r.distance_m.is_some() {
-            Color::from_rgb(40, 220, 90)
-        } else {
-            Color::from_unmultiplied_rgba(160, 160, 160, 80)
-        }
-    });
-    rec.log(
-        paths::vehicle_part(f.system_id, "feed"),
-        &Arrows3D::from_vectors(vectors)
-            .with_origins(std::iter::repeat_n(position.to_array(), f.feed.len()))
-            .with_colors(colors),
-    )
-}
-
-/// The ADS-B reports the feed sent at this tick, each where it put its aircraft (orange,
-/// labelled), one entity per aircraft: each aircraft's last report stays drawn until its next.
-fn log_adsb_sent(rec: &RecordingStream, offset: DVec3, f: &TickFrame) -> RecordingStreamResult<()> {
-    for sent in &f.adsb_sent {
-        let (icao, label, p) = (&sent.icao_address, &sent.label, &sent.position_enu_m);
-        rec.log(
-            paths::vehicle_part(f.system_id, &format!("feed/adsb/{icao:06X}")),
-            &Points3D::new([local(offset, *p).to_array()])
-                .with_labels([label.as_str()])
-                .with_radii([rerun::Radius::new_ui_points(6.0)])
-                .with_colors([Color::from_rgb(255, 127, 14)]),
-        )?;
-    }
-    Ok(())
-}
-
 /// Each vehicle's closest approach to each moving body, at the moment it happened: where the
 /// vehicle was (cyan; orange-red with the NMAC volume, 500 ft wide and 100 ft above and
 /// below, when the two came within NMAC), labelled with the separations. Only where the
@@ -556,22 +524,6 @@ fn log_approaches(
     Ok(())
 }
 
-/// A line a vehicle said, as a text log on its timelines (a MAVLink severity as rerun's level).
-fn log_note(rec: &RecordingStream, rows: &mut Rows, n: &NoteFrame) -> RecordingStreamResult<()> {
-    rows.set_time(n.tick, f64::from(n.time_boot_ms) / 1000.0, n.t_s);
-    let level = match n.severity {
-        0..=3 => rerun::TextLogLevel::ERROR,
-        4 => rerun::TextLogLevel::WARN,
-        5 | 6 => rerun::TextLogLevel::INFO,
-        _ => rerun::TextLogLevel::DEBUG,
-    };
-    rows.log(
-        rec,
-        paths::messages(n.system_id),
-        &rerun::TextLog::new(n.text.as_str()).with_level(level),
-    )
-}
-
 /// The current node and the leaves that touch it, logged when the node changes.
 fn log_node(
     rec: &RecordingStream,
@@ -613,69 +565,4 @@ fn log_node(
         paths::vehicle_part(id, "node/neighbours"),
         &boxes_of(offset, FillMode::MajorWireframe, neighbours),
     )
-}
-
-/// Moving obstacles other than vehicles (vehicles are drawn by their own ticks): a pose every
-/// tick, and the box in its own frame once, when it appears; those gone since the last tick are
-/// cleared.
-fn log_traffic(
-    rec: &RecordingStream,
-    rows: &mut Rows,
-    shown: &mut BTreeMap<String, bool>,
-    scene: &Scene,
-    f: &TickFrame,
-    offset: DVec3,
-) -> RecordingStreamResult<()> {
-    let mut seen = BTreeMap::new();
-    for (_, name, kind, model, pose) in f
-        .dynamic
-        .iter()
-        .filter(|d| !matches!(d.0.source, BodySource::Vehicle { .. }))
-    {
-        let path = paths::traffic(name);
-        let q = pose.enu_from_body.as_quat();
-        rows.pose(
-            rec,
-            path.clone(),
-            local(offset, pose.position_enu_m).to_array(),
-            rerun::Quaternion::from_xyzw([q.x, q.y, q.z, q.w]),
-        )?;
-        if !shown.contains_key(name) {
-            let (cuboid, centre) = scene.geometries[*model].box_collider();
-            rec.log(
-                format!("{path}/box"),
-                &Boxes3D::from_centers_and_half_sizes(
-                    [centre.to_array()],
-                    [cuboid.half_extents.to_array()],
-                )
-                .with_colors([kind_color(*kind)])
-                .with_fill_mode(FillMode::Solid),
-            )?;
-        }
-        seen.insert(name.clone(), true);
-    }
-    for name in shown.keys() {
-        if !seen.contains_key(name) {
-            rec.log(paths::traffic(name), &Clear::recursive())?;
-        }
-    }
-    *shown = seen;
-    Ok(())
-}
-
-/// The tick's cost, the active colliders and triangles (plain columns: cheap every tick).
-fn log_metrics(rec: &RecordingStream, rows: &mut Rows, f: &TickFrame) -> RecordingStreamResult<()> {
-    let id = f.system_id;
-    rows.scalar(rec, paths::cost(id), f.cost_us)?;
-    rows.scalar(
-        rec,
-        paths::colliders_count(id, "box"),
-        f.report.active_box as f64,
-    )?;
-    rows.scalar(
-        rec,
-        paths::colliders_count(id, "mesh"),
-        f.report.active_mesh as f64,
-    )?;
-    rows.scalar(rec, paths::triangles(id), f.report.active_triangles as f64)
 }

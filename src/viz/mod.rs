@@ -15,6 +15,7 @@ mod log;
 mod markers;
 pub mod paths;
 mod rows;
+mod surroundings;
 
 pub use draw::{beta_color, kind_color, viz_offset};
 pub use log::VEHICLE_COLORS;
@@ -105,7 +106,7 @@ pub struct Logger {
     tx: Option<SyncSender<Frame>>,
     dropped: Arc<AtomicU64>,
     sent: u64,
-    thread: Option<JoinHandle<Result<(), String>>>,
+    thread: Option<JoinHandle<Result<(), log::LoggerError>>>,
 }
 
 /// Messages the channel holds before dropping.

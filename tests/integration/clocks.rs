@@ -236,8 +236,8 @@ fn one_far_future_tlog_timestamp_does_not_freeze_the_clock() {
     assert!((last - first - 9.9).abs() < 1e-6, "{first} {last}");
     let latest = session
         .world()
-        .vehicles
-        .values()
+        .vehicles()
+        .map(|(_, v)| v)
         .next()
         .unwrap()
         .history

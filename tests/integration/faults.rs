@@ -146,7 +146,7 @@ fn live_udp_survives_faults_and_accounts_for_every_frame() {
         system_id: 8,
         component_id: 1,
     };
-    assert!(session.world().vehicles.contains_key(&eight));
+    assert!(session.world().vehicle(&eight).is_some());
     assert_eq!(session.world().seen[&eight].boot_resets, 1);
     assert_eq!(session.world().seen[&eight].positions, 100);
 }

@@ -170,8 +170,8 @@ fn sector_bin_and_rangefinder_distances_match_an_exact_ray_cast_within_a_centime
             );
             let origin = session
                 .world()
-                .vehicles
-                .values()
+                .vehicles()
+                .map(|(_, v)| v)
                 .next()
                 .unwrap()
                 .history
@@ -421,14 +421,14 @@ fn two_vehicles_are_fed_live_each_at_its_own_address_and_an_echo_is_ignored() {
     let world = &run.session.world();
     assert_eq!(
         world
-            .vehicles
-            .keys()
+            .vehicles()
+            .map(|(k, _)| k)
             .map(|k| k.system_id)
             .collect::<Vec<_>>(),
         vec![1, 2]
     );
     assert!(
-        world.traffic.is_empty(),
+        world.traffic().next().is_none(),
         "an echoed ADSB_VEHICLE became traffic"
     );
     let feed = run.report.feed.as_ref().unwrap();
@@ -659,7 +659,7 @@ fn traffic_the_vehicle_re_streams_is_not_read_back_as_traffic() {
         feed(&mut session, t_s, &bytes);
     }
     assert!(echoed >= 5, "the feed sent ADS-B {echoed} times");
-    let traffic: Vec<u32> = session.world().traffic.keys().copied().collect();
+    let traffic: Vec<u32> = session.world().traffic().map(|(k, _)| *k).collect();
     assert_eq!(
         traffic,
         [0x48_40D6],

@@ -256,7 +256,7 @@ fn tlog_written_by_pymavlink_matches_pymavlink_counts() {
     assert!(stats.truncated_at.is_some());
     // Two vehicles and one ADS-B aircraft in the world.
     assert_eq!(session.world().seen.len(), 2);
-    assert_eq!(session.world().traffic.len(), 1);
+    assert_eq!(session.world().traffic().len(), 1);
 }
 
 /// PX4 SITL started again after a shutdown is silent for 0.49 s and numbers its frames from 0
@@ -318,7 +318,8 @@ fn adsb_reports_are_read_by_their_flags_and_altitude_type() {
     feed(&mut session, 1.0, &adsb_frame(0x13, 0x03, 1));
     // QNH barometric altitude: kept, and counted apart.
     feed(&mut session, 1.0, &adsb_frame(0x14, 0x1FF, 0));
-    let traffic = &session.world().traffic;
+    let traffic: std::collections::BTreeMap<u32, &savsim::world::TrafficTrack> =
+        session.world().traffic().map(|(k, v)| (*k, v)).collect();
     assert_eq!(
         traffic.keys().copied().collect::<Vec<_>>(),
         [0x10, 0x13, 0x14]

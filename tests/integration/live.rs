@@ -335,7 +335,7 @@ fn live_udp_mirrors_the_vehicle_and_requests_rates() {
     assert!(heard.sent_positions > 20, "{heard:?}");
     assert_eq!(stats.count_of(33) as usize, heard.sent_positions);
     assert_eq!(stats.dropped_chunks, 0);
-    let track = &session.world().vehicles[&sender(7)];
+    let track = session.world().vehicle(&sender(7)).unwrap();
     let latest = track.history.latest().unwrap();
     let (lat, lon, alt) = heard.last_position.unwrap();
     let want = Geodetic::new(lat as f64 * 1e-7, lon as f64 * 1e-7, alt as f64 * 1e-3);

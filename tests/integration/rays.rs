@@ -241,8 +241,8 @@ fn the_rangefinder_reads_terrain_under_a_hovering_pitched_and_rolled_vehicle() {
             }
             let sample = *session
                 .world()
-                .vehicles
-                .values()
+                .vehicles()
+                .map(|(_, v)| v)
                 .next()
                 .unwrap()
                 .history
@@ -278,8 +278,8 @@ fn sensing_rays_agree(session: &Session, tris: &[[DVec3; 3]], what: &str) -> usi
     let sensing = &pipeline.vehicle(1, 1).unwrap().sensing;
     let origin = session
         .world()
-        .vehicles
-        .values()
+        .vehicles()
+        .map(|(_, v)| v)
         .next()
         .unwrap()
         .history

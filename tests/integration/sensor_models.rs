@@ -10,12 +10,23 @@ use savsim::sensors::draws::Draws;
 use savsim::sensors::errors::{GaussMarkov, MarkovState};
 use savsim::sensors::range::{BeamReading, BeamTruth, RangeState};
 use savsim::sensors::spec::DeviceSpec;
-use savsim::sensors::surveillance::{Own, Target, TargetState};
+use savsim::sensors::surveillance::{Look, Own, Target, TargetState};
 use statrs::distribution::{ContinuousCDF, Normal};
 
 use crate::common::ks;
 
 const N: usize = 100_000;
+
+/// How a device with `key` looks at instant `k` (instants `dt_s` apart) from `own`.
+fn look<'a>(draws: &'a Draws, key: u64, (k, dt_s): (u64, f64), own: &'a Own) -> Look<'a> {
+    Look {
+        draws,
+        key,
+        k,
+        dt_s,
+        own,
+    }
+}
 
 fn device(spec: &str) -> savsim::sensors::device::Device {
     toml::from_str::<DeviceSpec>(spec).unwrap().build().unwrap()
@@ -95,7 +106,7 @@ fn adsb_vertical_rate_errors_are_laplace_and_positions_gauss_markov() {
             altitude_m: 100.0,
         };
         let mut state = TargetState::default();
-        if let Some(r) = m.report(&mut state, &draws, 3, (0, 0.5), &own, &target) {
+        if let Some(r) = m.report(&mut state, &look(&draws, 3, (0, 0.5), &own), &target) {
             vertical.push(r.velocity_enu_mps.z);
             north.push(r.position_enu_m.y / m.position.sigma);
         }
@@ -177,7 +188,7 @@ fn adsb_reception_is_appendix_qs_by_range() {
         };
         let got: Vec<bool> = (0..N as u64)
             .map(|k| {
-                m.report(&mut state, &draws, 1, (k, 1.0), &own, &target)
+                m.report(&mut state, &look(&draws, 1, (k, 1.0), &own), &target)
                     .is_some()
             })
             .collect();
@@ -232,7 +243,7 @@ fn fields_of_regard_end_exactly_where_stated() {
         (0.0, -15.01, false),
     ] {
         let mut s = TargetState::default();
-        let got = r.report(&mut s, &draws, 1, (0, 1.0), &own, &at(az, el));
+        let got = r.report(&mut s, &look(&draws, 1, (0, 1.0), &own), &at(az, el));
         assert_eq!(got.is_some(), seen, "radar at {az}, {el}");
     }
     for (az, el, seen) in [
@@ -242,7 +253,7 @@ fn fields_of_regard_end_exactly_where_stated() {
         (0.0, 20.01, false),
     ] {
         let mut s = TargetState::default();
-        let got = e.report(&mut s, &draws, 1, (0, 0.1), &own, &at(az, el));
+        let got = e.report(&mut s, &look(&draws, 1, (0, 0.1), &own), &at(az, el));
         assert_eq!(got.is_some(), seen, "EO/IR at {az}, {el}");
     }
     // A depth camera's outermost rays are at half its field exactly.
@@ -279,9 +290,9 @@ fn errors_are_a_function_of_the_seed_and_the_instant_alone() {
     let (a, b) = (Draws::new(77), Draws::new(77));
     let (mut sa, mut sb) = (TargetState::default(), TargetState::default());
     for k in 0..300u64 {
-        let ra = m.report(&mut sa, &a, 5, (k, 0.5), &own, &target(900.0));
+        let ra = m.report(&mut sa, &look(&a, 5, (k, 0.5), &own), &target(900.0));
         if k % 3 == 0 {
-            let rb = m.report(&mut sb, &b, 5, (k, 0.5), &own, &target(900.0));
+            let rb = m.report(&mut sb, &look(&b, 5, (k, 0.5), &own), &target(900.0));
             assert_eq!(ra, rb, "instant {k}");
         }
     }
@@ -289,14 +300,12 @@ fn errors_are_a_function_of_the_seed_and_the_instant_alone() {
     let c = Draws::new(78);
     let mut sc = TargetState::default();
     let differs = (0..50u64).any(|k| {
+        let d77 = Draws::new(77);
         m.report(
             &mut TargetState::default(),
-            &Draws::new(77),
-            5,
-            (k, 0.5),
-            &own,
+            &look(&d77, 5, (k, 0.5), &own),
             &target(900.0),
-        ) != m.report(&mut sc, &c, 5, (k, 0.5), &own, &target(900.0))
+        ) != m.report(&mut sc, &look(&c, 5, (k, 0.5), &own), &target(900.0))
     });
     assert!(differs);
 }

@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use savsim::links::signing::SigningKey;
+use savsim::codec::signing::SigningKey;
 use savsim::live::{run_links, LiveOptions, LiveRun};
 use savsim::pipeline::CollisionConfig;
 use savsim::session::Session;

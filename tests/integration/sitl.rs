@@ -325,7 +325,7 @@ pub(crate) fn two_vehicles_to_the_end(
         assert!(seen.positions > 200, "vehicle {sysid}: {seen:?}");
         // Samples are on the vehicle's clock, held within 2 s of their arrival (a SITL clock
         // that runs slow under load lags that much): 5 s still says "to the end".
-        let last = world.vehicles[&id].history.latest().unwrap().t_s;
+        let last = world.vehicle(&id).unwrap().history.latest().unwrap().t_s;
         assert!(
             end - last < 5.0,
             "vehicle {sysid} stopped {:.1} s before the end",

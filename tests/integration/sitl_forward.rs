@@ -19,8 +19,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use savsim::codec::signing::SigningKey;
 use savsim::links::address::ConnectAddress;
-use savsim::links::signing::SigningKey;
 use savsim::links::sockets::Link;
 use savsim::links::supervisor::RequestState;
 use savsim::live::{run_links, LiveOptions, LiveRun};

@@ -574,14 +574,14 @@ fn px4_lands_when_a_scripted_airliner_sent_as_adsb_closes() {
         heard.position,
         summary["approaches"],
         summary["feed"]["adsb_echoes"],
-        run.session.world().traffic.keys().collect::<Vec<_>>()
+        run.session.world().traffic().map(|(k, _)| k).collect::<Vec<_>>()
     );
     assert!(
         landing,
         "PX4 did not land for the airliner: modes {modes:?}"
     );
     assert!(
-        run.session.world().traffic.is_empty(),
+        run.session.world().traffic().next().is_none(),
         "the airliner PX4 re-streamed became traffic"
     );
     let vertical = summary["approaches"][0]["vertical_m"].as_f64().unwrap();

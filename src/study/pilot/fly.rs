@@ -36,6 +36,16 @@ pub struct Flown {
     pub armed_t_s: Option<f64>,
 }
 
+impl Flown {
+    /// Stopped before the first position: nothing flown.
+    fn stopped() -> Self {
+        Flown {
+            stopped: true,
+            ..Flown::default()
+        }
+    }
+}
+
 /// Seconds of the vehicle's clock (from its boot) at `fix`.
 fn clock_s(fix: &Fix) -> f64 {
     f64::from(fix.time_boot_ms) / 1000.0
@@ -73,10 +83,7 @@ pub fn fly(
     stop: &dyn Fn() -> bool,
 ) -> Result<Flown, PilotError> {
     let Some(first) = first_fix(pilot, stop)? else {
-        return Ok(Flown {
-            stopped: true,
-            ..Flown::default()
-        });
+        return Ok(Flown::stopped());
     };
     fly_legs(pilot, legs, first, duration_s, &mut Steer::Guided, stop)
 }
@@ -372,10 +379,7 @@ pub fn fly_px4(
     stop: &dyn Fn() -> bool,
 ) -> Result<Flown, PilotError> {
     let Some(first) = first_fix(pilot, stop)? else {
-        return Ok(Flown {
-            stopped: true,
-            ..Flown::default()
-        });
+        return Ok(Flown::stopped());
     };
     for (name, value) in params {
         pilot.set_param(name, *value, stop)?;

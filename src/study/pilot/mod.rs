@@ -25,12 +25,11 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavState, MavType,
-    PositionTargetTypemask, COMMAND_LONG_DATA, HEARTBEAT_DATA, MANUAL_CONTROL_DATA, PARAM_SET_DATA,
-    SET_POSITION_TARGET_LOCAL_NED_DATA,
+    MavCmd, MavFrame, MavMessage, MavParamType, PositionTargetTypemask, COMMAND_LONG_DATA,
+    MANUAL_CONTROL_DATA, PARAM_SET_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 
-use crate::codec::outbox::Outbox;
+use crate::codec::outbox::{gcs_heartbeat, Outbox};
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::world::SenderId;
 use heard::{hear, Fix, Heard, News, RowClock};
@@ -377,14 +376,7 @@ impl Pilot {
     }
 
     fn heartbeat(&mut self) -> Result<(), PilotError> {
-        self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-        }))
+        self.send(&gcs_heartbeat())
     }
 
     /// A velocity target, scene ENU m/s (GUIDED; re-sent at every position: ArduCopter drops a

@@ -1,7 +1,6 @@
 //! Keeping two SITL clocks together. SITL instances are not synchronised: each paces its own
 //! clock to the wall clock at its speedup, and PX4 SIH keeps to its speed factor only
-//! roughly (measured here: 1.94-1.96x asked 2x, 4.7x asked 5x; docs/study.md, "Two
-//! autopilots"). An ArduCopter's speedup can be changed while it flies (`SIM_SPEEDUP`), so
+//! roughly (docs/study.md, "Two autopilots", gives what was measured). An ArduCopter's speedup can be changed while it flies (`SIM_SPEEDUP`), so
 //! the pilot of an ArduCopter paces it to the other vehicle's clock: at each of its positions
 //! it reads how far its clock has drifted from the other's since both were first heard, and
 //! asks for the other's measured pace, less (or more) what brings the drift back to zero

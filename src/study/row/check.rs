@@ -118,15 +118,20 @@ pub(super) fn check_other(
 ) -> Result<Flier, RowError> {
     let px4 = is_px4("intruder_autopilot", autopilot)?;
     let legs = plan::parse(plan_text).map_err(|e| input("intruder_plan", e.to_string()))?;
-    let mut params =
-        plan::parse_params(params_text).map_err(|why| input("intruder_params", why))?;
+    let mut params = plan::parse_params(params_text).map_err(|source| RowError::Params {
+        column: "intruder_params",
+        source,
+    })?;
     if !px4 {
         // Last, so that it holds over the row's own: the session tells the vehicles apart by it.
         params.push(("SYSID_THISMAV".into(), f64::from(arducopter_sysid(k))));
     }
     let home_en_m = match home {
         "" => [0.0, 0.0],
-        text => parse_home(text).map_err(|why| input("intruder_home", why))?,
+        text => parse_home(text).map_err(|source| RowError::Home {
+            column: "intruder_home",
+            source,
+        })?,
     };
     Ok(Flier {
         px4,
@@ -136,18 +141,27 @@ pub(super) fn check_other(
     })
 }
 
+/// What is wrong with a home, as written.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HomeError {
+    /// Not two numbers.
+    #[error("{0:?}: give E N in metres")]
+    NotNumbers(String),
+    /// Beyond the scene's bounds.
+    #[error("{0:?}: give E N in metres, each within +/-{MAX_ENU_M}")]
+    Beyond(String),
+}
+
 /// `E N`: metres east and north of the scene's origin, within the scene's bounds.
-pub(super) fn parse_home(text: &str) -> Result<[f64; 2], String> {
+pub(super) fn parse_home(text: &str) -> Result<[f64; 2], HomeError> {
     let numbers: Vec<f64> = text
         .split_whitespace()
         .map(|w| w.parse::<f64>().ok().filter(|v| v.is_finite()))
         .collect::<Option<_>>()
-        .ok_or_else(|| format!("{text:?}: give E N in metres"))?;
+        .ok_or_else(|| HomeError::NotNumbers(text.to_string()))?;
     match numbers[..] {
         [e, n] if e.abs() <= MAX_ENU_M && n.abs() <= MAX_ENU_M => Ok([e, n]),
-        _ => Err(format!(
-            "{text:?}: give E N in metres, each within +/-{MAX_ENU_M}"
-        )),
+        _ => Err(HomeError::Beyond(text.to_string())),
     }
 }
 
@@ -157,8 +171,13 @@ pub(super) fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, Row
         row.autopilot.as_deref().unwrap_or("arducopter"),
     )?;
     let legs = plan::parse(row.plan.as_deref().unwrap_or_default())?;
-    let params = plan::parse_params(row.params.as_deref().unwrap_or_default())
-        .map_err(|why| input("params", why))?;
+    let params =
+        plan::parse_params(row.params.as_deref().unwrap_or_default()).map_err(|source| {
+            RowError::Params {
+                column: "params",
+                source,
+            }
+        })?;
     let others = check_others(row)?;
     let feed = row
         .feed

@@ -35,7 +35,7 @@ pub(super) fn fly_row(
         .worker_threads(1)
         .enable_all()
         .build()
-        .map_err(|e| RowError::Savsim(format!("start the network runtime: {e}")))?;
+        .map_err(RowError::Runtime)?;
     let dir = setup
         .work
         .join(crate::runs::row_name(result.index, &result.row_id));
@@ -85,9 +85,7 @@ pub(super) fn fly_row(
     let run = live.finish()?;
     let ids: Vec<SenderId> = vehicles.iter().map(|v| v.id).collect();
     let mut flown_all = flown_by_each(vehicles, flights)?.into_iter();
-    let (flown, heard, _) = flown_all
-        .next()
-        .ok_or_else(|| RowError::Savsim("no vehicle flew".into()))?;
+    let (flown, heard, _) = flown_all.next().ok_or(RowError::NoVehicle)?;
     // Stopped by the wall limit alone (no signal, no collision): the row flew only part of its
     // time, and what it flew is not judged as if it were all of it.
     let cut_short = flown.stopped
@@ -129,10 +127,10 @@ pub(super) fn flown_by_each(
         .map(|(mut v, flight)| {
             let exited = v.sitl.exited();
             flight.map_err(|e| match exited {
-                Some(status) => RowError::Sitl(format!(
-                    "ended by itself ({status}): {}",
-                    v.sitl.log_tail(5)
-                )),
+                Some(status) => RowError::SitlEnded {
+                    status,
+                    log: v.sitl.log_tail(5),
+                },
                 None => RowError::Pilot(e),
             })
         })

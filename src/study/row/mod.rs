@@ -11,6 +11,7 @@ mod record;
 mod session;
 mod vehicles;
 
+pub use check::HomeError;
 use fly::fly_row;
 pub use ids::{arducopter_sysid, INSTANCE_OFFSET, MAX_JOBS, MAX_VEHICLES};
 pub use session::RECORDING;
@@ -60,21 +61,83 @@ pub enum RowError {
     /// The plan.
     #[error(transparent)]
     Plan(#[from] PlanError),
+    /// A column of parameters (`params`, `intruder_params`).
+    #[error("{column}: {source}")]
+    Params {
+        /// The column.
+        column: &'static str,
+        /// What is wrong.
+        source: crate::study::plan::ParamError,
+    },
+    /// A vehicle's home (`intruder_home`).
+    #[error("{column}: {source}")]
+    Home {
+        /// The column.
+        column: &'static str,
+        /// What is wrong.
+        source: check::HomeError,
+    },
     /// The row's scene did not load.
     #[error("scene: {0}")]
     Scene(SceneLookup),
-    /// The autopilot's binary is not there.
-    #[error("{0}")]
-    NoAutopilot(String),
-    /// SITL could not start, or ended by itself.
+    /// The autopilot's binary is not there: which, and the flag and variable that name it.
+    #[error("no {autopilot} SITL: give --{flag} PATH or set {variable}")]
+    NoAutopilot {
+        /// `ArduCopter` or `PX4`.
+        autopilot: &'static str,
+        /// Its flag.
+        flag: &'static str,
+        /// Its environment variable.
+        variable: &'static str,
+    },
+    /// SITL could not start.
+    #[error("SITL: start {}: {source}", binary.display())]
+    SitlStart {
+        /// The binary.
+        binary: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// PX4 SITL could not start.
     #[error("SITL: {0}")]
-    Sitl(String),
+    Px4Start(#[from] crate::study::sitl::Px4StartError),
+    /// SITL ended by itself: its status and the end of its log.
+    #[error("SITL: ended by itself ({status}): {log}")]
+    SitlEnded {
+        /// How it ended.
+        status: std::process::ExitStatus,
+        /// Its log's last lines.
+        log: String,
+    },
     /// The pilot.
     #[error("{0}")]
     Pilot(#[from] PilotError),
     /// savsim's side (the scene, the session, the link).
     #[error("savsim: {0}")]
-    Savsim(String),
+    Savsim(#[from] crate::error::Error),
+    /// The row's network runtime could not start.
+    #[error("savsim: start the network runtime: {0}")]
+    Runtime(std::io::Error),
+    /// A folder of the row's could not be made.
+    #[error("savsim: {}: {source}", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// The row's session thread could not start, or failed.
+    #[error("savsim: the session thread failed")]
+    SessionThread,
+    /// The row's UDP link has no port.
+    #[error("savsim: the row's UDP link has no port")]
+    NoLinkPort,
+    /// No vehicle of the row flew.
+    #[error("savsim: no vehicle flew")]
+    NoVehicle,
+    /// A signal stopped the study.
+    #[error("savsim: stopped by a signal")]
+    Stopped,
     /// The clocks of the row's vehicles drifted apart by more than [`MAX_CLOCK_SKEW_S`]:
     /// where each was at a given moment is not known well enough.
     #[error(

@@ -69,13 +69,11 @@ pub(super) fn record(
     px4: bool,
     legs: usize,
 ) -> Result<(), RowError> {
-    run.ended.map_err(|e| RowError::Savsim(e.to_string()))?;
+    run.ended?;
     let feed_latency = run.report.feed.as_ref().and_then(|f| f.latency);
     result.feed_latency_p99_us = feed_latency.map(|l| l.p99_us);
     result.feed_latency_max_us = feed_latency.map(|l| l.max_us);
-    run.session
-        .finish()
-        .map_err(|e| RowError::Savsim(e.to_string()))?;
+    run.session.finish()?;
     let session = &run.session;
     // The session's own summary beside SITL's files (kept with --keep-work).
     let _ = crate::session::write_json_atomic(

@@ -29,24 +29,20 @@ pub(super) fn session_for(
     feed: Option<FeedKinds>,
     own: SenderId,
 ) -> Result<Session, RowError> {
-    let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
     let sensors = crate::feed::sensors_for(row.sensors.as_deref(), Some(&scene))
         .map_err(|e| input("sensors", e.to_string()))?;
-    let mut session =
-        Session::new(Some(scene), CollisionConfig::default(), None).map_err(savsim)?;
+    let mut session = Session::new(Some(scene), CollisionConfig::default(), None)?;
     // The row's clock is its first vehicle's; the others' are mapped onto it.
     session.use_vehicle_clock_of(Some(own.system_id));
     session.set_approaches(Approaches::with_volume(Some(Volume::SMALL_UAS)));
     if let Some(kinds) = feed {
-        session
-            .start_feed(FeedConfig {
-                kinds,
-                hz: FEED_HZ,
-                sensors,
-                sensor_seed,
-                ..FeedConfig::default()
-            })
-            .map_err(savsim)?;
+        session.start_feed(FeedConfig {
+            kinds,
+            hz: FEED_HZ,
+            sensors,
+            sensor_seed,
+            ..FeedConfig::default()
+        })?;
     }
     Ok(session)
 }
@@ -56,10 +52,14 @@ pub const RECORDING: &str = "row.rrd";
 
 /// Record the row's session for the rerun viewer, to [`RECORDING`] in `dir` (made).
 pub(super) fn record_to(session: &mut Session, dir: &Path) -> Result<(), RowError> {
-    let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
-    std::fs::create_dir_all(dir)
-        .map_err(|e| RowError::Savsim(format!("{}: {e}", dir.display())))?;
-    crate::runs::recordings::record_to(session, &dir.join(RECORDING)).map_err(savsim)
+    std::fs::create_dir_all(dir).map_err(|source| RowError::Folder {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    Ok(crate::runs::recordings::record_to(
+        session,
+        &dir.join(RECORDING),
+    )?)
 }
 
 /// The row's scene, with its intruder as a scripted track `intruder`.
@@ -113,7 +113,7 @@ impl SessionThread {
                     drop(runtime);
                     run
                 })
-                .map_err(|e| RowError::Savsim(e.to_string()))?
+                .map_err(|_| RowError::SessionThread)?
         };
         Ok(Self {
             thread: Some(thread),
@@ -124,13 +124,8 @@ impl SessionThread {
     /// Stop the session and take its run.
     pub(super) fn finish(mut self) -> Result<LiveRun, RowError> {
         self.shutdown.store(true, Ordering::Relaxed);
-        let failed = || RowError::Savsim("the session thread failed".into());
-        self.thread
-            .take()
-            .ok_or_else(failed)?
-            .join()
-            .map_err(|_| failed())?
-            .map_err(|e| RowError::Savsim(e.to_string()))
+        let run = self.thread.take().ok_or(RowError::SessionThread)?.join();
+        Ok(run.map_err(|_| RowError::SessionThread)??)
     }
 }
 

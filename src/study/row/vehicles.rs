@@ -88,38 +88,38 @@ pub(super) fn start_autopilot(
     px4: bool,
     start: &Start<'_>,
 ) -> Result<(Link, Sitl), RowError> {
-    let savsim = |e: crate::error::Error| RowError::Savsim(e.to_string());
     let loopback = |port: u16| std::net::SocketAddr::from(([127, 0, 0, 1], port));
     if px4 {
-        let px4 = setup.px4.as_ref().ok_or_else(|| {
-            RowError::NoAutopilot("no PX4 SITL: give --px4 PATH or set SAVSIM_PX4".into())
+        let px4 = setup.px4.as_ref().ok_or(RowError::NoAutopilot {
+            autopilot: "PX4",
+            flag: "px4",
+            variable: "SAVSIM_PX4",
         })?;
-        let sitl = px4
-            .start_at_home(start)
-            .map_err(|e| RowError::Sitl(e.to_string()))?;
+        let sitl = px4.start_at_home(start)?;
         let address = ConnectAddress::UdpOut(loopback(px4_gcs_port(start.instance)).into());
-        let link = runtime.block_on(Link::open(&address)).map_err(savsim)?;
+        let link = runtime.block_on(Link::open(&address))?;
         return Ok((link, sitl));
     }
-    let arducopter = setup.arducopter.as_ref().ok_or_else(|| {
-        RowError::NoAutopilot(
-            "no ArduCopter SITL: give --arducopter PATH or set SAVSIM_ARDUCOPTER".into(),
-        )
+    let arducopter = setup.arducopter.as_ref().ok_or(RowError::NoAutopilot {
+        autopilot: "ArduCopter",
+        flag: "arducopter",
+        variable: "SAVSIM_ARDUCOPTER",
     })?;
-    let link = runtime
-        .block_on(Link::open(&ConnectAddress::UdpIn(loopback(0).into())))
-        .map_err(savsim)?;
+    let link = runtime.block_on(Link::open(&ConnectAddress::UdpIn(loopback(0).into())))?;
     let port = link
         .local_addr()
         .map(|a| a.port())
-        .ok_or_else(|| RowError::Savsim("the row's UDP link has no port".into()))?;
+        .ok_or(RowError::NoLinkPort)?;
     let serial0 = format!("udpclient:127.0.0.1:{port}");
     let sitl = arducopter
         .start(&Start {
             serial0: &serial0,
             ..start.clone()
         })
-        .map_err(|e| RowError::Sitl(format!("start {}: {e}", arducopter.binary.display())))?;
+        .map_err(|source| RowError::SitlStart {
+            binary: arducopter.binary.clone(),
+            source,
+        })?;
     Ok((link, sitl))
 }
 
@@ -139,13 +139,13 @@ pub(super) fn connect_pilot(
     let started = Instant::now();
     loop {
         if stop.load(Ordering::Relaxed) {
-            return Err(RowError::Savsim("stopped by a signal".into()));
+            return Err(RowError::Stopped);
         }
         if let Some(status) = sitl.exited() {
-            return Err(RowError::Sitl(format!(
-                "ended by itself ({status}): {}",
-                sitl.log_tail(3)
-            )));
+            return Err(RowError::SitlEnded {
+                status,
+                log: sitl.log_tail(3),
+            });
         }
         let within = Duration::from_millis(500);
         match Pilot::connect(sitl.pilot_port, vehicle.id, plane, within) {

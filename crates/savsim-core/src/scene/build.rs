@@ -12,7 +12,7 @@ use crate::scene::geometry::Geometry;
 use crate::scene::mesh_files::load_mesh_file;
 use crate::scene::models;
 use crate::scene::spec::{ModelSpec, ShapeSpec};
-use crate::scene::{Files, SceneError};
+use crate::scene::{Files, Kind, Placement, SceneError, StaticObstacle};
 
 /// What building a scene keeps while it reads the file: where it is, the local plane, the
 /// geometries so far and the mesh files already loaded.
@@ -39,6 +39,42 @@ impl Builder<'_> {
             field: field.map(str::to_owned),
             message: message.to_string(),
         }
+    }
+
+    /// A static obstacle `id` of `kind` and `threat`: geometry `geometry_index` placed at
+    /// `placement`, its bounds computed.
+    pub(crate) fn obstacle(
+        &self,
+        id: String,
+        kind: Kind,
+        threat: f64,
+        placement: Placement,
+        geometry_index: usize,
+    ) -> StaticObstacle {
+        let geometry = self.geometries[geometry_index].clone();
+        StaticObstacle {
+            id,
+            kind,
+            threat,
+            aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
+            placement,
+            geometry,
+            geometry_index,
+        }
+    }
+
+    /// An error of item `item`'s `file` field: the file at `path` and what is wrong with it.
+    pub(crate) fn file_err(
+        &self,
+        item: &str,
+        path: &std::path::Path,
+        why: impl std::fmt::Display,
+    ) -> SceneError {
+        self.err(
+            Some(item.to_owned()),
+            Some("file"),
+            format!("{}: {why}", path.display()),
+        )
     }
 
     pub(crate) fn add(&mut self, geometry: Geometry) -> usize {

@@ -6,7 +6,7 @@
 
 use glam::{DQuat, DVec3};
 
-use crate::sensors::device::{AdsbModel, EoIrModel, RadarModel};
+use crate::sensors::device::{AdsbModel, EoIrModel, Model, RadarModel};
 use crate::sensors::draws::{mix, Draws};
 use crate::sensors::errors::{quantise, uniform_bias, MarkovState};
 
@@ -119,6 +119,41 @@ fn annex10_bias_m(draws: &Draws, key: u64, target: u64, altitude_m: f64) -> f64 
     draws.laplace(stream(key, target, Channel::Altimetry), 0, lambda_ft) * 0.3048
 }
 
+/// How a surveillance device looks at its instant: the run's draws, the device's key (run,
+/// vehicle, device), its instant `k` (instants `dt_s` apart from the vehicle's clock's start),
+/// and the vehicle it is on.
+#[derive(Clone, Copy)]
+pub struct Look<'a> {
+    /// The run's draws.
+    pub draws: &'a Draws,
+    /// The device's key.
+    pub key: u64,
+    /// The instant.
+    pub k: u64,
+    /// Seconds between instants.
+    pub dt_s: f64,
+    /// The vehicle.
+    pub own: &'a Own,
+}
+
+impl Model {
+    /// A surveillance device's report of `target` ([`AdsbModel::report`],
+    /// [`RadarModel::report`], [`EoIrModel::report`]); a range device reports no aircraft.
+    pub fn report(
+        &self,
+        state: &mut TargetState,
+        look: &Look<'_>,
+        target: &Target,
+    ) -> Option<TargetReport> {
+        match self {
+            Model::Adsb(m) => m.report(state, look, target),
+            Model::Radar(m) => m.report(state, look, target),
+            Model::EoIr(m) => m.report(state, look, target),
+            Model::Range(_) => None,
+        }
+    }
+}
+
 impl AdsbModel {
     /// The chance one report from `range_m` away gets through, at `rate_hz` reports a second.
     pub fn reception_at(&self, range_m: f64, rate_hz: f64) -> f64 {
@@ -135,12 +170,10 @@ impl AdsbModel {
     pub fn report(
         &self,
         state: &mut TargetState,
-        draws: &Draws,
-        key: u64,
-        (k, dt_s): (u64, f64),
-        own: &Own,
+        look: &Look<'_>,
         target: &Target,
     ) -> Option<TargetReport> {
+        let (draws, key, k, dt_s, own) = (look.draws, look.key, look.k, look.dt_s, look.own);
         let t = target.key;
         let range_m = (target.position_enu_m - own.position_enu_m).length();
         let p = self.reception_at(range_m, 1.0 / dt_s);
@@ -227,6 +260,60 @@ fn track(state: &mut TargetState, k: u64, dt_s: f64, measured: DVec3) -> (DVec3,
     (p, v)
 }
 
+/// The body angles (azimuth, elevation, rad) and range (m) of `target` from `own` when it is
+/// within a field of regard of `field_of_regard_deg` (either side of the nose, across and
+/// up-down) and `range_m`; otherwise `None`, and the track is dropped.
+fn in_view(
+    state: &mut TargetState,
+    own: &Own,
+    target: &Target,
+    [for_az, for_el]: [f64; 2],
+    [near_m, far_m]: [f64; 2],
+) -> Option<(f64, f64, f64)> {
+    let rel = target.position_enu_m - own.position_enu_m;
+    let (az, el, range) = body_angles(own.enu_from_frd, rel);
+    let outside = az.abs() > for_az.to_radians()
+        || el.abs() > for_el.to_radians()
+        || range < near_m
+        || range > far_m;
+    if outside {
+        state.track = None;
+        return None;
+    }
+    Some((az, el, range))
+}
+
+/// A tracked report's sigmas: position (horizontal, an axis), altitude, velocity (and vertical
+/// rate).
+struct Sigmas {
+    position_m: f64,
+    altitude_m: f64,
+    velocity_mps: f64,
+}
+
+/// The report of a sensor that measures where `target` is (`measured`, at instant `k`):
+/// smoothed by the alpha-beta tracker, its altitude moved as the track moved it.
+fn tracked(
+    state: &mut TargetState,
+    (k, dt_s): (u64, f64),
+    measured: DVec3,
+    target: &Target,
+    sigmas: Sigmas,
+) -> TargetReport {
+    let (p, v) = track(state, k, dt_s, measured);
+    TargetReport {
+        key: target.key,
+        position_enu_m: p,
+        velocity_enu_mps: v,
+        altitude_m: target.altitude_m + (p.z - target.position_enu_m.z),
+        position_sigma_m: sigmas.position_m,
+        altitude_sigma_m: sigmas.altitude_m,
+        velocity_sigma_mps: sigmas.velocity_mps,
+        vertical_rate_sigma_mps: sigmas.velocity_mps,
+        jitter_s: 0.0,
+    }
+}
+
 impl RadarModel {
     /// The radar's track of `target` at instant `k`, or `None` outside its field of regard or
     /// range. Range, azimuth and elevation get a white error and a bias per run; the measured
@@ -234,24 +321,12 @@ impl RadarModel {
     pub fn report(
         &self,
         state: &mut TargetState,
-        draws: &Draws,
-        key: u64,
-        (k, dt_s): (u64, f64),
-        own: &Own,
+        look: &Look<'_>,
         target: &Target,
     ) -> Option<TargetReport> {
+        let (draws, key, k, dt_s, own) = (look.draws, look.key, look.k, look.dt_s, look.own);
         let t = target.key;
-        let rel = target.position_enu_m - own.position_enu_m;
-        let (az, el, range) = body_angles(own.enu_from_frd, rel);
-        let [for_az, for_el] = self.field_of_regard_deg;
-        if az.abs() > for_az.to_radians()
-            || el.abs() > for_el.to_radians()
-            || range < self.range_m[0]
-            || range > self.range_m[1]
-        {
-            state.track = None;
-            return None;
-        }
+        let (az, el, range) = in_view(state, own, target, self.field_of_regard_deg, self.range_m)?;
         let s = |c| stream(key, t, c);
         let range_m = range
             + uniform_bias(draws, s(Channel::RangeBias), self.range_bias_m)
@@ -265,19 +340,13 @@ impl RadarModel {
         let el = angle(draws, el, Channel::Elevation, Channel::ElevationBias);
         let measured =
             own.position_enu_m + from_body_angles(own.enu_from_frd, az, el, range_m.max(0.0));
-        let (p, v) = track(state, k, dt_s, measured);
         let cross_m = range * self.angle_sigma_deg.to_radians();
-        Some(TargetReport {
-            key: t,
-            position_enu_m: p,
-            velocity_enu_mps: v,
-            altitude_m: target.altitude_m + (p.z - target.position_enu_m.z),
-            position_sigma_m: cross_m.max(self.range_sigma_m),
-            altitude_sigma_m: cross_m,
-            velocity_sigma_mps: self.range_rate_sigma_mps,
-            vertical_rate_sigma_mps: self.range_rate_sigma_mps,
-            jitter_s: 0.0,
-        })
+        let sigmas = Sigmas {
+            position_m: cross_m.max(self.range_sigma_m),
+            altitude_m: cross_m,
+            velocity_mps: self.range_rate_sigma_mps,
+        };
+        Some(tracked(state, (k, dt_s), measured, target, sigmas))
     }
 }
 
@@ -288,23 +357,13 @@ impl EoIrModel {
     pub fn report(
         &self,
         state: &mut TargetState,
-        draws: &Draws,
-        key: u64,
-        (k, dt_s): (u64, f64),
-        own: &Own,
+        look: &Look<'_>,
         target: &Target,
     ) -> Option<TargetReport> {
+        let (draws, key, k, dt_s, own) = (look.draws, look.key, look.k, look.dt_s, look.own);
         let t = target.key;
-        let rel = target.position_enu_m - own.position_enu_m;
-        let (az, el, range) = body_angles(own.enu_from_frd, rel);
-        let [for_az, for_el] = self.field_of_regard_deg;
-        if range > self.max_range_m
-            || az.abs() > for_az.to_radians()
-            || el.abs() > for_el.to_radians()
-        {
-            state.track = None;
-            return None;
-        }
+        let field = self.field_of_regard_deg;
+        let (az, el, range) = in_view(state, own, target, field, [0.0, self.max_range_m])?;
         let s = |c| stream(key, t, c);
         // The correlated range error, unit sigma, scaled by this instant's sigma (DEGAS's
         // range-proportional colored noise).
@@ -320,17 +379,11 @@ impl EoIrModel {
         let el = el + mrad * draws.normal(s(Channel::Elevation), k);
         let measured =
             own.position_enu_m + from_body_angles(own.enu_from_frd, az, el, range_m.max(0.0));
-        let (p, v) = track(state, k, dt_s, measured);
-        Some(TargetReport {
-            key: t,
-            position_enu_m: p,
-            velocity_enu_mps: v,
-            altitude_m: target.altitude_m + (p.z - target.position_enu_m.z),
-            position_sigma_m: sigma_m.max(range * mrad),
-            altitude_sigma_m: range * mrad,
-            velocity_sigma_mps: sigma_m / self.range_tau_s.max(dt_s),
-            vertical_rate_sigma_mps: sigma_m / self.range_tau_s.max(dt_s),
-            jitter_s: 0.0,
-        })
+        let sigmas = Sigmas {
+            position_m: sigma_m.max(range * mrad),
+            altitude_m: range * mrad,
+            velocity_mps: sigma_m / self.range_tau_s.max(dt_s),
+        };
+        Some(tracked(state, (k, dt_s), measured, target, sigmas))
     }
 }

@@ -6,20 +6,24 @@
 //! stale tracks expire. Vehicles are keyed by (sysid, compid), traffic by ICAO address. No I/O,
 //! no tokio, no rerun.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 
-use glam::{DMat3, DQuat, DVec3, EulerRot};
+use glam::DVec3;
 
 use crate::geo::{Geodetic, LocalTangentPlane};
 use crate::scene::Aabb64;
 pub mod clock;
 pub mod index;
 pub mod inputs;
+pub mod samples;
 pub mod timeline;
+pub mod tracks;
 
 use index::{TrackIndex, TrackKey};
 pub use inputs::SenderId;
 use inputs::{AdsbReport, AttitudeReport, PositionReport, Report};
+pub use samples::{Attitude, History, TrackSample};
+pub use tracks::{TrafficTrack, VehicleTrack};
 
 /// How far past a track's newest sample [`History::predict`] carries it, seconds: traffic
 /// reports slower than the vehicles it is traffic to.
@@ -55,319 +59,6 @@ impl Default for WorldConfig {
     }
 }
 
-/// Orientation of a body: the rotation from its Forward-Right-Down axes to the scene's ENU axes.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Attitude {
-    /// Vehicle clock of the ATTITUDE message, ms (0 when derived from a heading).
-    pub time_boot_ms: u32,
-    /// Rotation taking body FRD vectors into scene ENU.
-    pub enu_from_frd: DQuat,
-    /// Body rates (roll, pitch, yaw), rad/s.
-    pub body_rates_radps: DVec3,
-}
-
-impl Attitude {
-    /// The attitude of a body at `position` with MAVLink roll, pitch, yaw (relative to the local
-    /// NED frame there), expressed in `plane`'s ENU axes.
-    ///
-    /// ```
-    /// use savsim_core::{geo::{Geodetic, LocalTangentPlane}, world::Attitude};
-    /// use glam::DVec3;
-    /// let origin = Geodetic::new(47.0, 8.0, 500.0);
-    /// let plane = LocalTangentPlane::new(origin);
-    /// // Yaw 90 degrees: nose east.
-    /// let a = Attitude::from_euler_ned(&plane, &origin, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0);
-    /// let forward = a.forward_enu();
-    /// assert!((forward - DVec3::X).length() < 1e-9);
-    /// ```
-    pub fn from_euler_ned(
-        plane: &LocalTangentPlane,
-        position: &Geodetic,
-        roll_rad: f64,
-        pitch_rad: f64,
-        yaw_rad: f64,
-        time_boot_ms: u32,
-    ) -> Self {
-        let ned_from_frd = DQuat::from_euler(EulerRot::ZYX, yaw_rad, pitch_rad, roll_rad);
-        let enu_from_ned = DMat3::from_cols(DVec3::Y, DVec3::X, DVec3::NEG_Z);
-        let plane_from_local = plane.plane_enu_from_local_enu_at(position);
-        let enu_from_frd =
-            DQuat::from_mat3(&(plane_from_local * enu_from_ned * DMat3::from_quat(ned_from_frd)))
-                .normalize();
-        Self {
-            time_boot_ms,
-            enu_from_frd,
-            body_rates_radps: DVec3::ZERO,
-        }
-    }
-
-    /// The body's forward (x) axis in ENU.
-    pub fn forward_enu(&self) -> DVec3 {
-        self.enu_from_frd * DVec3::X
-    }
-}
-
-/// One state of a vehicle or aircraft at one instant.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrackSample {
-    /// When, seconds on the receive/tlog clock (UNIX time for tlogs and live). For a MAVLink
-    /// vehicle this is its own clock (`time_boot_ms`) mapped onto the receive clock: intervals
-    /// between its samples are the vehicle's, even when several arrive in one read.
-    pub t_s: f64,
-    /// Vehicle clock of the position, ms since boot (0 for ADS-B).
-    pub time_boot_ms: u32,
-    /// WGS84 position (alt AMSL).
-    pub position: Geodetic,
-    /// Position in the scene's ENU frame, metres from the origin.
-    pub position_enu_m: DVec3,
-    /// Velocity in the scene's ENU axes, m/s.
-    pub velocity_enu_mps: DVec3,
-    /// Orientation (the latest ATTITUDE, or one derived from the course for traffic).
-    pub attitude: Attitude,
-}
-
-impl TrackSample {
-    /// Linear interpolation of position and velocity, spherical of attitude; `u` in [0, 1].
-    pub fn lerp(&self, next: &TrackSample, u: f64) -> TrackSample {
-        let u = u.clamp(0.0, 1.0);
-        TrackSample {
-            t_s: self.t_s + (next.t_s - self.t_s) * u,
-            time_boot_ms: if u < 0.5 {
-                self.time_boot_ms
-            } else {
-                next.time_boot_ms
-            },
-            position: if u < 0.5 {
-                self.position
-            } else {
-                next.position
-            },
-            position_enu_m: self.position_enu_m.lerp(next.position_enu_m, u),
-            velocity_enu_mps: self.velocity_enu_mps.lerp(next.velocity_enu_mps, u),
-            attitude: Attitude {
-                time_boot_ms: next.attitude.time_boot_ms,
-                enu_from_frd: self
-                    .attitude
-                    .enu_from_frd
-                    .slerp(next.attitude.enu_from_frd, u),
-                body_rates_radps: next.attitude.body_rates_radps,
-            },
-        }
-    }
-}
-
-/// Where an instant falls in a [`History`].
-enum Bracket<'a> {
-    /// On this sample.
-    At(&'a TrackSample),
-    /// Between these two, at this fraction of the way (`TrackSample::lerp`'s `u`).
-    Between(&'a TrackSample, &'a TrackSample, f64),
-}
-
-/// `latest`'s position carried along its velocity to `t_s`, at most `max_ahead_s` ahead.
-fn carried_m(latest: &TrackSample, t_s: f64, max_ahead_s: f64) -> DVec3 {
-    let ahead_s = (t_s - latest.t_s).min(max_ahead_s);
-    latest.position_enu_m + latest.velocity_enu_mps * ahead_s
-}
-
-/// A track's history: latest samples in time order.
-#[derive(Debug, Clone, Default)]
-pub struct History {
-    samples: VecDeque<TrackSample>,
-}
-
-impl History {
-    fn push(&mut self, sample: TrackSample, capacity: usize) {
-        if self.samples.len() == capacity.max(2) {
-            self.samples.pop_front();
-        }
-        self.samples.push_back(sample);
-    }
-
-    /// The newest sample.
-    pub fn latest(&self) -> Option<&TrackSample> {
-        self.samples.back()
-    }
-
-    /// The sample before the newest.
-    pub fn previous(&self) -> Option<&TrackSample> {
-        self.samples.len().checked_sub(2).map(|i| &self.samples[i])
-    }
-
-    /// The state at `t_s`: interpolated inside the history, held at its ends.
-    pub fn at(&self, t_s: f64) -> Option<TrackSample> {
-        Some(match self.bracket(t_s)? {
-            Bracket::At(s) => *s,
-            Bracket::Between(a, b, u) => a.lerp(b, u),
-        })
-    }
-
-    /// Where `t_s` falls in the history: on a sample (before the first, after the newest, or
-    /// between two of one instant), or between two at `u` (0 at the earlier).
-    fn bracket(&self, t_s: f64) -> Option<Bracket<'_>> {
-        let first = self.samples.front()?;
-        if t_s <= first.t_s {
-            return Some(Bracket::At(first));
-        }
-        let i = self.after(t_s);
-        if i >= self.samples.len() {
-            return self.samples.back().map(Bracket::At);
-        }
-        let (a, b) = (&self.samples[i - 1], &self.samples[i]);
-        let span = b.t_s - a.t_s;
-        Some(if span > 0.0 {
-            Bracket::Between(a, b, (t_s - a.t_s) / span)
-        } else {
-            Bracket::At(b)
-        })
-    }
-
-    /// The index of the first sample after `t_s` (the length when none is): found from the
-    /// newest end, where a tick's times nearly always are, before a binary search.
-    fn after(&self, t_s: f64) -> usize {
-        let n = self.samples.len();
-        for back in 0..n.min(4) {
-            if self.samples[n - 1 - back].t_s <= t_s {
-                return n - back;
-            }
-        }
-        self.samples.partition_point(|s| s.t_s <= t_s)
-    }
-
-    /// The state at `t_s`, extrapolated along the newest velocity (at most `max_ahead_s`) when
-    /// `t_s` is past the newest sample: traffic reports slower than the vehicle's ticks.
-    pub fn predict(&self, t_s: f64, max_ahead_s: f64) -> Option<TrackSample> {
-        let latest = self.samples.back()?;
-        if t_s <= latest.t_s {
-            return self.at(t_s);
-        }
-        Some(TrackSample {
-            t_s,
-            position_enu_m: carried_m(latest, t_s, max_ahead_s),
-            ..*latest
-        })
-    }
-
-    /// The position and velocity [`History::predict`] gives at `t_s`, without the rest of the
-    /// state (no attitude interpolated): the same numbers, for deciding whether a track is
-    /// near before its whole state is made.
-    pub fn predict_motion(&self, t_s: f64, max_ahead_s: f64) -> Option<(DVec3, DVec3)> {
-        let latest = self.samples.back()?;
-        if t_s > latest.t_s {
-            return Some((carried_m(latest, t_s, max_ahead_s), latest.velocity_enu_mps));
-        }
-        Some(match self.bracket(t_s)? {
-            Bracket::At(s) => (s.position_enu_m, s.velocity_enu_mps),
-            Bracket::Between(a, b, u) => {
-                let u = u.clamp(0.0, 1.0);
-                (
-                    a.position_enu_m.lerp(b.position_enu_m, u),
-                    a.velocity_enu_mps.lerp(b.velocity_enu_mps, u),
-                )
-            }
-        })
-    }
-
-    /// The samples, oldest first.
-    pub fn samples(&self) -> impl DoubleEndedIterator<Item = &TrackSample> {
-        self.samples.iter()
-    }
-
-    /// Number of samples held.
-    pub fn len(&self) -> usize {
-        self.samples.len()
-    }
-
-    /// True when no sample is held.
-    pub fn is_empty(&self) -> bool {
-        self.samples.is_empty()
-    }
-
-    fn clear(&mut self) {
-        self.samples.clear();
-    }
-}
-
-/// A MAVLink vehicle (a sender of GLOBAL_POSITION_INT).
-#[derive(Debug, Clone)]
-pub struct VehicleTrack {
-    /// Its id as a moving obstacle to other vehicles (`vehicle:7`).
-    pub label: std::sync::Arc<str>,
-    /// Generation of the track: new at creation and at every reboot, so collision state kept
-    /// for an earlier life of the same (sysid, compid) is detectably stale.
-    pub generation: u32,
-    /// Who it is.
-    pub id: SenderId,
-    /// MAV_TYPE and MAV_AUTOPILOT from its HEARTBEAT, if one came.
-    pub heartbeat: Option<inputs::HeartbeatReport>,
-    /// The latest ATTITUDE, converted; positions take it until the next one.
-    pub latest_attitude: Option<Attitude>,
-    /// Position history.
-    pub history: History,
-    /// Receive/tlog time of the last message of any kind, seconds.
-    pub last_heard_t_s: f64,
-    /// Times its `time_boot_ms` went back (reboots).
-    pub boot_resets: u64,
-    /// Its clock mapped onto the receive clock (this boot's).
-    pub clock: clock::ClockMap,
-    /// Positions accepted.
-    pub positions: u64,
-    /// On a timeline of several vehicles' clocks: its drift from the timeline's.
-    pub skew: timeline::SkewWindow,
-    /// On a timeline of several vehicles' clocks: its last readings, to place it.
-    pub recent: timeline::RecentClock,
-}
-
-impl VehicleTrack {
-    /// Where a position of this vehicle (not the timeline's reference) stamped
-    /// `time_boot_ms` and arrived at `receive_t_s` lies on `timeline`: when its clock read
-    /// that time ([`timeline::RecentClock::sent_at`]), and the timeline then; never before
-    /// its last sample (`mapped_s`, its receive-clock time, until the timeline has a pace).
-    /// Its skew takes the reading.
-    fn on_timeline(
-        &mut self,
-        time_boot_ms: u32,
-        receive_t_s: f64,
-        timeline: &timeline::Timeline,
-        mapped_s: f64,
-    ) -> f64 {
-        let vehicle_s = f64::from(time_boot_ms) / 1000.0;
-        self.recent.push(vehicle_s, receive_t_s);
-        let rate = self
-            .clock
-            .fitted_rate()
-            .or_else(|| self.recent.rate())
-            .or(timeline.rate())
-            .unwrap_or(1.0);
-        let sent_s = self.recent.sent_at(vehicle_s, rate).unwrap_or(receive_t_s);
-        let last_s = self.history.latest().map_or(f64::NEG_INFINITY, |s| s.t_s);
-        let t_s = timeline.at(sent_s).unwrap_or(mapped_s).max(last_s + 1e-6);
-        self.skew.take(vehicle_s, t_s);
-        t_s
-    }
-}
-
-/// An ADS-B aircraft.
-#[derive(Debug, Clone)]
-pub struct TrafficTrack {
-    /// Its id as a moving obstacle (`icao:4840D6`).
-    pub label: std::sync::Arc<str>,
-    /// Generation of the track: new each time it is created (after an expiry too).
-    pub generation: u32,
-    /// ICAO 24-bit address.
-    pub icao_address: u32,
-    /// Callsign as sent (trimmed ASCII).
-    pub callsign: String,
-    /// ADSB_EMITTER_TYPE number.
-    pub emitter_type: u8,
-    /// Position history.
-    pub history: History,
-    /// Receive/tlog time of its last report, seconds.
-    pub last_heard_t_s: f64,
-    /// Its last report's altitude was barometric (QNH), not geometric.
-    pub pressure_altitude: bool,
-}
-
 /// What a report changed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WorldUpdate {
@@ -385,9 +76,9 @@ pub struct WorldStore {
     plane: LocalTangentPlane,
     config: WorldConfig,
     /// MAVLink vehicles by (sysid, compid).
-    pub vehicles: BTreeMap<SenderId, VehicleTrack>,
+    vehicles: BTreeMap<SenderId, VehicleTrack>,
     /// ADS-B traffic by ICAO address.
-    pub traffic: BTreeMap<u32, TrafficTrack>,
+    traffic: BTreeMap<u32, TrafficTrack>,
     /// Tracks dropped as stale so far.
     pub expired: u64,
     /// Every vehicle ever seen, kept after its track expires (for summaries).
@@ -528,6 +219,26 @@ impl WorldStore {
         (self.index.builds, self.index.scans)
     }
 
+    /// The vehicle `id`'s track, while it has one.
+    pub fn vehicle(&self, id: &SenderId) -> Option<&VehicleTrack> {
+        self.vehicles.get(id)
+    }
+
+    /// Every vehicle's track, by (sysid, compid).
+    pub fn vehicles(&self) -> impl ExactSizeIterator<Item = (&SenderId, &VehicleTrack)> {
+        self.vehicles.iter()
+    }
+
+    /// The ADS-B aircraft `icao_address`'s track, while it has one.
+    pub fn aircraft(&self, icao_address: u32) -> Option<&TrafficTrack> {
+        self.traffic.get(&icao_address)
+    }
+
+    /// Every ADS-B aircraft's track, by ICAO address.
+    pub fn traffic(&self) -> impl ExactSizeIterator<Item = (&u32, &TrafficTrack)> {
+        self.traffic.iter()
+    }
+
     /// The vehicle with MAVLink system id `system_id` (its lowest component id, if several).
     pub fn vehicle_of_system(&self, system_id: u8) -> Option<&VehicleTrack> {
         let from = SenderId {
@@ -588,7 +299,7 @@ impl WorldStore {
         }
     }
 
-    fn vehicle(&mut self, sender: SenderId, t_s: f64) -> &mut VehicleTrack {
+    fn vehicle_mut(&mut self, sender: SenderId, t_s: f64) -> &mut VehicleTrack {
         let seen = &mut self.seen;
         let next = &mut self.next_generation;
         let own_rate = self.config.vehicle_clock;
@@ -626,7 +337,7 @@ impl WorldStore {
             let plane = self.plane;
             let origin = plane.origin();
             let attitude = attitude_of(&plane, &origin, a);
-            let track = self.vehicle(sender, t_s);
+            let track = self.vehicle_mut(sender, t_s);
             track.latest_attitude = Some(attitude);
             track.last_heard_t_s = t_s;
             return;
@@ -636,7 +347,7 @@ impl WorldStore {
             .latest()
             .map_or(self.plane.origin(), |s| s.position);
         let attitude = attitude_of(&self.plane, &position, a);
-        let track = self.vehicle(sender, t_s);
+        let track = self.vehicle_mut(sender, t_s);
         track.latest_attitude = Some(attitude);
         track.last_heard_t_s = t_s;
     }
@@ -655,7 +366,7 @@ impl WorldStore {
         let plane = self.plane;
         let capacity = self.config.history_len;
         let generation = self.next_generation;
-        let track = self.vehicle(sender, receive_t_s);
+        let track = self.vehicle_mut(sender, receive_t_s);
         if placed_by_timeline && track.clock.is_own_rate() {
             // Placed by when its positions were sent: its clock fitted to the receive clock.
             track.clock = clock::ClockMap::new(timeline.rate().unwrap_or(1.0));
@@ -845,6 +556,7 @@ fn course_rad(velocity_ned_mps: DVec3) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DQuat;
 
     /// A track that turns and speeds up, sampled unevenly (two samples at one instant too).
     fn history() -> History {

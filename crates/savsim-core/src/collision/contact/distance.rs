@@ -202,25 +202,15 @@ impl QueryDispatcher for Dispatcher {
         let travel = vel_in_field * options.max_time_of_impact;
         let end = Aabb::new(start.mins + travel, start.maxs + travel);
         let region = start.merged(&end).loosened(options.target_distance + 1e-3);
-        let mut best: Option<ShapeCastHit> = None;
-        let mut result = Ok(());
-        field_triangles(field, &region, |t| {
-            // Each triangle sits where the field does: as the first shape, or in its frame.
-            let hit = if g1.as_heightfield().is_some() {
+        // Each triangle sits where the field does: as the first shape, or in its frame.
+        let field_first = g1.as_heightfield().is_some();
+        earliest_over_triangles(field, &region, |t| {
+            if field_first {
                 self.cast_shapes(pos12, local_vel12, t, g2, options)
             } else {
                 self.cast_shapes(pos12, local_vel12, g1, t, options)
-            };
-            match hit {
-                Ok(Some(h)) if best.is_none_or(|b| h.time_of_impact < b.time_of_impact) => {
-                    best = Some(h)
-                }
-                Ok(_) => {}
-                Err(e) => result = Err(e),
             }
-            result.is_err()
-        });
-        result.map(|()| best)
+        })
     }
 
     fn cast_shapes_nonlinear(
@@ -292,25 +282,36 @@ impl Dispatcher {
             .compute_aabb(&p0)
             .merged(&other.compute_aabb(&p1))
             .loosened(swing + 1e-3);
-        let mut best: Option<ShapeCastHit> = None;
-        let mut result = Ok(());
-        field_triangles(field, &region, |t| {
-            let hit = if field_first {
+        earliest_over_triangles(field, &region, |t| {
+            if field_first {
                 self.cast_shapes_nonlinear(mf, t, mo, other, start, end, stop_at_penetration)
             } else {
                 self.cast_shapes_nonlinear(mo, other, mf, t, start, end, stop_at_penetration)
-            };
-            match hit {
-                Ok(Some(h)) if best.is_none_or(|b| h.time_of_impact < b.time_of_impact) => {
-                    best = Some(h)
-                }
-                Ok(_) => {}
-                Err(e) => result = Err(e),
             }
-            result.is_err()
-        });
-        result.map(|()| best)
+        })
     }
+}
+
+/// The earliest hit of `cast` over the field's triangles within `region` (the first error
+/// stops the walk and is returned).
+fn earliest_over_triangles(
+    field: &HeightField,
+    region: &Aabb,
+    mut cast: impl FnMut(&Triangle) -> Result<Option<ShapeCastHit>, Unsupported>,
+) -> Result<Option<ShapeCastHit>, Unsupported> {
+    let mut best: Option<ShapeCastHit> = None;
+    let mut result = Ok(());
+    field_triangles(field, region, |t| {
+        match cast(t) {
+            Ok(Some(h)) if best.is_none_or(|b| h.time_of_impact < b.time_of_impact) => {
+                best = Some(h)
+            }
+            Ok(_) => {}
+            Err(e) => result = Err(e),
+        }
+        result.is_err()
+    });
+    result.map(|()| best)
 }
 
 /// True when the two posed shapes overlap.

@@ -208,13 +208,10 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
     let tolerance = tolerance_m(a0.shape, b0.shape);
     // How fast the gap can close, metres per interval.
     let closing = closing_bound_m(a0, a1, b0, b1) as f32;
+    let poses_at = |t: f32| (ma.position_at_time(t), mb.position_at_time(t));
     let gap_at = |t: f32| {
-        shape_distance(
-            &ma.position_at_time(t),
-            a0.shape,
-            &mb.position_at_time(t),
-            b0.shape,
-        )
+        let (pa, pb) = poses_at(t);
+        shape_distance(&pa, a0.shape, &pb, b0.shape)
     };
     // `start` is always a time known to be clear.
     let mut start = 0.0f32;
@@ -277,12 +274,8 @@ pub fn sweep(a0: &Placed<'_>, a1: &Placed<'_>, b0: &Placed<'_>, b1: &Placed<'_>)
         return None;
     }
     let overlaps_at = |t: f32| {
-        shapes_intersect(
-            &ma.position_at_time(t),
-            a0.shape,
-            &mb.position_at_time(t),
-            b0.shape,
-        )
+        let (pa, pb) = poses_at(t);
+        shapes_intersect(&pa, a0.shape, &pb, b0.shape)
     };
     let toi = if overlaps_at(1.0) {
         bisect_first(start.min(1.0), 1.0, 24, overlaps_at)

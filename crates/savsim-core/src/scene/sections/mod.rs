@@ -87,16 +87,8 @@ pub(crate) fn obstacles(
             return Err(b.err(Some(item), Some("yaw_deg"), "not finite"));
         }
         let placement = Placement::from_yaw(position, spec.yaw_deg);
-        let geometry = b.geometries[geometry_index].clone();
-        obstacles.push(StaticObstacle {
-            id: spec.id,
-            kind: spec.kind,
-            threat: threats.of(spec.kind, spec.threat),
-            aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
-            placement,
-            geometry,
-            geometry_index,
-        });
+        let threat = threats.of(spec.kind, spec.threat);
+        obstacles.push(b.obstacle(spec.id, spec.kind, threat, placement, geometry_index));
     }
     Ok(())
 }
@@ -113,13 +105,10 @@ pub(crate) fn cities(
         let item = item_name("city", value, i);
         let spec: CitySpec = parse_item(b, value, &item)?;
         let path = b.dir.join(&spec.file);
-        let text = b.files.read_text(&path).map_err(|e| {
-            b.err(
-                Some(item.clone()),
-                Some("file"),
-                format!("{}: {e}", path.display()),
-            )
-        })?;
+        let text = b
+            .files
+            .read_text(&path)
+            .map_err(|e| b.file_err(&item, &path, e))?;
         let [lat, lon, alt] = spec.anchor_geo;
         let anchor = Geodetic::new(lat, lon, alt);
         if !anchor.is_valid() || !spec.rotation_deg.is_finite() {
@@ -134,15 +123,8 @@ pub(crate) fn cities(
                 .map(str::to_owned)
                 .to_vec()
         });
-        let city = cityjson::buildings(&text, &types, spec.anchor_xyz, spec.rotation_deg).map_err(
-            |m| {
-                b.err(
-                    Some(item.clone()),
-                    Some("file"),
-                    format!("{}: {m}", path.display()),
-                )
-            },
-        )?;
+        let city = cityjson::buildings(&text, &types, spec.anchor_xyz, spec.rotation_deg)
+            .map_err(|m| b.file_err(&item, &path, m))?;
         let anchor_enu = b.plane.enu_m_from_geodetic(&anchor);
         // The dataset's axes are the anchor's local east, north, up, turned into the plane's.
         let plane_from_local = b.plane.plane_enu_from_local_enu_at(&anchor);
@@ -154,20 +136,11 @@ pub(crate) fn cities(
                 return Err(b.err(Some(item), Some("id"), format!("duplicate id {id:?}")));
             }
             let geometry_index = b.add(building.geometry);
-            let geometry = b.geometries[geometry_index].clone();
             let placement = Placement {
                 position_enu_m: anchor_enu + plane_from_local * building.origin_from_anchor_m,
                 enu_from_local: rotation,
             };
-            obstacles.push(StaticObstacle {
-                id,
-                kind: Kind::Building,
-                threat,
-                aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
-                placement,
-                geometry,
-                geometry_index,
-            });
+            obstacles.push(b.obstacle(id, Kind::Building, threat, placement, geometry_index));
         }
     }
     Ok(())
@@ -189,13 +162,10 @@ pub(crate) fn osm(
         let spec: OsmSpec = parse_item(b, value, &item)?;
         let policy = osm_policy(b, &spec, &item)?;
         let path = b.dir.join(&spec.file);
-        let bytes = b.files.read(&path).map_err(|e| {
-            b.err(
-                Some(item.clone()),
-                Some("file"),
-                format!("{}: {e}", path.display()),
-            )
-        })?;
+        let bytes = b
+            .files
+            .read(&path)
+            .map_err(|e| b.file_err(&item, &path, e))?;
         let pbf = spec.file.to_ascii_lowercase().ends_with(".pbf");
         let data = if pbf {
             osm::parse_pbf(&bytes)
@@ -204,13 +174,7 @@ pub(crate) fn osm(
                 .map_err(|e| osm::OsmError::Xml(e.to_string()))
                 .and_then(osm::parse_xml)
         }
-        .map_err(|e| {
-            b.err(
-                Some(item.clone()),
-                Some("file"),
-                format!("{}: {e}", path.display()),
-            )
-        })?;
+        .map_err(|e| b.file_err(&item, &path, e))?;
         let (footprints, found) = osm::footprints(&data);
         let mut stats = OsmStats {
             id: spec.id.clone(),
@@ -237,16 +201,7 @@ pub(crate) fn osm(
                 return Err(b.err(Some(item), Some("id"), format!("duplicate id {id:?}")));
             }
             let geometry_index = b.add(geometry);
-            let geometry = b.geometries[geometry_index].clone();
-            obstacles.push(StaticObstacle {
-                id,
-                kind: Kind::Building,
-                threat,
-                aabb_enu_m: placement.enu_aabb(&geometry.local_aabb),
-                placement,
-                geometry,
-                geometry_index,
-            });
+            obstacles.push(b.obstacle(id, Kind::Building, threat, placement, geometry_index));
             stats.buildings += 1;
             stats.parts += usize::from(f.part);
             match source {

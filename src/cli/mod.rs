@@ -6,6 +6,13 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::pipeline::Mode;
 
+mod runs;
+
+pub use runs::{
+    BatchArgs, BatchCommand, ReportArgs, RunsArgs, SitlArgs, StudyArgs, StudyCommand, StudyGenKind,
+    SummarizeArgs,
+};
+
 /// savsim: sense-and-avoid simulation for UAVs over MAVLink.
 #[derive(Debug, Parser)]
 #[command(name = "savsim", version, about, long_about = None)]
@@ -88,150 +95,6 @@ pub enum SigningMode {
     Require,
 }
 
-/// `savsim study`.
-#[derive(Debug, Args)]
-#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
-pub struct StudyArgs {
-    /// Summarize or generate instead of running.
-    #[command(subcommand)]
-    pub command: Option<StudyCommand>,
-    /// The manifest: .csv, .toml (`[[run]]` tables) or .json (docs/study.md).
-    #[arg(required = true)]
-    pub manifest: Option<PathBuf>,
-    /// The directory shard files (and each row's SITL folder, under work/) go to.
-    #[arg(long, required = true)]
-    pub out: Option<PathBuf>,
-    /// SITLs at once (default 1).
-    #[arg(long, default_value_t = 1)]
-    pub jobs: usize,
-    /// SITL speedup for rows that name none.
-    #[arg(long, default_value_t = 1.0)]
-    pub speedup: f64,
-    /// Run one shard: `K/N`, or `N` with K from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX.
-    #[arg(long)]
-    pub shard: Option<String>,
-    /// Run the shard even if its file exists (replacing it).
-    #[arg(long)]
-    pub force: bool,
-    /// ArduCopter SITL binary (default: SAVSIM_ARDUCOPTER); defaults files from
-    /// SAVSIM_ARDUCOPTER_DEFAULTS (comma-separated).
-    #[arg(long)]
-    pub arducopter: Option<PathBuf>,
-    /// PX4 SITL binary, `px4` of px4_sitl_default, flown with SIH (default: SAVSIM_PX4).
-    #[arg(long)]
-    pub px4: Option<PathBuf>,
-    /// Keep each row's SITL folder (eeprom, logs, console, savsim's summary and, for a row
-    /// with a feed, every frame the feed sent as `feed.tlog`) under OUT/work (default: removed
-    /// after a row that flew).
-    #[arg(long)]
-    pub keep_work: bool,
-    /// Run without a network namespace even where one can be made (SITL then binds its TCP
-    /// ports on every interface).
-    #[arg(long)]
-    pub no_netns: bool,
-    /// Save rows as rerun recordings in OUT/rows/: `failed` (rows not `pass` in a mitigated
-    /// variant, `pass` in the nominal one, or errors: every row is recorded while it flies and
-    /// the others dropped), `all`, or row ids separated by commas.
-    #[arg(long)]
-    pub rerun_rows: Option<crate::runs::recordings::RowChoice>,
-    /// Fly the manifest's pairs in rounds (OUT/round-NNNNN.parquet) until every ratio of
-    /// --converge-on has a 95% interval whose half-width is within PCT percent of its value,
-    /// judged after each round from the second on; the manifest is the budget.
-    #[arg(long, value_name = "PCT")]
-    pub until_converged: Option<f64>,
-    /// The ratios --until-converged judges, separated by commas.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = crate::runs::summary::Ratio::DEFAULT)]
-    pub converge_on: Vec<crate::runs::summary::Ratio>,
-    /// Pairs per round of --until-converged.
-    #[arg(long, default_value_t = 50)]
-    pub round_pairs: usize,
-    /// The variant the others are compared with (--until-converged, and which rows
-    /// `--rerun-rows failed` keeps).
-    #[arg(long, default_value = "nominal")]
-    pub nominal: String,
-}
-
-/// What `savsim study gen` writes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum StudyGenKind {
-    /// A box across a straight path.
-    Approaches,
-    /// An intruder crossing a hovering copter, reported as ADS-B.
-    Encounters,
-}
-
-/// `savsim study report` and `savsim batch report`.
-#[derive(Debug, Args)]
-pub struct ReportArgs {
-    /// The results directory (its *.parquet shard files).
-    pub dir: PathBuf,
-    /// Where the page goes (default DIR/report.html).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// The variant the others are compared with.
-    #[arg(long, default_value = "nominal")]
-    pub nominal: String,
-}
-
-/// `savsim study ...` subcommands.
-#[derive(Debug, Subcommand)]
-pub enum StudyCommand {
-    /// Per variant: outcome counts and weighted collision, NMAC and loss-of-well-clear rates;
-    /// each variant's ratios against the nominal one over the pairs flown under both, with
-    /// 95% bootstrap intervals.
-    Summarize {
-        /// The directory of shard files.
-        dir: PathBuf,
-        /// The variant the others are compared with.
-        #[arg(long, default_value = "nominal")]
-        nominal: String,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// One self-contained HTML page of a results directory: outcome counts and risk ratios
-    /// as charts, histograms of the closest approaches, the rows with links to their
-    /// recordings, and how the results were made (docs/study.md).
-    Report(ReportArgs),
-    /// Write pairs of rows, each as `nominal` (avoidance off) and `mitigated` (on):
-    /// `approaches` (a box of random size, offset and yaw across a straight path flown at a
-    /// random speed and heading; the proximity feed and ArduCopter's proximity avoidance) or
-    /// `encounters` (an intruder crossing a hovering copter; the ADS-B feed and ArduCopter's
-    /// ADS-B avoidance).
-    Gen {
-        /// `approaches` or `encounters`.
-        #[arg(long, value_enum, default_value_t = StudyGenKind::Approaches)]
-        kind: StudyGenKind,
-        /// `arducopter` or `px4` (approaches only): which autopilot's parameters and feed.
-        #[arg(long, default_value = "arducopter")]
-        autopilot: String,
-        /// How many pairs.
-        #[arg(long)]
-        n: usize,
-        /// Random seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// With `--kind encounters`: the intruder's track sampled from this MIT LL encounter
-        /// model (e.g. scenes/encounter-models/uncor_1200code_v2p1.txt: turns, climbs and
-        /// speed changes) instead of a straight line; misses drawn wider (docs/study.md).
-        #[arg(long)]
-        model: Option<PathBuf>,
-        /// Fly each pair's mitigated row once per sensor set (repeat the flag; each a
-        /// `--sensors` list, e.g. `--sensors ideal --sensors adsb-1090es:nacp=7`): variants
-        /// `mitigated/SET`, each against the same `nominal` row (docs/sensors.md).
-        #[arg(long)]
-        sensors: Vec<String>,
-        /// With `--kind encounters`: two ArduCopters per encounter, each on its own SITL, one
-        /// row per equipage in this list (`none,one,both`: which of them avoid; the variant is
-        /// its name), over the same drawn geometries (docs/study.md, "Several autopilots").
-        #[arg(long)]
-        equipage: Option<String>,
-        /// Where the manifest and its scenes go (created).
-        #[arg(long)]
-        out: PathBuf,
-    },
-}
-
 /// `savsim daa`.
 #[derive(Debug, Args)]
 pub struct DaaArgs {
@@ -246,104 +109,6 @@ pub struct DaaArgs {
     /// Decimal places (DAIDALUS's default, 6).
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(0..=16))]
     pub precision: u8,
-}
-
-/// `savsim batch`.
-#[derive(Debug, Args)]
-#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
-pub struct BatchArgs {
-    /// Generate a manifest instead of running one.
-    #[command(subcommand)]
-    pub command: Option<BatchCommand>,
-    /// The manifest: .csv, .toml (`[[run]]` tables) or .json (docs/batch.md).
-    #[arg(required = true)]
-    pub manifest: Option<PathBuf>,
-    /// The directory shard files are written to (created if missing).
-    #[arg(long, required = true)]
-    pub out: Option<PathBuf>,
-    /// Worker threads (default: every core).
-    #[arg(long)]
-    pub jobs: Option<usize>,
-    /// Run one shard: `K/N` (K from 0), or `N` with K from SLURM_ARRAY_TASK_ID or
-    /// JOB_COMPLETION_INDEX. A Slurm array task needs no flag.
-    #[arg(long)]
-    pub shard: Option<String>,
-    /// Run the shard even if its file exists (replacing it).
-    #[arg(long)]
-    pub force: bool,
-    /// No progress bar.
-    #[arg(long)]
-    pub no_progress: bool,
-    /// Save rows as rerun recordings in OUT/rows/, each flown again after it ran (a tlog
-    /// replayed, an encounter's samples; docs/batch.md): `failed` (rows not `pass` in a
-    /// variant other than the nominal one, `pass` in the nominal one, or errors), `all`, or
-    /// run ids separated by commas.
-    #[arg(long)]
-    pub rerun_rows: Option<crate::runs::recordings::RowChoice>,
-    /// The variant the others are compared with (which rows `--rerun-rows failed` keeps).
-    #[arg(long, default_value = "nominal")]
-    pub nominal: String,
-}
-
-/// `savsim batch ...` subcommands.
-#[derive(Debug, Subcommand)]
-pub enum BatchCommand {
-    /// Write a deterministic manifest of pairwise encounters, their closest approach and NMAC
-    /// known by construction (distributions in docs/batch.md).
-    GenEncounters {
-        /// How many.
-        #[arg(long)]
-        n: usize,
-        /// Random seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// A scene for every encounter (default: open air).
-        #[arg(long)]
-        scene: Option<PathBuf>,
-        /// Collision mode for every encounter.
-        #[arg(long, value_enum, default_value_t = ModeArg::Exact)]
-        mode: ModeArg,
-        /// Length of each encounter, seconds (default 180; with `--pairing`, the file's
-        /// `sample_time`).
-        #[arg(long)]
-        duration_s: Option<f64>,
-        /// Ownship samples per second.
-        #[arg(long, default_value_t = 10.0)]
-        rate_hz: f64,
-        /// The intruder's kind (a320, b737, dji, airship, balloon).
-        #[arg(long, default_value = "dji")]
-        intruder_kind: String,
-        /// Sample both tracks from this MIT LL encounter model (e.g.
-        /// scenes/encounter-models/uncor_1200code_v2p1.txt) instead of straight lines (docs/batch.md).
-        #[arg(long)]
-        model: Option<PathBuf>,
-        /// Pair the model's tracks by importance sampling with the settings of this
-        /// em-pairing-uncor-importancesampling `.ini` file (e.g.
-        /// scenes/encounter-models/pairing.ini), each encounter with its weight `w`
-        /// (docs/daa.md). Needs `--model`.
-        #[arg(long, requires = "model")]
-        pairing: Option<PathBuf>,
-        /// Write the manifest here (.csv; default: stdout).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
-    /// Weighted NMAC and loss-of-well-clear rates per `variant`, and each variant's risk
-    /// ratios against the nominal one over the `pair`s flown under both, with 95% bootstrap
-    /// intervals, from a results directory's shards (docs/batch.md).
-    Summarize {
-        /// The results directory (its *.parquet shard files).
-        dir: PathBuf,
-        /// The variant the others are compared with.
-        #[arg(long, default_value = "nominal")]
-        nominal: String,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// One self-contained HTML page of a results directory: outcome counts and risk ratios
-    /// as charts, histograms of the closest approaches, the rows with links to their
-    /// recordings, and how the results were made (docs/batch.md).
-    Report(ReportArgs),
 }
 
 /// `savsim bench`.
@@ -509,21 +274,9 @@ pub struct DemoArgs {
     /// Collision options (the scene defaults to the bundled city).
     #[command(flatten)]
     pub collision: CollisionArgs,
-    /// Replay speed: a factor of real time, or `max`.
-    #[arg(long, default_value = "max")]
-    pub speed: String,
-    /// Stop this many seconds after the first message (the clock of the report's "+N s").
-    #[arg(long, allow_negative_numbers = true)]
-    pub until_s: Option<f64>,
-    /// The feed a live run would have sent.
+    /// Pace, end, and the feed a live run would have sent.
     #[command(flatten)]
-    pub feed: FeedArgs,
-    /// savsim's MAVLink identity (`--sysid`, `--compid`).
-    #[command(flatten)]
-    pub identity: IdentityArgs,
-    /// Write that feed here as a tlog, on the flight's time base (needs --feed).
-    #[arg(long)]
-    pub feed_out: Option<PathBuf>,
+    pub playback: PlaybackArgs,
 }
 
 /// `savsim replay`.
@@ -531,15 +284,24 @@ pub struct DemoArgs {
 pub struct ReplayArgs {
     /// The tlog, ULog (.ulg) or DataFlash log (.bin) to replay (told apart by their first bytes).
     pub flight: PathBuf,
-    /// Replay speed: a factor of real time (1 = as flown), or `max`.
-    #[arg(long, default_value = "max")]
-    pub speed: String,
     /// Collision options.
     #[command(flatten)]
     pub collision: CollisionArgs,
     /// Never draw a progress bar.
     #[arg(long)]
     pub no_progress: bool,
+    /// Pace, end, and the feed a live run would have sent.
+    #[command(flatten)]
+    pub playback: PlaybackArgs,
+}
+
+/// How a flight is played back (`savsim replay`, `savsim demo`): its pace, where it ends, and
+/// the feed a live run would have sent.
+#[derive(Debug, Args)]
+pub struct PlaybackArgs {
+    /// Replay speed: a factor of real time (1 = as flown), or `max`.
+    #[arg(long, default_value = "max")]
+    pub speed: String,
     /// Stop this many seconds after the first message (the clock of the report's "+N s"): for
     /// a recording that ends at a moment of interest.
     #[arg(long, allow_negative_numbers = true)]
@@ -558,31 +320,18 @@ pub struct ReplayArgs {
 /// `savsim live`.
 #[derive(Debug, Args)]
 pub struct LiveArgs {
-    /// udpin:HOST:PORT (listen), udpout:HOST:PORT, tcpout:HOST:PORT, or tcpin:HOST:PORT.
-    /// Repeat for several links (SITLs on separate ports, a UDP and a TCP link).
-    #[arg(long, required = true)]
-    pub connect: Vec<String>,
-    /// Rate to ask for GLOBAL_POSITION_INT and ATTITUDE at, Hz.
-    #[arg(long, default_value_t = 20.0)]
-    pub rate_hz: f64,
+    /// The links, savsim's identity on them, ground stations and signing.
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// Also record what is received to this tlog.
     #[arg(long)]
     pub record: Option<PathBuf>,
-    /// Stop after this many seconds (default: until Ctrl-C).
-    #[arg(long)]
-    pub duration_s: Option<f64>,
     /// Collision options.
     #[command(flatten)]
     pub collision: CollisionArgs,
     /// The closed-loop feed.
     #[command(flatten)]
     pub feed: FeedArgs,
-    /// savsim's MAVLink identity (`--sysid`, `--compid`).
-    #[command(flatten)]
-    pub identity: IdentityArgs,
-    /// Ground stations and signing.
-    #[command(flatten)]
-    pub network: NetworkArgs,
     /// Record every frame the feed sends to this tlog, as sent (needs --feed).
     #[arg(long)]
     pub feed_out: Option<PathBuf>,
@@ -591,12 +340,23 @@ pub struct LiveArgs {
 /// `savsim record`.
 #[derive(Debug, Args)]
 pub struct RecordArgs {
+    /// The links, savsim's identity on them, ground stations and signing.
+    #[command(flatten)]
+    pub link: LinkArgs,
+    /// The tlog to write.
+    pub out: PathBuf,
+    /// Write a JSON summary here at exit.
+    #[arg(long)]
+    pub summary_json: Option<PathBuf>,
+}
+
+/// A live run's links (`savsim live`, `savsim record`; docs/live.md).
+#[derive(Debug, Args)]
+pub struct LinkArgs {
     /// udpin:HOST:PORT (listen), udpout:HOST:PORT, tcpout:HOST:PORT, or tcpin:HOST:PORT.
     /// Repeat for several links (SITLs on separate ports, a UDP and a TCP link).
     #[arg(long, required = true)]
     pub connect: Vec<String>,
-    /// The tlog to write.
-    pub out: PathBuf,
     /// Rate to ask for GLOBAL_POSITION_INT and ATTITUDE at, Hz.
     #[arg(long, default_value_t = 20.0)]
     pub rate_hz: f64,
@@ -609,9 +369,6 @@ pub struct RecordArgs {
     /// Ground stations and signing.
     #[command(flatten)]
     pub network: NetworkArgs,
-    /// Write a JSON summary here at exit.
-    #[arg(long)]
-    pub summary_json: Option<PathBuf>,
 }
 
 /// Which scene to generate.

@@ -52,7 +52,7 @@ impl SigningKey {
     /// derive it: SHA-256 of its UTF-8 bytes.
     ///
     /// ```
-    /// use savsim::links::signing::SigningKey;
+    /// use savsim::codec::signing::SigningKey;
     /// let key = SigningKey::from_passphrase("abc");
     /// assert_eq!(key.0[..4], [0xba, 0x78, 0x16, 0xbf]);
     /// ```
