@@ -41,8 +41,14 @@ def run_shard(rows, first_index, path):
     """One shard: its rows through savsim, written atomically (a temporary file renamed)."""
     table = savsim.run_manifest(rows, jobs=1, first_index=first_index)
     tmp = path + ".tmp"
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        # Nothing half-written stays beside the results.
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
     return table.num_rows
 
 

@@ -269,7 +269,7 @@ impl WorldStore {
     ///     time_boot_ms: 1000, position: Geodetic::new(-35.363261, 149.165230, 634.0),
     ///     relative_alt_m: 50.0, velocity_ned_mps: glam::DVec3::ZERO, heading_deg: None });
     /// assert_eq!(world.apply(10.0, sender, &report), WorldUpdate::VehicleMoved(sender));
-    /// let up_m = world.vehicles[&sender].history.latest().unwrap().position_enu_m.z;
+    /// let up_m = world.vehicle(&sender).unwrap().history.latest().unwrap().position_enu_m.z;
     /// assert!((up_m - 50.0).abs() < 1e-6);
     /// ```
     pub fn apply(&mut self, t_s: f64, sender: SenderId, report: &Report) -> WorldUpdate {
