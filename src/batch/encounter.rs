@@ -18,6 +18,7 @@ use crate::geo::LocalTangentPlane;
 use crate::logs::tlog::TlogReader;
 use crate::pipeline::{DynamicBody, MovingBodies, Pipeline, VehicleKey};
 use crate::scene::{DynamicSource, Kind, Scene, Waypoint};
+use crate::world::SenderId;
 use crate::world::{Attitude, TrackSample, WorldConfig, WorldStore, WorldUpdate};
 
 /// The ownship's MAVLink system id in an encounter's results.
@@ -153,7 +154,10 @@ pub fn fly(
             ));
         }
         approaches.observe(
-            OWNSHIP,
+            SenderId {
+                system_id: OWNSHIP,
+                component_id: 1,
+            },
             previous.as_ref(),
             &current,
             bodies.as_slice(),

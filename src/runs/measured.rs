@@ -19,6 +19,9 @@ use crate::runs::table::{bools, counts, floats, strings, struct_lists};
 pub struct ApproachRow {
     /// The vehicle (MAVLink system id; 1 for an encounter's ownship).
     pub vehicle: u8,
+    /// Its MAVLink component id (1 for an autopilot; a fleet past 250 vehicles numbers them by
+    /// component).
+    pub component: u8,
     /// The other track's id (`intruder`, `vehicle:2`, `icao:4840D6`, a scene's track).
     pub track: String,
     /// Least separation of the two reference points, metres.
@@ -108,7 +111,8 @@ impl Measured {
             .pairs()
             .into_iter()
             .map(|(vehicle, pair)| ApproachRow {
-                vehicle,
+                vehicle: vehicle.system_id,
+                component: vehicle.component_id,
                 track: pair.id.to_string(),
                 distance_m: pair.approach.distance_m,
                 horizontal_m: pair.approach.horizontal_m,
@@ -198,6 +202,7 @@ pub fn lowc_columns<R>(rows: &[R], m: impl Fn(&R) -> &Measured + Copy) -> Column
 fn approach_fields() -> Fields {
     Fields::from(vec![
         Field::new("vehicle", DataType::UInt8, false),
+        Field::new("component", DataType::UInt8, false),
         Field::new("track", DataType::Utf8, false),
         Field::new("distance_m", DataType::Float64, false),
         Field::new("horizontal_m", DataType::Float64, false),
@@ -217,6 +222,7 @@ pub fn approaches_column<R>(rows: &[R], m: impl Fn(&R) -> &Measured) -> (&'stati
     };
     let children: Vec<ArrayRef> = vec![
         Arc::new(all.iter().map(|a| a.vehicle).collect::<UInt8Array>()),
+        Arc::new(all.iter().map(|a| a.component).collect::<UInt8Array>()),
         Arc::new(
             all.iter()
                 .map(|a| Some(a.track.as_str()))

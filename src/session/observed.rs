@@ -157,7 +157,7 @@ impl Session {
         let approaches = self.approaches.pairs().into_iter().map(|(own, pair)| {
             let a = pair.approach;
             ApproachFrame {
-                system_id: own,
+                system_id: own.system_id,
                 track: pair.id.to_string(),
                 t_s: a.t_s,
                 distance_m: a.distance_m,

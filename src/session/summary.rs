@@ -7,6 +7,7 @@ use serde_json::{json, Value};
 use super::Session;
 use crate::daa::approach::Pair;
 use crate::pipeline::Pipeline;
+use crate::world::SenderId;
 
 impl Session {
     /// The summary object `--summary-json` writes.
@@ -55,13 +56,14 @@ impl Session {
     }
 
     /// The closest approach of each vehicle to each moving body.
-    fn approaches_summary(&self, pairs: &[(u8, &Pair)]) -> Vec<Value> {
+    fn approaches_summary(&self, pairs: &[(SenderId, &Pair)]) -> Vec<Value> {
         pairs
             .iter()
             .map(|(vehicle, pair)| {
                 let a = &pair.approach;
                 json!({
-                    "vehicle": vehicle,
+                    "vehicle": vehicle.system_id,
+                    "component": vehicle.component_id,
                     "track": &*pair.id,
                     "distance_m": a.distance_m,
                     "horizontal_m": a.horizontal_m,
@@ -74,7 +76,7 @@ impl Session {
     }
 
     /// The well-clear volume, and each pair that lost well clear: when, how long, how close.
-    fn well_clear_summary(&self, pairs: &[(u8, &Pair)]) -> Value {
+    fn well_clear_summary(&self, pairs: &[(SenderId, &Pair)]) -> Value {
         json!({
             "volume": self.approaches.volume().map(|v| json!({
                 "dthr_m": v.dthr_m,
@@ -88,7 +90,8 @@ impl Session {
                 .map(|(vehicle, pair)| {
                     let log = &pair.well_clear;
                     json!({
-                        "vehicle": vehicle,
+                        "vehicle": vehicle.system_id,
+                        "component": vehicle.component_id,
                         "track": &*pair.id,
                         "lowc_first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
                         "lowc_duration_s": log.duration_s(),

@@ -114,14 +114,14 @@ impl Session {
         let (sender, current) = (tick.sender, &tick.current);
         let approached = self.dynamic.as_slice().iter().zip(&self.approached);
         self.approaches.observe(
-            sender.system_id,
+            sender,
             tick.previous.as_ref(),
             current,
             approached.filter_map(|(body, &near)| near.then_some(body)),
             &mut self.well_clear_changes,
         );
         for c in &self.well_clear_changes {
-            let kind = well_clear_event(&self.approaches, sender.system_id, c);
+            let kind = well_clear_event(&self.approaches, sender, c);
             self.events.push(Event {
                 t: current.t_s,
                 time_boot_ms: current.time_boot_ms,
@@ -171,7 +171,7 @@ impl Session {
 
 /// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
 /// regain with its length.
-fn well_clear_event(approaches: &Approaches, own: u8, c: &WellClearChange) -> EventKind {
+fn well_clear_event(approaches: &Approaches, own: SenderId, c: &WellClearChange) -> EventKind {
     match c.change {
         Change::Lost { t_s } => {
             let episode = approaches.pair(own, c.source).and_then(|pair| {

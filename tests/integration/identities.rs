@@ -352,3 +352,55 @@ fn a_swarm_through_the_moving_bodies_broad_phase_agrees_with_the_reference() {
         .collect();
     assert!(near.len() >= 8, "{near:?}");
 }
+
+/// Two vehicles that share a system id (a fleet past 250 vehicles numbers them by component)
+/// keep their own closest approaches: 7/1 passes vehicle 8 40 m off, 7/2 100 m off. They were
+/// one entry, the closer, keyed by system id alone.
+#[test]
+fn vehicles_sharing_a_system_id_keep_their_own_closest_approaches() {
+    let s = scene("");
+    let plane = LocalTangentPlane::new(s.origin);
+    let mut session = Session::new(Some(Arc::new(s)), CollisionConfig::default(), None).unwrap();
+    let nose_east = [0.0, 0.0, std::f64::consts::FRAC_PI_2];
+    let mut seq = 0u8;
+    let mut frames = |sysid: u8, compid: u8, ms: u32, p: DVec3, v: DVec3| {
+        let mut bytes = Vec::new();
+        for m in crate::common::pose_messages(&plane, ms, p, v, nose_east) {
+            bytes.extend(crate::common::frame_v2(sysid, compid, seq, &m));
+            seq = seq.wrapping_add(1);
+        }
+        bytes
+    };
+    for i in 0..200u32 {
+        let t = 1000.0 + f64::from(i) * 0.1;
+        let ms = 50_000 + i * 100;
+        let x = -100.0 + f64::from(i);
+        let mut bytes = frames(7, 1, ms, DVec3::new(x, 40.0, 30.0), DVec3::X * 10.0);
+        bytes.extend(frames(
+            7,
+            2,
+            ms,
+            DVec3::new(x, 100.0, 30.0),
+            DVec3::X * 10.0,
+        ));
+        bytes.extend(frames(8, 1, ms, DVec3::new(0.0, 0.0, 30.0), DVec3::ZERO));
+        feed(&mut session, t, &bytes);
+    }
+    session.finish().unwrap();
+    let summary = session.summary("test", "");
+    let to_8 = |component: u64| -> Vec<f64> {
+        summary["approaches"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|a| a["vehicle"] == 7 && a["component"] == component)
+            .filter(|a| a["track"].as_str().is_some_and(|t| t.contains('8')))
+            .map(|a| a["distance_m"].as_f64().unwrap())
+            .collect()
+    };
+    let (one, two) = (to_8(1), to_8(2));
+    assert_eq!(one.len(), 1, "{}", summary["approaches"]);
+    assert_eq!(two.len(), 1, "{}", summary["approaches"]);
+    assert!((one[0] - 40.0).abs() < 0.5, "{one:?}");
+    assert!((two[0] - 100.0).abs() < 0.5, "{two:?}");
+}

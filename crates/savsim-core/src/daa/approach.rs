@@ -20,7 +20,7 @@ use glam::DVec3;
 use crate::collision::bodies::{BodySource, DynamicBody};
 use crate::daa::episodes::{Change, PairLog};
 use crate::daa::well_clear::Volume;
-use crate::world::TrackSample;
+use crate::world::{SenderId, TrackSample};
 
 /// NMAC horizontal threshold: 500 ft, metres.
 pub const NMAC_HORIZONTAL_M: f64 = 152.4;
@@ -81,14 +81,14 @@ impl Approach {
     }
 }
 
-/// The closest approach of each vehicle (MAVLink system id) to each moving body (by where it
+/// The closest approach of each vehicle (its MAVLink system and component id: a fleet past 250 vehicles numbers them by component) to each moving body (by where it
 /// comes from: a scene track, a vehicle's system and component id, an ICAO address) over a
 /// run, and its losses of well clear.
 #[derive(Debug, Clone)]
 pub struct Approaches {
     /// By vehicle, the pairs sorted by body source: a tick's bodies come in key order, so a
     /// tick walks its vehicle's pairs in order.
-    by_vehicle: BTreeMap<u8, VehiclePairs>,
+    by_vehicle: BTreeMap<SenderId, VehiclePairs>,
     /// The well-clear volume judged (`None`: well clear is not judged).
     volume: Option<Volume>,
 }
@@ -150,7 +150,7 @@ impl Approaches {
     /// use savsim_core::daa::approach::Approaches;
     /// assert!(Approaches::default().pairs().is_empty());
     /// ```
-    pub fn pairs(&self) -> Vec<(u8, &Pair)> {
+    pub fn pairs(&self) -> Vec<(SenderId, &Pair)> {
         let mut pairs = Vec::new();
         for (&vehicle, of_vehicle) in &self.by_vehicle {
             let mut of_vehicle: Vec<_> = of_vehicle.pairs.iter().collect();
@@ -161,7 +161,7 @@ impl Approaches {
     }
 
     /// The pair of vehicle `own` and the body from `source`, if they have been seen together.
-    pub fn pair(&self, own: u8, source: BodySource) -> Option<&Pair> {
+    pub fn pair(&self, own: SenderId, source: BodySource) -> Option<&Pair> {
         let of_vehicle = self.by_vehicle.get(&own)?;
         let at = slot(&of_vehicle.sources, 0, source).ok()?;
         Some(&of_vehicle.pairs[at])
@@ -174,7 +174,7 @@ impl Approaches {
     /// tick has them; any order gives the same answer.
     pub fn observe<'b>(
         &mut self,
-        own: u8,
+        own: SenderId,
         previous: Option<&TrackSample>,
         current: &TrackSample,
         bodies: impl IntoIterator<Item = &'b DynamicBody>,
@@ -374,7 +374,16 @@ mod tests {
                 let mut bodies = bodies.clone();
                 reorder(&mut bodies);
                 let (a, b) = (sample(k as f64, 0.0), sample(k as f64 + 1.0, 5.0));
-                approaches.observe(1, Some(&a), &b, &bodies, &mut changes);
+                approaches.observe(
+                    SenderId {
+                        system_id: 1,
+                        component_id: 1,
+                    },
+                    Some(&a),
+                    &b,
+                    &bodies,
+                    &mut changes,
+                );
                 changes.sort_by_key(|c| c.source);
                 all.append(&mut changes);
             }
