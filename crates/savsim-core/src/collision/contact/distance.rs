@@ -13,7 +13,6 @@ use parry3d::query::details::{
     distance_composite_shape_shape, distance_shape_composite_shape,
     distance_support_map_support_map,
 };
-use parry3d::query::PointQuery;
 use parry3d::query::{
     self, ClosestPoints, Contact, DefaultQueryDispatcher, NonlinearRigidMotion, QueryDispatcher,
     ShapeCastHit, ShapeCastOptions, ShapeDistance, ShapeIntersection, Unsupported,
@@ -81,7 +80,7 @@ fn held(pos12: &Pose, outer: &dyn Shape, inner: &dyn Shape) -> bool {
     };
     let centre = inner.compute_local_aabb().center();
     let probe = pos12.transform_point(inner.project_local_point(centre, false).point);
-    mesh.local_aabb().contains_local_point(probe) && mesh.contains_local_point(probe)
+    super::inside_trimesh::inside(mesh, probe.as_dvec3())
 }
 
 /// Either shape holds the other inside a closed mesh.

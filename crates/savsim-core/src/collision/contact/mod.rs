@@ -16,10 +16,12 @@
 //!   missing queries added.
 //! - [`shapes`]: the exact shapes (cuboids, compounds, height fields, meshes).
 //! - [`ray_height_field`]: exact rays against terrain height fields.
+//! - [`inside_trimesh`]: whether a point is inside a closed mesh (winding number along a ray).
 //! - [`spans`]: every span of contact within an interval, part by part.
 //! - [`swept`]: the `exact` strategy (proofs, then sweeps).
 
 pub mod distance;
+pub mod inside_trimesh;
 pub mod queries;
 pub mod ray_height_field;
 pub mod shapes;

@@ -7,7 +7,7 @@
 use glam::{DQuat, DVec3, Vec3};
 use parry3d::bounding_volume::BoundingVolume;
 use parry3d::math::Pose;
-use parry3d::query::{self, NonlinearRigidMotion, PointQuery, Ray, ShapeCastOptions};
+use parry3d::query::{self, NonlinearRigidMotion, Ray, ShapeCastOptions};
 use parry3d::shape::Shape;
 
 use crate::collision::contact::distance::{
@@ -184,6 +184,26 @@ pub fn locate(
         ),
         _ => (anchor + pose_a.translation.as_dvec3(), DVec3::Z),
     }
+}
+
+/// Whether the two bodies touch at fraction `fraction` of the interval (their screw-motion
+/// poses of that instant; a body inside a closed mesh touches it).
+pub fn intersects_at(
+    a0: &Placed<'_>,
+    a1: &Placed<'_>,
+    b0: &Placed<'_>,
+    b1: &Placed<'_>,
+    fraction: f64,
+) -> bool {
+    let anchor = a0.position_enu_m;
+    let (ma, mb) = (motion(anchor, a0, a1), motion(anchor, b0, b1));
+    let t = fraction.clamp(0.0, 1.0) as f32;
+    shapes_intersect(
+        &ma.position_at_time(t),
+        a0.shape,
+        &mb.position_at_time(t),
+        b0.shape,
+    )
 }
 
 /// When body `a` moving from `a0` to `a1` first touches body `b` moving from `b0` to `b1` over
@@ -364,8 +384,8 @@ pub fn ray_distance_m(
         .as_trimesh()
         .filter(|m| m.pseudo_normals_if_oriented().is_some())
     {
-        let local = (b.enu_from_shape.inverse() * (origin_enu_m - b.position_enu_m)).as_vec3();
-        if mesh.local_aabb().contains_local_point(local) && mesh.contains_local_point(local) {
+        let local = b.enu_from_shape.inverse() * (origin_enu_m - b.position_enu_m);
+        if super::inside_trimesh::inside(mesh, local) {
             return Some(0.0);
         }
     }

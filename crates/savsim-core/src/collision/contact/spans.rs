@@ -91,7 +91,44 @@ pub fn contact_spans(
             _ => merged.push((enter, exit)),
         }
     }
+    let closed = b0
+        .shape
+        .as_trimesh()
+        .is_some_and(|m| m.pseudo_normals_if_oriented().is_some());
+    if closed {
+        fill_inside(&mut merged, |u| {
+            super::queries::intersects_at(a0, a1, b0, b1, u)
+        });
+    }
     merged
+}
+
+/// A closed mesh is a solid, but its spans come from its triangles: a vehicle that goes
+/// through a wall and out of the far one within the interval crosses two triangles and is
+/// inside between them. Each stretch between spans (and before the first, after the last)
+/// where the vehicle is inside at its middle (no triangle is touched within it, so the middle
+/// speaks for all of it) is contact: joined to its neighbours.
+fn fill_inside(merged: &mut smallvec::SmallVec<[(f64, f64); 2]>, inside_at: impl Fn(f64) -> bool) {
+    let mut bounds: smallvec::SmallVec<[f64; 6]> = smallvec::smallvec![0.0];
+    for &(enter, exit) in merged.iter() {
+        bounds.extend([enter, exit]);
+    }
+    bounds.push(1.0);
+    let mut filled: smallvec::SmallVec<[(f64, f64); 2]> = smallvec::SmallVec::new();
+    let mut push = |span: (f64, f64)| match filled.last_mut() {
+        Some(last) if span.0 <= last.1 + 1e-9 => last.1 = last.1.max(span.1),
+        _ => filled.push(span),
+    };
+    for (k, pair) in bounds.chunks(2).enumerate() {
+        let (from, to) = (pair[0], pair[1]);
+        if to > from + 1e-9 && inside_at(0.5 * (from + to)) {
+            push((from, to));
+        }
+        if let Some(&span) = merged.get(k) {
+            push(span);
+        }
+    }
+    *merged = filled;
 }
 
 /// A convex part's bounds over the interval (about `anchor`; a turning part's bounds at the two
