@@ -9,6 +9,7 @@
 //!   no code with the contact layer.
 //! - [`daa`]: detect-and-avoid metrics: well clear, alerting, DAIDALUS's files.
 //! - [`world`]: vehicles and traffic keyed by identity, on their own clocks.
+//! - [`dynamics`]: a multicopter savsim flies itself (lockstep), one fixed step at a time.
 //! - [`collision`]: the contact layer (the truth), the sensing layer (Li et al. 2019), the
 //!   exact ray fans a range sensor measures.
 //! - [`pipeline`]: the per-tick orchestrator: the collision layers in every mode but
@@ -22,6 +23,7 @@
 pub mod bounds;
 pub mod collision;
 pub mod daa;
+pub mod dynamics;
 pub mod geo;
 pub mod pipeline;
 pub mod reference;
