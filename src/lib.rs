@@ -21,6 +21,7 @@ pub mod feed;
 pub mod files;
 pub mod links;
 pub mod live;
+pub mod lockstep;
 pub mod logs;
 pub mod observe;
 pub mod replay;

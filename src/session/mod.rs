@@ -39,6 +39,8 @@ use crate::world::{WorldConfig, WorldStore, WorldUpdate};
 const NOTABLE_KEPT: usize = 1000;
 /// Notes held for senders with no position yet, at most.
 const HELD_NOTES: usize = 64;
+/// Estimated positions held between two [`Session::drain_estimates`], at most.
+pub const HELD_ESTIMATES: usize = 1024;
 
 /// A run's state.
 pub struct Session {
@@ -98,6 +100,12 @@ pub struct Session {
     /// Times are on the vehicle's clock, the flight starting at its boot
     /// ([`Session::use_vehicle_clock`]).
     vehicle_clock: bool,
+    /// Vehicles savsim flies itself (lockstep): their truth comes through
+    /// [`Session::on_report`], and the positions they send are their estimates, kept in
+    /// `estimates` and never applied to the world.
+    truth_fed: Vec<SenderId>,
+    /// Estimated positions of `truth_fed` vehicles not yet taken ([`Session::drain_estimates`]).
+    estimates: Vec<(SenderId, crate::world::inputs::PositionReport)>,
 }
 
 impl Session {
@@ -169,6 +177,8 @@ impl Session {
             feed_tlog: None,
             own: Vec::new(),
             vehicle_clock: false,
+            truth_fed: Vec::new(),
+            estimates: Vec::new(),
         })
     }
 
@@ -389,7 +399,35 @@ impl Session {
                 return Ok(());
             }
         }
+        if self.truth_fed.contains(&decoded.sender) {
+            use crate::world::inputs::Report;
+            match decoded.report {
+                Report::Position(p) => {
+                    if self.estimates.len() < HELD_ESTIMATES {
+                        self.estimates.push((decoded.sender, p));
+                    }
+                    return Ok(());
+                }
+                Report::Attitude(_) => return Ok(()),
+                _ => {}
+            }
+        }
         self.on_report(t_s, decoded.sender, &decoded.report)
+    }
+
+    /// The vehicles savsim flies itself (lockstep): their positions and attitudes come only
+    /// through [`Session::on_report`] (the truth); what they send of their own is their
+    /// estimate ([`Session::drain_estimates`]).
+    pub fn set_truth_fed(&mut self, vehicles: Vec<SenderId>) {
+        self.truth_fed = vehicles;
+    }
+
+    /// The positions the truth-fed vehicles sent since the last call (at most
+    /// [`HELD_ESTIMATES`] held; the rest dropped).
+    pub fn drain_estimates(
+        &mut self,
+    ) -> std::vec::Drain<'_, (SenderId, crate::world::inputs::PositionReport)> {
+        self.estimates.drain(..)
     }
 
     /// Take one report from `sender` at `t_s` (seconds on the source's clock): what a frame

@@ -74,6 +74,18 @@ pub struct StudyRow {
     /// The second vehicle's home, `E N` metres from the scene's origin (default `0 0`, the
     /// first vehicle's), on the scene's ground there.
     pub intruder_home: Option<String>,
+    /// Who flies the vehicles: `autopilot` (each SITL its own physics, in wall time; the
+    /// default) or `savsim` (lockstep: savsim's dynamics, every autopilot waiting for savsim's
+    /// clock; docs/lockstep.md).
+    pub physics: Option<String>,
+    /// With `physics = savsim`: the vehicles' frame, a preset (`arducopter-quad`,
+    /// `arducopter-quad-x`, `iris`) or a TOML file; default `arducopter-quad`.
+    pub frame: Option<String>,
+    /// With `physics = savsim`: the physics step, milliseconds (default 2.5).
+    pub step_ms: Option<f64>,
+    /// With `physics = savsim`: a constant wind, `E N U` m/s where the air goes, scene frame
+    /// (default none).
+    pub wind: Option<String>,
 }
 
 impl StudyRow {

@@ -93,6 +93,8 @@ pub struct VehicleResult {
     /// The largest drift of its clock from the row's (the first vehicle's), seconds
     /// (measured; 0 for the first).
     pub clock_skew_s: f64,
+    /// With savsim's physics: its estimate of its position against the truth.
+    pub estimate: Option<crate::lockstep::estimates::ErrorStats>,
 }
 
 /// The name of a row's vehicle `k` (from 0, in the manifest's order) in the results: `own`,
@@ -196,8 +198,17 @@ pub struct StudyResult {
     pub clock_speedup: Option<f64>,
     /// With several autopilots: the largest drift of another vehicle's clock from the row's
     /// (the first's) over the row, seconds (measured; the row is an error beyond
-    /// [`crate::study::row::MAX_CLOCK_SKEW_S`]).
+    /// [`crate::study::row::MAX_CLOCK_SKEW_S`]). 0 in lockstep: one clock for all.
     pub clock_skew_s: Option<f64>,
+    /// Who flew the vehicles: `autopilot` (each SITL its own physics) or `savsim` (lockstep).
+    pub physics: String,
+    /// With savsim's physics: the frame flown.
+    pub frame: Option<String>,
+    /// With savsim's physics: the physics step, milliseconds.
+    pub step_ms: Option<f64>,
+    /// With savsim's physics: the first vehicle's estimate of its position against the truth
+    /// (each GLOBAL_POSITION_INT it sent, at its instant).
+    pub estimate: Option<crate::lockstep::estimates::ErrorStats>,
 }
 
 impl StudyResult {
@@ -231,6 +242,10 @@ impl StudyResult {
             others: Vec::new(),
             clock_speedup: None,
             clock_skew_s: None,
+            physics: row.physics.clone().unwrap_or_else(|| "autopilot".into()),
+            frame: None,
+            step_ms: None,
+            estimate: None,
         }
     }
 
@@ -250,6 +265,7 @@ impl StudyResult {
             did: self.autopilot_did.clone(),
             clock_speedup: self.clock_speedup.unwrap_or(0.0),
             clock_skew_s: 0.0,
+            estimate: self.estimate,
         };
         std::iter::once(own)
             .chain(self.others.iter().cloned())

@@ -102,6 +102,28 @@ impl ArduCopter {
     /// the row's folder. Under Linux it is started through `setpriv --pdeathsig KILL` where
     /// that exists, so that it dies with the thread that started it even if savsim is killed.
     pub fn start(&self, start: &Start<'_>) -> std::io::Result<Sitl> {
+        // SITL waits for the pilot before it boots: its clock starts at the same point of the
+        // row whatever the wall-clock delay (at speedup 100 a second of waiting would be 100 s
+        // of its clock).
+        let command = self.command(start, "+", "tcp:2:wait", start.speedup)?;
+        Sitl::spawn(command, start.dir, serial1_port(start.instance))
+    }
+
+    /// Start SITL in lockstep (`--model JSON:127.0.0.1`: its physics is savsim's, on UDP
+    /// `9002 + 10 N`), its SERIAL1 as `serial1` (savsim's pilot port), never sleeping to keep
+    /// a pace of its own (its clock is savsim's).
+    pub fn start_lockstep(&self, start: &Start<'_>, serial1: &str) -> std::io::Result<Sitl> {
+        let command = self.command(start, "JSON:127.0.0.1", serial1, SPEEDUP_CEILING)?;
+        Sitl::spawn(command, start.dir, 0)
+    }
+
+    fn command(
+        &self,
+        start: &Start<'_>,
+        model: &str,
+        serial1: &str,
+        speedup: f64,
+    ) -> std::io::Result<Command> {
         std::fs::create_dir_all(start.dir)?;
         let row_parm = start.dir.join("row.parm");
         let text: String = start
@@ -123,19 +145,20 @@ impl ArduCopter {
         let mut command = launcher(&self.binary);
         command
             .current_dir(start.dir)
-            .args(["--model", "+", "--wipe"])
-            .args(["--speedup", &start.speedup.to_string()])
+            .args(["--model", model, "--wipe"])
+            .args(["--speedup", &speedup.to_string()])
             .args(["-I", &start.instance.to_string()])
             .args(["--home", &home])
             .args(["--serial0", start.serial0])
-            // SITL waits for the pilot before it boots: its clock starts at the same point of
-            // the row whatever the wall-clock delay (at speedup 100 a second of waiting would
-            // be 100 s of its clock).
-            .args(["--serial1", "tcp:2:wait"])
+            .args(["--serial1", serial1])
             .args(["--defaults", &defaults.join(",")]);
-        Sitl::spawn(command, start.dir, serial1_port(start.instance))
+        Ok(command)
     }
 }
+
+/// The speedup a lockstepped ArduCopter is given: SITL's speedup is a ceiling on its pace,
+/// and in lockstep savsim's clock sets the pace.
+const SPEEDUP_CEILING: f64 = 1000.0;
 
 /// How to start PX4 SITL with its SIH simulator (`px4` of `px4_sitl_default`, built from PX4's
 /// sources).

@@ -139,6 +139,10 @@ fn input_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             text(|r| r.inputs.intruder_params.as_ref()),
         ),
         ("intruder_home", text(|r| r.inputs.intruder_home.as_ref())),
+        ("physics", strings(rows, |r| Some(r.physics.clone()))),
+        ("frame", strings(rows, |r| r.frame.clone())),
+        ("step_ms", floats(rows, |r| r.step_ms)),
+        ("wind", text(|r| r.inputs.wind.as_ref())),
     ]
 }
 
@@ -160,10 +164,10 @@ fn result_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
     columns.extend(cpa_columns(rows, m));
     columns.push(("vehicle_track", strings(rows, |r| r.track.clone())));
     columns.extend(lowc_columns(rows, m));
-    columns.extend([]);
     columns.extend(autopilot_columns(rows));
     columns.extend(told_columns(rows));
     columns.extend(other_vehicle_columns(rows));
+    columns.extend(estimate_columns(rows));
     columns.extend([
         ("vehicles", vehicles(rows)),
         ("sim_s", floats(rows, |r| Some(r.sim_s))),
@@ -206,6 +210,24 @@ fn autopilot_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         (
             "autopilot_version",
             strings(rows, |r| r.autopilot_did.version.clone()),
+        ),
+    ]
+}
+
+/// With savsim's physics: how far the autopilot's own estimate strayed from the truth.
+fn estimate_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
+    vec![
+        (
+            "estimate_error_h_max_m",
+            floats(rows, |r| r.estimate.map(|e| e.horizontal_max_m)),
+        ),
+        (
+            "estimate_error_h_mean_m",
+            floats(rows, |r| r.estimate.map(|e| e.horizontal_mean_m)),
+        ),
+        (
+            "estimate_error_v_max_m",
+            floats(rows, |r| r.estimate.map(|e| e.vertical_max_m)),
         ),
     ]
 }

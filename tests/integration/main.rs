@@ -115,6 +115,7 @@ mod geo;
 mod identities;
 mod ingest;
 mod live;
+mod lockstep;
 mod mesh_residency;
 mod osm;
 mod pairing;

@@ -111,6 +111,9 @@ pub enum News {
     Fix(Fix),
     /// Anything else that changed [`Heard`].
     Other,
+    /// In lockstep: a second of the row's clock passed (at its milliseconds), for a pilot
+    /// that has heard no position yet to ask again on the row's clock, not the wall's.
+    Tick(u32),
 }
 
 impl Heard {

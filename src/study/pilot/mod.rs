@@ -98,6 +98,8 @@ pub enum PilotError {
 enum Wire {
     Tcp(TcpStream),
     Udp(UdpSocket, SocketAddr),
+    /// In lockstep: frames queued for savsim's physics loop to send while the autopilot waits.
+    Queue(std::sync::Arc<std::sync::Mutex<Vec<Vec<u8>>>>),
 }
 
 /// The pilot's side of the link: the writer; the reader thread feeds `fixes`.
@@ -120,6 +122,66 @@ pub struct Pilot {
     pub row_offset_s: f64,
     /// An ArduCopter's speedup kept to another vehicle's clock (`SIM_SPEEDUP`).
     pub pace: Option<crate::study::pilot::pace::Pace>,
+    /// In lockstep: the turn-taking with savsim's physics loop, and the news taken so far.
+    gate: Option<(std::sync::Arc<crate::lockstep::gate::Gate>, u64)>,
+    /// In lockstep: when positions were last asked for (the row's clock, ms).
+    asked_ms: Option<u32>,
+}
+
+/// The physics loop's side of a pilot in lockstep: what the autopilot said goes in here, and
+/// what the pilot sends comes out.
+pub struct PilotInbox {
+    target: SenderId,
+    plane: LocalTangentPlane,
+    heard: Shared,
+    tx: std::sync::mpsc::SyncSender<News>,
+    /// The turn-taking with the pilot.
+    pub gate: std::sync::Arc<crate::lockstep::gate::Gate>,
+    outgoing: std::sync::Arc<std::sync::Mutex<Vec<Vec<u8>>>>,
+}
+
+impl PilotInbox {
+    /// Hand the pilot one datagram from its autopilot; how many news it made.
+    pub fn take_datagram(&self, bytes: &[u8]) -> u64 {
+        let mut reader = mavlink::MavlinkReader::new(bytes);
+        let mut sent = 0;
+        while let Ok((h, m)) = reader.read_any_message::<MavMessage>() {
+            if pass_on(h, m, self.target, &self.plane, &self.heard, &self.tx) == Passed::Sent {
+                sent += 1;
+            }
+        }
+        self.gate.delivered(sent);
+        sent
+    }
+
+    /// Tell the pilot a second of the row's clock passed (at `time_ms`).
+    pub fn tick(&self, time_ms: u32) {
+        if self.tx.send(News::Tick(time_ms)).is_ok() {
+            self.gate.delivered(1);
+        }
+    }
+
+    /// The frames the pilot sent since the last call, in order.
+    pub fn take_outgoing(&self) -> Vec<Vec<u8>> {
+        self.outgoing
+            .lock()
+            .map(|mut q| std::mem::take(&mut *q))
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for Pilot {
+    fn drop(&mut self) {
+        if let Some((gate, _)) = &self.gate {
+            gate.close();
+        }
+    }
+}
+
+impl Drop for PilotInbox {
+    fn drop(&mut self) {
+        self.gate.close();
+    }
 }
 
 impl Pilot {
@@ -154,7 +216,7 @@ impl Pilot {
             loop {
                 match reader.read_any_message::<MavMessage>() {
                     Ok((h, m)) => {
-                        if !pass_on(h, m, target, &plane, into, tx) {
+                        if pass_on(h, m, target, &plane, into, tx) == Passed::Gone {
                             return;
                         }
                     }
@@ -207,7 +269,7 @@ impl Pilot {
                 };
                 let mut datagram = mavlink::MavlinkReader::new(&buffer[..n]);
                 while let Ok((h, m)) = datagram.read_any_message::<MavMessage>() {
-                    if !pass_on(h, m, target, &plane, into, tx) {
+                    if pass_on(h, m, target, &plane, into, tx) == Passed::Gone {
                         return;
                     }
                 }
@@ -241,7 +303,43 @@ impl Pilot {
             row_clock: None,
             row_offset_s: 0.0,
             pace: None,
+            gate: None,
+            asked_ms: None,
         })
+    }
+
+    /// A pilot in lockstep for the autopilot `target`, positions mapped into `plane`: no
+    /// socket and no reader thread of its own; savsim's physics loop hands it what the
+    /// autopilot said through the returned [`PilotInbox`] and sends what it queues.
+    pub fn lockstep(target: SenderId, plane: LocalTangentPlane) -> (Pilot, PilotInbox) {
+        let heard = std::sync::Arc::new(std::sync::Mutex::new(Heard::default()));
+        let (tx, news) = std::sync::mpsc::sync_channel(crate::session::HELD_ESTIMATES * 8);
+        let gate = std::sync::Arc::new(crate::lockstep::gate::Gate::default());
+        let outgoing = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let pilot = Pilot {
+            wire: Wire::Queue(outgoing.clone()),
+            outbox: Outbox::new(PILOT),
+            target,
+            news,
+            heard: heard.clone(),
+            fix: None,
+            last_heartbeat_ms: None,
+            silence_limit: Duration::from_secs(30),
+            row_clock: None,
+            row_offset_s: 0.0,
+            pace: None,
+            gate: Some((gate.clone(), 0)),
+            asked_ms: None,
+        };
+        let inbox = PilotInbox {
+            target,
+            plane,
+            heard,
+            tx,
+            gate,
+            outgoing,
+        };
+        (pilot, inbox)
     }
 
     /// The autopilot's mode and whether it is armed, at its last heartbeat.
@@ -263,6 +361,12 @@ impl Pilot {
         let sent = match &mut self.wire {
             Wire::Tcp(stream) => stream.write_all(&bytes),
             Wire::Udp(socket, to) => socket.send_to(&bytes, *to).map(|_| ()),
+            Wire::Queue(queue) => {
+                if let Ok(mut q) = queue.lock() {
+                    q.push(bytes);
+                }
+                Ok(())
+            }
         };
         sent.map_err(|e| PilotError::Send(e.to_string()))
     }
@@ -294,7 +398,7 @@ impl Pilot {
             if stop() {
                 return Ok(None);
             }
-            match self.news.recv_timeout(Duration::from_millis(50)) {
+            match self.recv_news(Duration::from_millis(50)) {
                 Ok(News::Fix(mut fix)) => {
                     if let Some(clock) = &self.row_clock {
                         // Before the row's first vehicle is heard its clock is at its start.
@@ -311,7 +415,20 @@ impl Pilot {
                     started = Instant::now();
                     self.keep_pace()?;
                 }
+                // Lockstep: positions asked for on the row's clock, once a second until one
+                // comes.
+                Ok(News::Tick(ms)) => {
+                    started = Instant::now();
+                    if self.fix.is_none()
+                        && self.asked_ms.is_none_or(|a| ms.wrapping_sub(a) >= 1000)
+                    {
+                        self.asked_ms = Some(ms);
+                        self.ask_positions()?;
+                    }
+                }
                 Err(RecvTimeoutError::Timeout) => {}
+                // The link is gone: the end of the row if it was stopped, else silence.
+                Err(RecvTimeoutError::Disconnected) if stop() => return Ok(None),
                 Err(RecvTimeoutError::Disconnected) => {
                     return Err(PilotError::Silent {
                         silent_s: started.elapsed().as_secs_f64(),
@@ -323,12 +440,36 @@ impl Pilot {
                     silent_s: started.elapsed().as_secs_f64(),
                 });
             }
-            if self.fix.is_none() && asked.elapsed() > Duration::from_secs(1) {
+            if self.gate.is_none() && self.fix.is_none() && asked.elapsed() > Duration::from_secs(1)
+            {
                 // Before the first position: keep asking for them, once a wall second.
                 asked = Instant::now();
                 self.ask_positions()?;
             }
         }
+    }
+
+    /// The next news within `wait`. In lockstep, the physics loop is told first when none is
+    /// waiting, so that it moves the autopilot's clock on only once the pilot has acted on
+    /// everything it was handed.
+    fn recv_news(&mut self, wait: Duration) -> Result<News, RecvTimeoutError> {
+        if let Some((gate, consumed)) = &mut self.gate {
+            match self.news.try_recv() {
+                Ok(news) => {
+                    *consumed += 1;
+                    return Ok(news);
+                }
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    return Err(RecvTimeoutError::Disconnected)
+                }
+                Err(std::sync::mpsc::TryRecvError::Empty) => gate.idle(*consumed),
+            }
+        }
+        let news = self.news.recv_timeout(wait)?;
+        if let Some((_, consumed)) = &mut self.gate {
+            *consumed += 1;
+        }
+        Ok(news)
     }
 
     /// Ask for positions at [`POSITION_HZ`] and for AUTOPILOT_VERSION; send a heartbeat.
@@ -446,8 +587,19 @@ fn is_timeout(e: &std::io::Error) -> bool {
     )
 }
 
+/// What [`pass_on`] did with a message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Passed {
+    /// Not from the target: ignored.
+    Ignored,
+    /// Kept, and news of it sent.
+    Sent,
+    /// The pilot is gone.
+    Gone,
+}
+
 /// One message from the autopilot's link: from `target` into `heard`, positions (in `plane`)
-/// also to `tx`. False when the pilot is gone.
+/// also to `tx`.
 fn pass_on(
     header: mavlink::MavHeader,
     message: MavMessage,
@@ -455,9 +607,9 @@ fn pass_on(
     plane: &LocalTangentPlane,
     heard: &std::sync::Mutex<Heard>,
     tx: &std::sync::mpsc::SyncSender<News>,
-) -> bool {
+) -> Passed {
     if header.system_id != u32::from(target.system_id) {
-        return true;
+        return Passed::Ignored;
     }
     let clock_ms = match &message {
         MavMessage::GLOBAL_POSITION_INT(p) => Some(p.time_boot_ms),
@@ -501,5 +653,8 @@ fn pass_on(
             News::Other
         }
     };
-    tx.send(news).is_ok()
+    match tx.send(news) {
+        Ok(()) => Passed::Sent,
+        Err(_) => Passed::Gone,
+    }
 }

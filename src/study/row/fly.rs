@@ -3,7 +3,7 @@
 
 use super::check::{check, Checked, Flier};
 use super::ids::autopilot_id;
-use super::record::{record, record_clocks, record_other, FlownBy};
+use super::record::{record, record_clocks, record_live, record_other, FlownBy};
 use super::session::{record_to, scene_for, session_for, SessionThread};
 use super::vehicles::{connect_pilot, start_vehicles, Vehicle};
 use super::{RowError, Setup, FEED_HZ, MAX_CLOCK_SKEW_S};
@@ -95,16 +95,17 @@ pub(super) fn fly_row(
     if cut_short {
         return Err(wall_limit_error(&flown, started, wall_limit, &checked));
     }
+    let mut run = run;
     for ((by, flier), id) in flown_all.zip(&checked.others).zip(&ids[1..]) {
-        record_other(result, &run, *id, &by, flier);
+        record_other(result, &run.session, *id, &by, flier);
     }
-    record_clocks(result, &run);
+    record_clocks(result, &run.session);
+    record_live(result, &mut run)?;
     record(
         result,
         &dir,
-        run,
-        &flown,
-        &heard,
+        &mut run.session,
+        (&flown, &heard),
         checked.own.px4,
         checked.own.legs.len(),
     )?;

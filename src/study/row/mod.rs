@@ -7,6 +7,7 @@
 mod check;
 mod fly;
 pub mod ids;
+mod lockstep;
 mod record;
 mod session;
 mod vehicles;
@@ -138,6 +139,9 @@ pub enum RowError {
     /// A signal stopped the study.
     #[error("savsim: stopped by a signal")]
     Stopped,
+    /// A lockstep row's physics port.
+    #[error("savsim: physics port: {0}")]
+    PhysicsPort(#[from] crate::lockstep::port::PortError),
     /// The clocks of the row's vehicles drifted apart by more than [`MAX_CLOCK_SKEW_S`]:
     /// where each was at a given moment is not known well enough.
     #[error(
@@ -227,7 +231,14 @@ pub fn run_row(index: usize, row: &StudyRow, instance: u16, setup: &Setup) -> St
     let started = Instant::now();
     let mut result = StudyResult::of_inputs(index, row);
     let flown = std::panic::catch_unwind(AssertUnwindSafe(|| {
-        fly_row(row, instance, setup, &mut result)
+        match row.physics.as_deref().map(str::trim) {
+            None | Some("" | "autopilot") => fly_row(row, instance, setup, &mut result),
+            Some("savsim") => lockstep::fly_lockstep_row(row, instance, setup, &mut result),
+            Some(other) => Err(input(
+                "physics",
+                format!("{other:?}: give autopilot or savsim"),
+            )),
+        }
     }));
     let error = match flown {
         Ok(Ok(())) => None,

@@ -10,6 +10,7 @@ pub(super) type FlownBy = (Flown, Heard, f64);
 
 use crate::codec::notes::{arducopter_mode_name, px4_mode_name};
 use crate::live::LiveRun;
+use crate::session::Session;
 use crate::study::pilot::fly::Flown;
 use crate::study::pilot::heard::Heard;
 use crate::study::pilot::mode;
@@ -20,14 +21,14 @@ use crate::world::SenderId;
 /// clock less its own).
 pub(super) fn record_other(
     result: &mut StudyResult,
-    run: &LiveRun,
+    session: &Session,
     id: SenderId,
     (flown, heard, offset_s): &FlownBy,
     flier: &Flier,
 ) {
     let mut did = did(heard, flown, flier.px4);
     did.first_acted_t_s = did.first_acted_t_s.map(|t| t + offset_s);
-    let seen = run.session.world().seen.get(&id);
+    let seen = session.world().seen.get(&id);
     result.others.push(VehicleResult {
         role: crate::study::result::role(result.others.len() + 1),
         system_id: id.system_id,
@@ -38,16 +39,17 @@ pub(super) fn record_other(
         did,
         clock_speedup: seen.map_or(0.0, |s| s.clock_speedup),
         clock_skew_s: seen.map_or(0.0, |s| s.clock_skew_s),
+        estimate: None,
     });
 }
 
 /// In a row of several: the first vehicle's clock's speedup, and the largest skew of another's
 /// from it.
-pub(super) fn record_clocks(result: &mut StudyResult, run: &LiveRun) {
+pub(super) fn record_clocks(result: &mut StudyResult, session: &Session) {
     if result.others.is_empty() {
         return;
     }
-    let world = run.session.world();
+    let world = session.world();
     result.clock_speedup = world
         .timeline_reference()
         .and_then(|r| world.seen.get(&r))
@@ -59,22 +61,26 @@ pub(super) fn record_clocks(result: &mut StudyResult, run: &LiveRun) {
         .reduce(f64::max);
 }
 
+/// What a live run adds to a row: its ending and the feed's latency.
+pub(super) fn record_live(result: &mut StudyResult, run: &mut LiveRun) -> Result<(), RowError> {
+    std::mem::replace(&mut run.ended, Ok(()))?;
+    let feed_latency = run.report.feed.as_ref().and_then(|f| f.latency);
+    result.feed_latency_p99_us = feed_latency.map(|l| l.p99_us);
+    result.feed_latency_max_us = feed_latency.map(|l| l.max_us);
+    Ok(())
+}
+
 /// Fill in what the session measured and what the autopilot did.
 pub(super) fn record(
     result: &mut StudyResult,
     dir: &Path,
-    mut run: LiveRun,
-    flown: &Flown,
-    heard: &Heard,
+    session: &mut Session,
+    (flown, heard): (&Flown, &Heard),
     px4: bool,
     legs: usize,
 ) -> Result<(), RowError> {
-    run.ended?;
-    let feed_latency = run.report.feed.as_ref().and_then(|f| f.latency);
-    result.feed_latency_p99_us = feed_latency.map(|l| l.p99_us);
-    result.feed_latency_max_us = feed_latency.map(|l| l.max_us);
-    run.session.finish()?;
-    let session = &run.session;
+    session.finish()?;
+    let session = &*session;
     // The session's own summary beside SITL's files (kept with --keep-work).
     let _ = crate::session::write_json_atomic(
         &dir.join("summary.json"),

@@ -11,6 +11,8 @@ use super::GRAVITY_MPS2;
 
 /// The shortest and longest step, seconds.
 pub const STEP_RANGE_S: (f64, f64) = (0.0005, 0.02);
+/// An IMU's accelerometer range, m/s^2 (16 g).
+pub const IMU_RANGE_MPS2: f64 = 16.0 * GRAVITY_MPS2;
 /// Body rates are held within this, rad/s (2000 degrees a second, an IMU's range).
 pub const MAX_RATE_RADPS: f64 = 2000.0 * std::f64::consts::PI / 180.0;
 
@@ -34,8 +36,9 @@ pub enum StepError {
 
 /// Move `body` of `frame` on by `dt_s`, its rotors driven by `outputs` (0..1 by output number;
 /// `armed`: an armed rotor turns at least at its idle), in `air`, among `surroundings`. What
-/// its IMU reads over the step (the ground's and the obstacles' reaction not in it, as
-/// ArduPilot's SITL reads it: a vehicle that lands hard reads the impact at the next step).
+/// its IMU reads over the step: the ground's reaction not in it, as ArduPilot's SITL reads it
+/// (a vehicle that lands hard reads the impact at the next step); an obstacle's blow in it,
+/// within the IMU's range ([`IMU_RANGE_MPS2`]).
 ///
 /// ```
 /// use savsim_core::dynamics::{presets::preset, step, Air, Body, FlatGround};
@@ -97,13 +100,18 @@ pub fn step(
     if body.on_ground && accel_ned.z > 0.0 {
         accel_ned.z = 0.0;
     }
-    let imu = Imu {
+    let mut imu = Imu {
         accel_frd_mps2: frd_from_ned * (accel_ned - gravity),
         gyro_frd_radps: next.rates_frd_radps,
     };
     next.velocity_ned_mps = body.velocity_ned_mps + accel_ned * dt_s;
     next.position_ned_m = body.position_ned_m + next.velocity_ned_mps * dt_s;
+    let flying_mps = next.velocity_ned_mps;
     stop_at_obstacles(frame, body, &mut next, surroundings);
+    // The obstacle's blow is felt: the velocity it took, over the step, within the IMU's range.
+    let blow_ned = (next.velocity_ned_mps - flying_mps) / dt_s;
+    imu.accel_frd_mps2 = (imu.accel_frd_mps2 + frd_from_ned * blow_ned)
+        .clamp(DVec3::splat(-IMU_RANGE_MPS2), DVec3::splat(IMU_RANGE_MPS2));
     rest_on_ground(frame, &mut next, surroundings);
     if !(next.is_finite() && imu.accel_frd_mps2.is_finite()) {
         return Err(StepError::NotFinite);

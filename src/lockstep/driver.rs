@@ -1,0 +1,380 @@
+//! savsim's physics loop: every autopilot of a run waits for savsim's clock. At each step it
+//! takes every autopilot's servo packet, hands what each said to the session and to its pilot,
+//! waits for the pilots to act, moves every vehicle one step with its outputs, gives the world
+//! the truth, sends the feed and the pilots' commands, and only then answers each autopilot
+//! with its new state. What any autopilot receives therefore depends on the clock alone.
+
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
+use savsim_core::dynamics::StepError;
+
+use super::estimates::EstimateErrors;
+use super::json::{write_reply, JsonClock, ServoPacket};
+use super::port::{JsonPort, MavPort, PortError, Servo};
+use super::surroundings::SceneSurroundings;
+use super::vehicle::SimVehicle;
+use crate::codec::frame::{scan, Scan};
+use crate::codec::outbox::{gcs_heartbeat, Outbox};
+use crate::geo::LocalTangentPlane;
+use crate::pipeline::{BodySource, CollisionConfig, Mode, Pipeline};
+use crate::scene::Scene;
+use crate::session::Session;
+use crate::study::pilot::PilotInbox;
+use crate::world::SenderId;
+
+/// savsim's identity as the ground station of its session's ports (as `live`'s).
+const GCS: SenderId = SenderId {
+    system_id: 245,
+    component_id: 190,
+};
+
+/// How a lockstep run steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopConfig {
+    /// The physics step, microseconds.
+    pub step_us: u64,
+    /// The world is given the truth (and the feed is cast) every this many microseconds.
+    pub truth_every_us: u64,
+    /// Run no faster than this many times real time (None: as fast as the autopilots go).
+    pub real_time: Option<f64>,
+    /// An autopilot that sends no servo packet for this long (wall time) has hung or died.
+    pub silence: Duration,
+    /// End at this time of the clock, microseconds (None: when stopped).
+    pub end_us: Option<u64>,
+    /// End at the first collision the session reports.
+    pub stop_on_collision: bool,
+}
+
+/// Why a lockstep run ended short.
+#[derive(Debug, thiserror::Error)]
+pub enum LoopError {
+    /// An autopilot's physics port.
+    #[error("{vehicle}: {source}")]
+    Port {
+        /// The vehicle.
+        vehicle: SenderId,
+        /// What happened.
+        source: PortError,
+    },
+    /// A vehicle's dynamics refused a step.
+    #[error("{vehicle}: dynamics: {source}")]
+    Step {
+        /// The vehicle.
+        vehicle: SenderId,
+        /// Why.
+        source: StepError,
+    },
+    /// A pilot did not act on its news.
+    #[error("{vehicle}: {source}")]
+    Pilot {
+        /// The vehicle.
+        vehicle: SenderId,
+        /// Why.
+        source: super::gate::Stuck,
+    },
+    /// The session.
+    #[error("{0}")]
+    Session(#[from] crate::error::Error),
+    /// A MAVLink port.
+    #[error("{vehicle}: MAVLink port: {source}")]
+    Mav {
+        /// The vehicle.
+        vehicle: SenderId,
+        /// What the system said.
+        source: std::io::Error,
+    },
+}
+
+/// One autopilot in the loop.
+pub struct Lockstepped {
+    /// The vehicle savsim flies for it.
+    pub vehicle: SimVehicle,
+    /// Its physics port.
+    pub json: JsonPort,
+    /// Its SERIAL0 (the session's port: its estimate in, the feed out).
+    pub serial0: MavPort,
+    /// Its pilot's port and the pilot's inbox, when a pilot flies it.
+    pub pilot: Option<(MavPort, PilotInbox)>,
+    /// Its estimate against the truth.
+    pub estimates: EstimateErrors,
+    outputs: [f64; 32],
+    clock: JsonClock,
+    reply: String,
+    asked: bool,
+    gcs: Outbox,
+}
+
+impl Lockstepped {
+    /// `vehicle` on its ports.
+    pub fn new(vehicle: SimVehicle, json: JsonPort, serial0: MavPort) -> Self {
+        Lockstepped {
+            vehicle,
+            json,
+            serial0,
+            pilot: None,
+            estimates: EstimateErrors::default(),
+            outputs: [0.0; 32],
+            clock: JsonClock::default(),
+            reply: String::new(),
+            asked: false,
+            gcs: Outbox::new(GCS),
+        }
+    }
+
+    /// Wait for its next servo packet (answering a re-sent one again), and take its outputs.
+    fn take_outputs(&mut self, silence: Duration) -> Result<(), PortError> {
+        loop {
+            match self.json.recv(silence)? {
+                Servo::New(packet) => {
+                    self.set_outputs(&packet);
+                    return Ok(());
+                }
+                Servo::Repeat => self.json.reply(&self.reply)?,
+            }
+        }
+    }
+
+    fn set_outputs(&mut self, packet: &ServoPacket) {
+        let frame = &self.vehicle.frame;
+        for (out, pwm) in self.outputs.iter_mut().zip(packet.pwm_us) {
+            *out = frame.command_from_pwm_us(f64::from(pwm));
+        }
+    }
+}
+
+/// How a lockstep run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ended {
+    /// Its clock reached the end.
+    Time,
+    /// The caller stopped it.
+    Stopped,
+    /// A vehicle collided ([`LoopConfig::stop_on_collision`]).
+    Collision,
+}
+
+/// Run `vehicles` over `scene` in lockstep through `session` until the end of `config`'s
+/// clock or `stop` (asked once a step). The clock's time reached, microseconds, and how it
+/// ended; each vehicle is left as it was at the end.
+pub fn run(
+    vehicles: &mut [Lockstepped],
+    scene: &Scene,
+    session: &mut Session,
+    config: &LoopConfig,
+    stop: &dyn Fn(u64) -> bool,
+) -> Result<(u64, Ended), LoopError> {
+    let plane = LocalTangentPlane::new(scene.origin);
+    // One pipeline of exact shapes per vehicle for its rays.
+    let mut pipelines: Vec<Pipeline> = vehicles
+        .iter()
+        .map(|_| {
+            Pipeline::new(
+                scene,
+                CollisionConfig {
+                    mode: Mode::Exact,
+                    ..CollisionConfig::default()
+                },
+            )
+        })
+        .collect();
+    let mut feed = Outbox::new(crate::live::FEED_FROM);
+    let (mut time_us, started) = (0u64, Instant::now());
+    loop {
+        if config.end_us.is_some_and(|end| time_us >= end) {
+            return Ok((time_us, Ended::Time));
+        }
+        if stop(time_us) {
+            return Ok((time_us, Ended::Stopped));
+        }
+        let collided = session
+            .pipeline()
+            .is_some_and(|p| p.totals().collisions > 0);
+        if config.stop_on_collision && collided {
+            return Ok((time_us, Ended::Collision));
+        }
+        for v in vehicles.iter_mut() {
+            let vehicle = v.vehicle.id;
+            v.take_outputs(config.silence)
+                .map_err(|source| LoopError::Port { vehicle, source })?;
+        }
+        let t_s = time_us as f64 / 1e6;
+        for v in vehicles.iter_mut() {
+            hear(v, session, t_s, time_us)?;
+        }
+        for (id, estimate) in session.drain_estimates() {
+            if let Some(v) = vehicles.iter_mut().find(|v| v.vehicle.id == id) {
+                let enu = plane.enu_m_from_geodetic(&estimate.position);
+                v.estimates.estimate(estimate.time_boot_ms, enu);
+            }
+        }
+        for v in vehicles.iter_mut() {
+            pilots_act(v, config)?;
+        }
+        time_us += config.step_us;
+        for (v, pipeline) in vehicles.iter_mut().zip(&mut pipelines) {
+            advance(v, scene, pipeline, config.step_us)?;
+            v.estimates.truth(time_us, v.vehicle.position_enu_m());
+        }
+        if time_us.is_multiple_of(config.truth_every_us) {
+            tell_world(vehicles, session, &plane, time_us, &mut feed)?;
+        }
+        for v in vehicles.iter_mut() {
+            let t = v.clock.timestamp_for(time_us);
+            write_reply(&mut v.reply, t, &v.vehicle.body, &v.vehicle.imu, &[]);
+            let vehicle = v.vehicle.id;
+            v.json
+                .reply(&v.reply)
+                .map_err(|source| LoopError::Port { vehicle, source })?;
+        }
+        if let Some(speed) = config.real_time {
+            let due = Duration::from_secs_f64(time_us as f64 / 1e6 / speed);
+            if let Some(wait) = due.checked_sub(started.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
+    }
+}
+
+/// What `v`'s autopilot sent since the last step: SERIAL0's frames to the session (its
+/// positions kept as its estimate), the pilot's port to the pilot; a second of the clock told
+/// to the pilot.
+fn hear(
+    v: &mut Lockstepped,
+    session: &mut Session,
+    t_s: f64,
+    time_us: u64,
+) -> Result<(), LoopError> {
+    let vehicle = v.vehicle.id;
+    let mav = |source| LoopError::Mav { vehicle, source };
+    let mut result = Ok(());
+    v.serial0
+        .drain(|datagram| {
+            let mut bytes = datagram;
+            loop {
+                match scan(bytes) {
+                    Scan::Frame(frame) => {
+                        if result.is_ok() {
+                            result = session.on_frame(t_s, &frame);
+                        }
+                        bytes = &bytes[frame.len..];
+                    }
+                    Scan::Garbage(n) => bytes = &bytes[n..],
+                    Scan::Incomplete => break,
+                }
+            }
+        })
+        .map_err(mav)?;
+    result?;
+    if let Some((port, inbox)) = &mut v.pilot {
+        port.drain(|datagram| {
+            inbox.take_datagram(datagram);
+        })
+        .map_err(mav)?;
+        if time_us.is_multiple_of(1_000_000) {
+            inbox.tick((time_us / 1000) as u32);
+        }
+    }
+    Ok(())
+}
+
+/// Wait for `v`'s pilot to act on what it was handed, and send what it sent.
+fn pilots_act(v: &mut Lockstepped, config: &LoopConfig) -> Result<(), LoopError> {
+    let vehicle = v.vehicle.id;
+    let Some((port, inbox)) = &mut v.pilot else {
+        return Ok(());
+    };
+    inbox
+        .gate
+        .wait_idle(config.silence)
+        .map_err(|source| LoopError::Pilot { vehicle, source })?;
+    for bytes in inbox.take_outgoing() {
+        port.send(&bytes)
+            .map_err(|source| LoopError::Mav { vehicle, source })?;
+    }
+    Ok(())
+}
+
+/// One step of `v`'s dynamics among the scene's obstacles.
+fn advance(
+    v: &mut Lockstepped,
+    scene: &Scene,
+    pipeline: &mut Pipeline,
+    step_us: u64,
+) -> Result<(), LoopError> {
+    let id = v.vehicle.id;
+    let own = BodySource::Vehicle {
+        vehicle: u16::from(id.system_id),
+        component_id: id.component_id,
+    };
+    let surroundings = SceneSurroundings::new(scene, pipeline, v.vehicle.home_enu_m, own);
+    let outputs = v.outputs;
+    v.vehicle
+        .advance(&outputs, true, &surroundings, step_us as f64 / 1e6)
+        .map_err(|source| LoopError::Step {
+            vehicle: id,
+            source,
+        })
+}
+
+/// Give the world every vehicle's truth at `time_us`, and send the feed it casts; once a
+/// second, savsim's heartbeats, and its request for each autopilot's position (its estimate).
+fn tell_world(
+    vehicles: &mut [Lockstepped],
+    session: &mut Session,
+    plane: &LocalTangentPlane,
+    time_us: u64,
+    feed: &mut Outbox,
+) -> Result<(), LoopError> {
+    let (t_s, time_ms) = (time_us as f64 / 1e6, (time_us / 1000) as u32);
+    for v in vehicles.iter() {
+        for report in v.vehicle.reports(plane, time_ms) {
+            session.on_report(t_s, v.vehicle.id, &report)?;
+        }
+    }
+    let second = time_us.is_multiple_of(1_000_000);
+    for m in session.drain_feed() {
+        if let Some(v) = vehicles.iter().find(|v| v.vehicle.id == m.to) {
+            let bytes = feed.encode(&m.message);
+            send(v, &bytes)?;
+        }
+    }
+    if !second {
+        return Ok(());
+    }
+    for v in vehicles.iter_mut() {
+        if !v.serial0.heard() {
+            continue;
+        }
+        let beat = feed.encode(&crate::feed::wire::heartbeat());
+        send(v, &beat)?;
+        let mut gcs = std::mem::replace(&mut v.gcs, Outbox::new(GCS));
+        send(v, &gcs.encode(&gcs_heartbeat()))?;
+        if !v.asked {
+            v.asked = true;
+            let ask = ask_positions(v.vehicle.id);
+            send(v, &gcs.encode(&ask))?;
+        }
+        v.gcs = gcs;
+    }
+    Ok(())
+}
+
+fn send(v: &Lockstepped, bytes: &[u8]) -> Result<(), LoopError> {
+    v.serial0.send(bytes).map_err(|source| LoopError::Mav {
+        vehicle: v.vehicle.id,
+        source,
+    })
+}
+
+/// SET_MESSAGE_INTERVAL: GLOBAL_POSITION_INT at 10 Hz (the estimate compared with the truth).
+fn ask_positions(to: SenderId) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: 33.0,
+        param2: 100_000.0,
+        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        target_system: to.system_id,
+        target_component: to.component_id,
+        ..COMMAND_LONG_DATA::default()
+    })
+}

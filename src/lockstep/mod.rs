@@ -1,0 +1,19 @@
+//! Lockstep: savsim flies the vehicles and every autopilot waits for savsim's clock
+//! (docs/lockstep.md).
+//!
+//! - [`json`]: ArduPilot SITL's JSON physics backend as bytes (servo packets in, state out),
+//!   and its clock mirrored;
+//! - [`port`]: an autopilot's sockets (its physics port, its MAVLink ports);
+//! - [`vehicle`]: a vehicle flown by the core's dynamics, and its truth for the world;
+//! - [`surroundings`]: the scene's ground and obstacles as the dynamics ask for them;
+//! - [`gate`]: the turn-taking with a pilot thread;
+//! - [`estimates`]: an autopilot's estimate against the truth;
+//! - [`driver`]: the loop.
+
+pub mod driver;
+pub mod estimates;
+pub mod gate;
+pub mod json;
+pub mod port;
+pub mod surroundings;
+pub mod vehicle;

@@ -1,0 +1,397 @@
+//! A row flown in lockstep (`physics = savsim`): savsim's dynamics fly every vehicle, each
+//! autopilot (ArduCopter through its JSON backend) waits for savsim's clock, the pilots fly
+//! their plans on that clock, and the world gets the truth with no network between.
+
+use super::check::{check, Checked, Flier};
+use super::fly::{fly_vehicle, wall_limit_error};
+use super::ids::INSTANCE_OFFSET;
+use super::record::{record, record_other, FlownBy};
+use super::session::{home_of, record_to, scene_for, session_for};
+use super::{input, RowError, Setup, FEED_HZ};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use savsim_core::dynamics::presets::{preset, PRESETS};
+use savsim_core::dynamics::step::STEP_RANGE_S;
+use savsim_core::dynamics::Frame;
+
+use crate::geo::LocalTangentPlane;
+use crate::lockstep::driver::{run, Lockstepped, LoopConfig};
+use crate::lockstep::port::{json_port, JsonPort, MavPort};
+use crate::lockstep::vehicle::SimVehicle;
+use crate::scene::Scene;
+use crate::study::manifest::StudyRow;
+use crate::study::pilot::{Pilot, PilotError};
+use crate::study::result::StudyResult;
+use crate::study::sitl::{Sitl, Start};
+use crate::world::SenderId;
+
+/// The most vehicles a lockstep row may fly.
+pub const MAX_LOCKSTEP_VEHICLES: usize = 32;
+/// The physics step when a row names none, milliseconds.
+pub const DEFAULT_STEP_MS: f64 = 2.5;
+/// The frame when a row names none.
+pub const DEFAULT_FRAME: &str = "arducopter-quad";
+
+/// A lockstep row's physics columns, checked.
+struct Physics {
+    frame: Frame,
+    frame_name: String,
+    step_us: u64,
+    wind_ned_mps: DVec3,
+}
+
+fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError> {
+    let fliers = 1 + checked.others.len();
+    if fliers > MAX_LOCKSTEP_VEHICLES {
+        return Err(input(
+            "intruder_autopilot",
+            format!("{fliers} vehicles: a lockstep row flies at most {MAX_LOCKSTEP_VEHICLES}"),
+        ));
+    }
+    if std::iter::once(&checked.own)
+        .chain(&checked.others)
+        .any(|f| f.px4)
+    {
+        return Err(input(
+            "physics",
+            "savsim: lockstep flies ArduCopter only (PX4 flies its own physics: `autopilot`)",
+        ));
+    }
+    let frame_name = row.frame.clone().unwrap_or_else(|| DEFAULT_FRAME.into());
+    let frame = frame_named(&frame_name)?;
+    let step_ms = row.step_ms.unwrap_or(DEFAULT_STEP_MS);
+    let step_us = (step_ms * 1000.0).round();
+    let (lo, hi) = (STEP_RANGE_S.0 * 1e3, STEP_RANGE_S.1 * 1e3);
+    if !(lo..=hi).contains(&step_ms) || (step_us - step_ms * 1000.0).abs() > 1e-6 {
+        return Err(input(
+            "step_ms",
+            format!("{step_ms}: give {lo} to {hi} ms in whole microseconds"),
+        ));
+    }
+    let wind_ned_mps = match row.wind.as_deref().filter(|w| !w.trim().is_empty()) {
+        None => DVec3::ZERO,
+        Some(text) => parse_wind(text).ok_or_else(|| {
+            input(
+                "wind",
+                format!("{text:?}: give `E N U` m/s, each within 100"),
+            )
+        })?,
+    };
+    Ok(Physics {
+        frame,
+        frame_name,
+        step_us: step_us as u64,
+        wind_ned_mps,
+    })
+}
+
+/// A preset's frame, or one read from a TOML file.
+fn frame_named(name: &str) -> Result<Frame, RowError> {
+    if let Some(frame) = preset(name) {
+        return Ok(frame);
+    }
+    if !name.ends_with(".toml") {
+        return Err(input(
+            "frame",
+            format!(
+                "{name:?}: give a preset ({}) or a .toml file",
+                PRESETS.join(", ")
+            ),
+        ));
+    }
+    let text = std::fs::read_to_string(name).map_err(|e| input("frame", format!("{name}: {e}")))?;
+    Frame::from_toml(&text).map_err(|e| input("frame", format!("{name}: {e}")))
+}
+
+/// `E N U` m/s (scene frame) as NED.
+fn parse_wind(text: &str) -> Option<DVec3> {
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .ok()?;
+    let [e, n, u] = <[f64; 3]>::try_from(v).ok()?;
+    [e, n, u]
+        .iter()
+        .all(|c| c.is_finite() && c.abs() <= 100.0)
+        .then_some(DVec3::new(n, e, -u))
+}
+
+/// The system id of a lockstep row's vehicle `k` (from 0): `k + 1`.
+fn lockstep_id(k: usize) -> SenderId {
+    SenderId {
+        system_id: (k + 1) as u8,
+        component_id: 1,
+    }
+}
+
+/// One vehicle of a lockstep row, started: its SITL, its place in the loop, its pilot.
+struct Started {
+    sitl: Sitl,
+    lockstepped: Lockstepped,
+    pilot: Pilot,
+}
+
+fn start_vehicle(
+    setup: &Setup,
+    (flier, k, instance): (&Flier, usize, u16),
+    physics: &Physics,
+    (scene, plane, dir): (&Scene, LocalTangentPlane, &Path),
+) -> Result<Started, RowError> {
+    let arducopter = setup.arducopter.as_ref().ok_or(RowError::NoAutopilot {
+        autopilot: "ArduCopter",
+        flag: "arducopter",
+        variable: "SAVSIM_ARDUCOPTER",
+    })?;
+    let id = lockstep_id(k);
+    let folder = |source| RowError::Folder {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let json = JsonPort::bind(json_port(instance))?;
+    let serial0 = MavPort::bind().map_err(folder)?;
+    let pilot_port = MavPort::bind().map_err(folder)?;
+    let mut params = flier.params.clone();
+    params.retain(|(name, _)| name != "SYSID_THISMAV");
+    params.push(("SYSID_THISMAV".into(), f64::from(id.system_id)));
+    match physics.frame_name.as_str() {
+        "arducopter-quad" => params.push(("FRAME_TYPE".into(), 0.0)),
+        "arducopter-quad-x" => params.push(("FRAME_TYPE".into(), 1.0)),
+        _ => {}
+    }
+    let home = home_of(scene, flier.home_en_m);
+    let home_enu_m = plane.enu_m_from_geodetic(&home);
+    let serial0_address = format!("udpclient:127.0.0.1:{}", serial0.port());
+    let start = Start {
+        instance,
+        home,
+        home_yaw_deg: 0.0,
+        speedup: 1.0,
+        serial0: &serial0_address,
+        params: &params,
+        dir,
+    };
+    let sitl = arducopter
+        .start_lockstep(
+            &start,
+            &format!("udpclient:127.0.0.1:{}", pilot_port.port()),
+        )
+        .map_err(|source| RowError::SitlStart {
+            binary: arducopter.binary.clone(),
+            source,
+        })?;
+    let vehicle = SimVehicle::landed(
+        id,
+        physics.frame.clone(),
+        (home, home_enu_m),
+        0.0,
+        physics.wind_ned_mps,
+    );
+    let (pilot, inbox) = Pilot::lockstep(id, plane);
+    let mut lockstepped = Lockstepped::new(vehicle, json, serial0);
+    lockstepped.pilot = Some((pilot_port, inbox));
+    Ok(Started {
+        sitl,
+        lockstepped,
+        pilot,
+    })
+}
+
+/// Fly `row` in lockstep on SITL instances from `instance` (vehicle `k` on `instance + k x
+/// INSTANCE_OFFSET`).
+pub(super) fn fly_lockstep_row(
+    row: &StudyRow,
+    instance: u16,
+    setup: &Setup,
+    result: &mut StudyResult,
+) -> Result<(), RowError> {
+    let checked = check(row, setup.speedup)?;
+    let physics = check_physics(row, &checked)?;
+    result.frame = Some(physics.frame_name.clone());
+    result.step_ms = Some(physics.step_us as f64 / 1000.0);
+    result.speedup = 0.0;
+    let scene = scene_for(row, &checked, setup)?;
+    let fliers: Vec<&Flier> = std::iter::once(&checked.own)
+        .chain(&checked.others)
+        .collect();
+    let ids: Vec<SenderId> = (0..fliers.len()).map(lockstep_id).collect();
+    let mut session = session_for(row, result.sensor_seed, scene.clone(), checked.feed, ids[0])?;
+    session.set_truth_fed(ids.clone());
+    let dir = setup
+        .work
+        .join(crate::runs::row_name(result.index, &result.row_id));
+    if setup
+        .record_rows
+        .as_ref()
+        .is_some_and(|c| c.records(&result.row_id))
+    {
+        record_to(&mut session, &dir)?;
+    }
+    let plane = LocalTangentPlane::new(scene.origin);
+    let mut started = Vec::with_capacity(fliers.len());
+    for (k, flier) in fliers.iter().enumerate() {
+        let folder = match k {
+            0 => dir.clone(),
+            k => dir.join(format!("vehicle-{}", k + 1)),
+        };
+        let at = instance + k as u16 * INSTANCE_OFFSET;
+        started.push(start_vehicle(
+            setup,
+            (flier, k, at),
+            &physics,
+            (&scene, plane, &folder),
+        )?);
+    }
+    result.system_id = Some(ids[0].system_id);
+    let config = LoopConfig {
+        step_us: physics.step_us,
+        truth_every_us: (1e6 / FEED_HZ).round() as u64,
+        // As fast as the autopilots go: `speedup` is a pace for SITL's own physics.
+        real_time: None,
+        silence: Duration::from_secs(20),
+        end_us: Some(((checked.duration_s + 5.0) * 1e6) as u64),
+        stop_on_collision: checked.stop_on_collision,
+    };
+    let flown = fly_started(started, &checked, &config, setup, (&scene, &mut session));
+    let mut flights = flown.flights.into_iter();
+    let (own, heard, _) = flights.next().ok_or(RowError::NoVehicle)??;
+    if flown.wall_limited {
+        return Err(wall_limit_error(
+            &own,
+            flown.started,
+            flown.wall_limit,
+            &checked,
+        ));
+    }
+    for ((by, flier), id) in flights.zip(&checked.others).zip(&ids[1..]) {
+        record_other(result, &session, *id, &by?, flier);
+    }
+    for (other, e) in result.others.iter_mut().zip(flown.estimates.iter().skip(1)) {
+        other.estimate = Some(*e);
+    }
+    result.estimate = flown.estimates.first().copied();
+    result.clock_skew_s = (!result.others.is_empty()).then_some(0.0);
+    record(
+        result,
+        &dir,
+        &mut session,
+        (&own, &heard),
+        false,
+        checked.own.legs.len(),
+    )
+}
+
+/// What a lockstep row's loop and pilots did.
+struct LockstepFlown {
+    /// Each vehicle's flight, in order (the loop's error, or its SITL's end, for all when the
+    /// loop failed).
+    flights: Vec<Result<FlownBy, RowError>>,
+    /// Each vehicle's estimate against the truth.
+    estimates: Vec<crate::lockstep::estimates::ErrorStats>,
+    /// The row's wall-clock limit stopped it.
+    wall_limited: bool,
+    started: Instant,
+    wall_limit: Duration,
+}
+
+/// Run the loop on a thread of its own and every pilot on its own (the first on this one)
+/// until the first vehicle's plan or time is done, a collision ends the row, the caller stops,
+/// or the wall-clock limit passes; every SITL stopped.
+fn fly_started(
+    started: Vec<Started>,
+    checked: &Checked,
+    config: &LoopConfig,
+    setup: &Setup,
+    (scene, session): (&Scene, &mut crate::session::Session),
+) -> LockstepFlown {
+    let mut sitls = Vec::with_capacity(started.len());
+    let mut lockstepped = Vec::with_capacity(started.len());
+    let mut pilots = Vec::with_capacity(started.len());
+    for s in started {
+        sitls.push(s.sitl);
+        lockstepped.push(s.lockstepped);
+        pilots.push(s.pilot);
+    }
+    // Boot and the row's time, as fast as the machine goes, at worst 5x slower than real time.
+    let wall_limit = Duration::from_secs_f64(5.0 * checked.duration_s + 120.0);
+    let begun = Instant::now();
+    let (own_done, loop_done) = (AtomicBool::new(false), AtomicBool::new(false));
+    let wall_limited = AtomicBool::new(false);
+    let (ended, flights) = std::thread::scope(|scope| {
+        let physics = std::thread::Builder::new()
+            .name("savsim-lockstep".into())
+            .spawn_scoped(scope, || {
+                let stop = |_: u64| {
+                    let late = begun.elapsed() > wall_limit;
+                    wall_limited.store(late, Ordering::Relaxed);
+                    setup.stop.load(Ordering::Relaxed) || own_done.load(Ordering::Relaxed) || late
+                };
+                let ended = run(&mut lockstepped, scene, session, config, &stop);
+                loop_done.store(true, Ordering::Relaxed);
+                ended
+            });
+        let stop = || setup.stop.load(Ordering::Relaxed) || loop_done.load(Ordering::Relaxed);
+        let flights = fly_pilots(pilots, checked, &stop, &own_done);
+        let ended = match physics {
+            Ok(handle) => handle.join().map_err(|_| RowError::SessionThread),
+            Err(_) => Err(RowError::SessionThread),
+        };
+        (ended, flights)
+    });
+    let estimates = lockstepped.iter().map(|v| v.estimates.stats()).collect();
+    let failed = match ended {
+        Ok(Ok(_)) => None,
+        Ok(Err(e)) => Some(e.to_string()),
+        Err(e) => Some(e.to_string()),
+    };
+    let flights = flights
+        .into_iter()
+        .zip(&mut sitls)
+        .map(|(flight, sitl)| match (&failed, sitl.exited()) {
+            (Some(_), Some(status)) => Err(RowError::SitlEnded {
+                status,
+                log: sitl.log_tail(5),
+            }),
+            (Some(why), None) => Err(RowError::Savsim(crate::error::Error::Runtime(why.clone()))),
+            (None, _) => flight.map_err(RowError::Pilot),
+        })
+        .collect();
+    LockstepFlown {
+        flights,
+        estimates,
+        wall_limited: wall_limited.load(Ordering::Relaxed),
+        started: begun,
+        wall_limit,
+    }
+}
+
+/// Fly each pilot's plan, the others on threads of their own; the first's end tells the loop.
+fn fly_pilots(
+    pilots: Vec<Pilot>,
+    checked: &Checked,
+    stop: &(dyn Fn() -> bool + Sync),
+    own_done: &AtomicBool,
+) -> Vec<Result<FlownBy, PilotError>> {
+    let mut pilots = pilots.into_iter();
+    let Some(own) = pilots.next() else {
+        return Vec::new();
+    };
+    std::thread::scope(|scope| {
+        let others: Vec<_> = pilots
+            .zip(&checked.others)
+            .map(|(pilot, flier)| {
+                scope.spawn(move || fly_vehicle(pilot, flier, false, checked.duration_s, stop))
+            })
+            .collect();
+        let own = fly_vehicle(own, &checked.own, false, checked.duration_s, stop);
+        own_done.store(true, Ordering::Relaxed);
+        let joined = others.into_iter().map(|h| {
+            h.join()
+                .unwrap_or_else(|_| Err(PilotError::Send("a vehicle's pilot failed".into())))
+        });
+        std::iter::once(own).chain(joined).collect()
+    })
+}
