@@ -20,7 +20,6 @@ use crate::geo::LocalTangentPlane;
 use crate::pipeline::{BodySource, CollisionConfig, Mode, Pipeline};
 use crate::scene::Scene;
 use crate::session::Session;
-use crate::study::pilot::PilotInbox;
 use crate::world::SenderId;
 
 /// savsim's identity as the ground station of its session's ports (as `live`'s).
@@ -86,6 +85,20 @@ pub enum LoopError {
     },
 }
 
+/// Whoever acts on what an autopilot says on one of its ports (a study's pilot), in turn with
+/// the loop: handed what the autopilot sent, it acts, and the loop waits for it to settle
+/// before the autopilot's clock moves on.
+pub trait Actor: Send {
+    /// One datagram the autopilot sent.
+    fn take(&mut self, datagram: &[u8]);
+    /// A second of the clock passed (at `time_ms`).
+    fn tick(&mut self, time_ms: u32);
+    /// Wait, at most `limit`, until it has acted on everything it was handed.
+    fn settle(&mut self, limit: Duration) -> Result<(), super::gate::Stuck>;
+    /// What it sent since the last call, in order.
+    fn outgoing(&mut self) -> Vec<Vec<u8>>;
+}
+
 /// One autopilot in the loop.
 pub struct Lockstepped {
     /// The vehicle savsim flies for it.
@@ -94,8 +107,8 @@ pub struct Lockstepped {
     pub json: JsonPort,
     /// Its SERIAL0 (the session's port: its estimate in, the feed out).
     pub serial0: MavPort,
-    /// Its pilot's port and the pilot's inbox, when a pilot flies it.
-    pub pilot: Option<(MavPort, PilotInbox)>,
+    /// Its pilot's port and the pilot, when a pilot flies it.
+    pub pilot: Option<(MavPort, Box<dyn Actor>)>,
     /// Its estimate against the truth.
     pub estimates: EstimateErrors,
     outputs: [f64; 32],
@@ -266,13 +279,10 @@ fn hear(
         })
         .map_err(mav)?;
     result?;
-    if let Some((port, inbox)) = &mut v.pilot {
-        port.drain(|datagram| {
-            inbox.take_datagram(datagram);
-        })
-        .map_err(mav)?;
+    if let Some((port, actor)) = &mut v.pilot {
+        port.drain(|datagram| actor.take(datagram)).map_err(mav)?;
         if time_us.is_multiple_of(1_000_000) {
-            inbox.tick((time_us / 1000) as u32);
+            actor.tick((time_us / 1000) as u32);
         }
     }
     Ok(())
@@ -281,14 +291,13 @@ fn hear(
 /// Wait for `v`'s pilot to act on what it was handed, and send what it sent.
 fn pilots_act(v: &mut Lockstepped, config: &LoopConfig) -> Result<(), LoopError> {
     let vehicle = v.vehicle.id;
-    let Some((port, inbox)) = &mut v.pilot else {
+    let Some((port, actor)) = &mut v.pilot else {
         return Ok(());
     };
-    inbox
-        .gate
-        .wait_idle(config.silence)
+    actor
+        .settle(config.silence)
         .map_err(|source| LoopError::Pilot { vehicle, source })?;
-    for bytes in inbox.take_outgoing() {
+    for bytes in actor.outgoing() {
         port.send(&bytes)
             .map_err(|source| LoopError::Mav { vehicle, source })?;
     }

@@ -136,13 +136,12 @@ pub struct PilotInbox {
     heard: Shared,
     tx: std::sync::mpsc::SyncSender<News>,
     /// The turn-taking with the pilot.
-    pub gate: std::sync::Arc<crate::lockstep::gate::Gate>,
+    gate: std::sync::Arc<crate::lockstep::gate::Gate>,
     outgoing: std::sync::Arc<std::sync::Mutex<Vec<Vec<u8>>>>,
 }
 
-impl PilotInbox {
-    /// Hand the pilot one datagram from its autopilot; how many news it made.
-    pub fn take_datagram(&self, bytes: &[u8]) -> u64 {
+impl crate::lockstep::driver::Actor for PilotInbox {
+    fn take(&mut self, bytes: &[u8]) {
         let mut reader = mavlink::MavlinkReader::new(bytes);
         let mut sent = 0;
         while let Ok((h, m)) = reader.read_any_message::<MavMessage>() {
@@ -151,18 +150,19 @@ impl PilotInbox {
             }
         }
         self.gate.delivered(sent);
-        sent
     }
 
-    /// Tell the pilot a second of the row's clock passed (at `time_ms`).
-    pub fn tick(&self, time_ms: u32) {
+    fn tick(&mut self, time_ms: u32) {
         if self.tx.send(News::Tick(time_ms)).is_ok() {
             self.gate.delivered(1);
         }
     }
 
-    /// The frames the pilot sent since the last call, in order.
-    pub fn take_outgoing(&self) -> Vec<Vec<u8>> {
+    fn settle(&mut self, limit: Duration) -> Result<(), crate::lockstep::gate::Stuck> {
+        self.gate.wait_idle(limit)
+    }
+
+    fn outgoing(&mut self) -> Vec<Vec<u8>> {
         self.outgoing
             .lock()
             .map(|mut q| std::mem::take(&mut *q))

@@ -192,7 +192,7 @@ fn start_vehicle(
     );
     let (pilot, inbox) = Pilot::lockstep(id, plane);
     let mut lockstepped = Lockstepped::new(vehicle, json, serial0);
-    lockstepped.pilot = Some((pilot_port, inbox));
+    lockstepped.pilot = Some((pilot_port, Box::new(inbox)));
     Ok(Started {
         sitl,
         lockstepped,
