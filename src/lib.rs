@@ -29,6 +29,7 @@ pub mod runs;
 pub mod scene;
 pub mod session;
 pub mod signals;
+pub mod sim;
 pub mod study;
 #[cfg(feature = "viz")]
 pub mod viz;

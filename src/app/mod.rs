@@ -74,7 +74,11 @@ fn parse_ahp(text: &str) -> Result<AhpWeights> {
 
 /// A session as the collision options ask for: scene, thresholds, events file, rerun.
 fn session_for(args: &CollisionArgs) -> Result<Session> {
-    let scene = load_scene(args.scene.as_deref())?;
+    session_over(args, load_scene(args.scene.as_deref())?)
+}
+
+/// [`session_for`] over `scene` (loaded, or made).
+fn session_over(args: &CollisionArgs, scene: Option<Arc<Scene>>) -> Result<Session> {
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
     let volume = crate::daa::well_clear::setting(&args.well_clear).ok_or_else(|| {
         Error::Usage(format!(
@@ -153,6 +157,7 @@ pub fn run(cli: Cli, shutdown: Arc<AtomicBool>) -> Result<()> {
         Command::Batch(args) => crate::batch::command::run(&args),
         Command::Daa(args) => crate::daa_csv::command(&args),
         Command::Study(args) => crate::study::command::run(&args, shutdown),
+        Command::Sim(args) => sim_command(&args, &shutdown),
         Command::Scene(SceneCommand::Gen { kind, seed, out }) => {
             let text = match kind {
                 SceneKind::City => gen::city(seed, gen::DEFAULT_ORIGIN),
@@ -483,6 +488,35 @@ fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     print_report(&run.session);
     print_links(&run);
     run.ended?;
+    finished
+}
+
+fn sim_command(args: &crate::cli::SimArgs, shutdown: &Arc<AtomicBool>) -> Result<()> {
+    let plan = crate::sim::SimPlan::from_args(args)?;
+    let scene = match load_scene(args.collision.scene.as_deref())? {
+        Some(scene) => scene,
+        // Flat ground at CMAC, ArduPilot SITL's default home.
+        None => Arc::new(scene::parse(
+            &format!(
+                "[origin]\nlat_deg = {}\nlon_deg = {}\nalt_m = {}\n",
+                gen::DEFAULT_ORIGIN.lat_deg,
+                gen::DEFAULT_ORIGIN.lon_deg,
+                gen::DEFAULT_ORIGIN.alt_m
+            ),
+            Path::new("."),
+            "flat ground",
+        )?),
+    };
+    let mut session = session_over(&args.collision, Some(scene.clone()))?;
+    session.use_vehicle_clock();
+    start_feed(&mut session, &args.feed)?;
+    let flown_s = crate::sim::fly(&plan, &scene, &mut session, shutdown);
+    let finished = session.finish();
+    if let Some(path) = &args.collision.summary_json {
+        write_json_atomic(path, &session.summary("sim", &plan.gcs))?;
+    }
+    print_report(&session);
+    println!("sim: {:.1} s of the clock flown", flown_s?);
     finished
 }
 

@@ -50,6 +50,53 @@ pub enum Command {
     /// savsim's feed and scene, and is scored; `study summarize` gives the risk ratios,
     /// `study gen` writes obstacle-approach pairs (docs/study.md).
     Study(StudyArgs),
+    /// Fly ArduCopter SITLs in savsim's world by hand: savsim flies the vehicles (lockstep),
+    /// each autopilot's SERIAL1 goes to a ground station, the world to the viewer
+    /// (docs/lockstep.md).
+    Sim(SimArgs),
+}
+
+/// `savsim sim`.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// How many ArduCopters, each 5 m east of the last (system ids 1..N).
+    #[arg(long, default_value_t = 1)]
+    pub count: usize,
+    /// The frame: a preset (arducopter-quad, arducopter-quad-x, iris) or a TOML file.
+    #[arg(long, default_value = "arducopter-quad")]
+    pub frame: String,
+    /// The physics step, milliseconds.
+    #[arg(long, default_value_t = 2.5)]
+    pub step_ms: f64,
+    /// Times real time (0: as fast as the autopilots go).
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// A constant wind, `E N U` m/s where the air goes.
+    #[arg(long)]
+    pub wind: Option<String>,
+    /// Stop after this many seconds of the clock (default: at Ctrl-C).
+    #[arg(long)]
+    pub duration_s: Option<f64>,
+    /// Each vehicle's SERIAL1 goes here (where QGroundControl listens; MAVProxy:
+    /// `--master udp:127.0.0.1:14550`).
+    #[arg(long, default_value = "udpclient:127.0.0.1:14550")]
+    pub gcs: String,
+    /// The first vehicle's SITL instance (`-I`; its physics port 9002 + 10 N); the next
+    /// vehicles take the next ones.
+    #[arg(long, default_value_t = 0)]
+    pub instance: u16,
+    /// Where each SITL's folder goes (its eeprom, logs): `DIR/vehicle-K`.
+    #[arg(long, default_value = "sim-work")]
+    pub work: PathBuf,
+    /// Collision options (the scene; without one, flat ground at CMAC).
+    #[command(flatten)]
+    pub collision: CollisionArgs,
+    /// The feed each vehicle gets.
+    #[command(flatten)]
+    pub feed: FeedArgs,
+    /// ArduCopter SITL.
+    #[command(flatten)]
+    pub sitl: SitlArgs,
 }
 
 /// savsim's own MAVLink identity on a live link (docs/live.md).

@@ -5,6 +5,7 @@
 //!   and its clock mirrored;
 //! - [`port`]: an autopilot's sockets (its physics port, its MAVLink ports);
 //! - [`vehicle`]: a vehicle flown by the core's dynamics, and its truth for the world;
+//! - [`physics`]: the frame, step and wind from text;
 //! - [`surroundings`]: the scene's ground and obstacles as the dynamics ask for them;
 //! - [`gate`]: the turn-taking with a pilot thread;
 //! - [`estimates`]: an autopilot's estimate against the truth;
@@ -14,6 +15,7 @@ pub mod driver;
 pub mod estimates;
 pub mod gate;
 pub mod json;
+pub mod physics;
 pub mod port;
 pub mod surroundings;
 pub mod vehicle;

@@ -8,9 +8,15 @@ use std::time::Duration;
 
 use super::json::{PacketError, ServoPacket};
 
-/// ArduPilot SITL instance `instance`'s physics port (`--model JSON`: it sends to 9002 + 10 N).
+/// ArduPilot SITL instance `instance`'s physics port (`--model JSON`: it sends to 9002 + 10 N);
+/// an instance past 6453 wraps (see [`json_port_checked`]).
 pub fn json_port(instance: u16) -> u16 {
-    9002 + 10 * instance
+    json_port_checked(u32::from(instance)).unwrap_or(0)
+}
+
+/// [`json_port`], None past port 65535.
+pub fn json_port_checked(instance: u32) -> Option<u16> {
+    u16::try_from(9002 + 10 * u64::from(instance)).ok()
 }
 
 /// Why the physics port failed.

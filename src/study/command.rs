@@ -103,7 +103,7 @@ fn study(args: &StudyArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     let mut setup = Setup::new(
         flown,
         (
-            arducopter(args.sitl.arducopter.as_deref()),
+            ArduCopter::from_flag_or_env(args.sitl.arducopter.as_deref()),
             px4(args.sitl.px4.as_deref()),
         ),
         args.speedup,
@@ -338,27 +338,6 @@ fn keep_recording(r: &StudyResult, folder: &Path, setup: &Setup, nominal: &str) 
         Ok(kept) => eprintln!("study: {}: recording {}", r.row_id, kept.display()),
         Err(e) => eprintln!("study: {}: the recording was not kept: {e}", r.row_id),
     }
-}
-
-/// ArduCopter from `--arducopter` or `SAVSIM_ARDUCOPTER`, with `SAVSIM_ARDUCOPTER_DEFAULTS`.
-fn arducopter(flag: Option<&Path>) -> Option<ArduCopter> {
-    let binary = flag
-        .map(Path::to_path_buf)
-        .or_else(|| std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from))?;
-    let defaults: Vec<PathBuf> = std::env::var("SAVSIM_ARDUCOPTER_DEFAULTS")
-        .map(|d| {
-            d.split(',')
-                .filter(|p| !p.is_empty())
-                .map(PathBuf::from)
-                .collect()
-        })
-        .unwrap_or_default();
-    // Absolute: each SITL runs in its own folder.
-    let absolute = |p: PathBuf| std::fs::canonicalize(&p).unwrap_or(p);
-    Some(ArduCopter {
-        binary: absolute(binary),
-        defaults: defaults.into_iter().map(absolute).collect(),
-    })
 }
 
 /// PX4 from `--px4` or `SAVSIM_PX4` (its `etc` folder beside its `bin` folder).

@@ -4,14 +4,14 @@
 //!
 //! - [`manifest`]: the rows, from CSV, TOML or JSON.
 //! - [`plan`]: a row's flight plan and parameters.
-//! - [`sitl`]: starting and stopping one SITL.
+//! - [`sitl`]: starting and stopping one SITL; [`sitl_lockstep`]: an ArduCopter in lockstep.
 //! - [`pilot`]: the ground station that flies the plan, on the vehicle's clock.
-//! - [`pace`]: an ArduCopter's speedup kept to another vehicle's clock (rows of several).
-//! - [`fly`]: the plan, leg by leg.
-//! - [`run`](mod@run): one row, its failure kept as its row's error.
+//! - [`row`]: one row (its SITLs' own physics, or in lockstep), its failure kept as its
+//!   row's error.
 //! - [`result`]: what a row's result holds; [`table`]: results as Parquet.
 //! - [`summarize`]: risk ratios from a study's shards; [`gen`]: obstacle-approach pairs.
 //! - [`converge`]: `--until-converged`, pairs in rounds until the ratios are known.
+//! - [`netns`]: a study in a network namespace of its own.
 //! - [`command`]: `savsim study` on the command line.
 
 pub mod command;
@@ -24,6 +24,7 @@ pub mod plan;
 pub mod result;
 pub mod row;
 pub mod sitl;
+pub mod sitl_lockstep;
 pub mod summarize;
 pub mod table;
 

@@ -98,6 +98,28 @@ pub struct Start<'a> {
 }
 
 impl ArduCopter {
+    /// ArduCopter from `flag` (`--arducopter`) or `SAVSIM_ARDUCOPTER`, its defaults files from
+    /// `SAVSIM_ARDUCOPTER_DEFAULTS` (comma-separated), every path absolute (each SITL runs in
+    /// a folder of its own). None when neither names one.
+    pub fn from_flag_or_env(flag: Option<&Path>) -> Option<ArduCopter> {
+        let binary = flag
+            .map(Path::to_path_buf)
+            .or_else(|| std::env::var_os("SAVSIM_ARDUCOPTER").map(PathBuf::from))?;
+        let defaults: Vec<PathBuf> = std::env::var("SAVSIM_ARDUCOPTER_DEFAULTS")
+            .map(|d| {
+                d.split(',')
+                    .filter(|p| !p.is_empty())
+                    .map(PathBuf::from)
+                    .collect()
+            })
+            .unwrap_or_default();
+        let absolute = |p: PathBuf| std::fs::canonicalize(&p).unwrap_or(p);
+        Some(ArduCopter {
+            binary: absolute(binary),
+            defaults: defaults.into_iter().map(absolute).collect(),
+        })
+    }
+
     /// Start SITL for one row (a fresh eeprom: `--wipe`). Its console goes to `sitl.log` in
     /// the row's folder. Under Linux it is started through `setpriv --pdeathsig KILL` where
     /// that exists, so that it dies with the thread that started it even if savsim is killed.

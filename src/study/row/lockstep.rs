@@ -13,19 +13,18 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use savsim_core::dynamics::presets::{preset, PRESETS};
-use savsim_core::dynamics::step::STEP_RANGE_S;
 use savsim_core::dynamics::Frame;
 
 use crate::geo::LocalTangentPlane;
 use crate::lockstep::driver::{run, Lockstepped, LoopConfig};
-use crate::lockstep::port::{json_port, JsonPort, MavPort};
+use crate::lockstep::physics::{frame_named, step_us, wind_ned_mps};
 use crate::lockstep::vehicle::SimVehicle;
 use crate::scene::Scene;
 use crate::study::manifest::StudyRow;
 use crate::study::pilot::{Pilot, PilotError};
 use crate::study::result::StudyResult;
 use crate::study::sitl::{Sitl, Start};
+use crate::study::sitl_lockstep::{frame_params, start_lockstepped, Serial1};
 use crate::world::SenderId;
 
 /// The most vehicles a lockstep row may fly.
@@ -61,63 +60,19 @@ fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError>
         ));
     }
     let frame_name = row.frame.clone().unwrap_or_else(|| DEFAULT_FRAME.into());
-    let frame = frame_named(&frame_name)?;
-    let step_ms = row.step_ms.unwrap_or(DEFAULT_STEP_MS);
-    let step_us = (step_ms * 1000.0).round();
-    let (lo, hi) = (STEP_RANGE_S.0 * 1e3, STEP_RANGE_S.1 * 1e3);
-    if !(lo..=hi).contains(&step_ms) || (step_us - step_ms * 1000.0).abs() > 1e-6 {
-        return Err(input(
-            "step_ms",
-            format!("{step_ms}: give {lo} to {hi} ms in whole microseconds"),
-        ));
-    }
+    let frame = frame_named(&frame_name).map_err(|e| input("frame", e.to_string()))?;
+    let step_us = step_us(row.step_ms.unwrap_or(DEFAULT_STEP_MS))
+        .map_err(|e| input("step_ms", e.to_string()))?;
     let wind_ned_mps = match row.wind.as_deref().filter(|w| !w.trim().is_empty()) {
         None => DVec3::ZERO,
-        Some(text) => parse_wind(text).ok_or_else(|| {
-            input(
-                "wind",
-                format!("{text:?}: give `E N U` m/s, each within 100"),
-            )
-        })?,
+        Some(text) => wind_ned_mps(text).map_err(|e| input("wind", e.to_string()))?,
     };
     Ok(Physics {
         frame,
         frame_name,
-        step_us: step_us as u64,
+        step_us,
         wind_ned_mps,
     })
-}
-
-/// A preset's frame, or one read from a TOML file.
-fn frame_named(name: &str) -> Result<Frame, RowError> {
-    if let Some(frame) = preset(name) {
-        return Ok(frame);
-    }
-    if !name.ends_with(".toml") {
-        return Err(input(
-            "frame",
-            format!(
-                "{name:?}: give a preset ({}) or a .toml file",
-                PRESETS.join(", ")
-            ),
-        ));
-    }
-    let text = std::fs::read_to_string(name).map_err(|e| input("frame", format!("{name}: {e}")))?;
-    Frame::from_toml(&text).map_err(|e| input("frame", format!("{name}: {e}")))
-}
-
-/// `E N U` m/s (scene frame) as NED.
-fn parse_wind(text: &str) -> Option<DVec3> {
-    let v: Vec<f64> = text
-        .split_whitespace()
-        .map(str::parse)
-        .collect::<Result<_, _>>()
-        .ok()?;
-    let [e, n, u] = <[f64; 3]>::try_from(v).ok()?;
-    [e, n, u]
-        .iter()
-        .all(|c| c.is_finite() && c.abs() <= 100.0)
-        .then_some(DVec3::new(n, e, -u))
 }
 
 /// The system id of a lockstep row's vehicle `k` (from 0): `k + 1`.
@@ -147,51 +102,31 @@ fn start_vehicle(
         variable: "SAVSIM_ARDUCOPTER",
     })?;
     let id = lockstep_id(k);
-    let folder = |source| RowError::Folder {
-        path: dir.to_path_buf(),
-        source,
-    };
-    let json = JsonPort::bind(json_port(instance))?;
-    let serial0 = MavPort::bind().map_err(folder)?;
-    let pilot_port = MavPort::bind().map_err(folder)?;
     let mut params = flier.params.clone();
     params.retain(|(name, _)| name != "SYSID_THISMAV");
     params.push(("SYSID_THISMAV".into(), f64::from(id.system_id)));
-    match physics.frame_name.as_str() {
-        "arducopter-quad" => params.push(("FRAME_TYPE".into(), 0.0)),
-        "arducopter-quad-x" => params.push(("FRAME_TYPE".into(), 1.0)),
-        _ => {}
-    }
+    frame_params(&physics.frame_name, &mut params);
     let home = home_of(scene, flier.home_en_m);
-    let home_enu_m = plane.enu_m_from_geodetic(&home);
-    let serial0_address = format!("udpclient:127.0.0.1:{}", serial0.port());
+    let vehicle = SimVehicle::landed(
+        id,
+        physics.frame.clone(),
+        (home, plane.enu_m_from_geodetic(&home)),
+        0.0,
+        physics.wind_ned_mps,
+    );
     let start = Start {
         instance,
         home,
         home_yaw_deg: 0.0,
         speedup: 1.0,
-        serial0: &serial0_address,
+        serial0: "",
         params: &params,
         dir,
     };
-    let sitl = arducopter
-        .start_lockstep(
-            &start,
-            &format!("udpclient:127.0.0.1:{}", pilot_port.port()),
-        )
-        .map_err(|source| RowError::SitlStart {
-            binary: arducopter.binary.clone(),
-            source,
-        })?;
-    let vehicle = SimVehicle::landed(
-        id,
-        physics.frame.clone(),
-        (home, home_enu_m),
-        0.0,
-        physics.wind_ned_mps,
-    );
+    let (sitl, mut lockstepped, pilot_port) =
+        start_lockstepped(arducopter, &start, vehicle, Serial1::Pilot)?;
     let (pilot, inbox) = Pilot::lockstep(id, plane);
-    let mut lockstepped = Lockstepped::new(vehicle, json, serial0);
+    let pilot_port = pilot_port.ok_or(RowError::NoLinkPort)?;
     lockstepped.pilot = Some((pilot_port, Box::new(inbox)));
     Ok(Started {
         sitl,

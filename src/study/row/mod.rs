@@ -15,7 +15,7 @@ mod vehicles;
 pub use check::HomeError;
 use fly::fly_row;
 pub use ids::{arducopter_sysid, INSTANCE_OFFSET, MAX_JOBS, MAX_VEHICLES};
-pub use session::RECORDING;
+pub use session::{home_of as home_on_ground, RECORDING};
 
 use std::panic::AssertUnwindSafe;
 use std::path::PathBuf;
@@ -139,9 +139,9 @@ pub enum RowError {
     /// A signal stopped the study.
     #[error("savsim: stopped by a signal")]
     Stopped,
-    /// A lockstep row's physics port.
-    #[error("savsim: physics port: {0}")]
-    PhysicsPort(#[from] crate::lockstep::port::PortError),
+    /// A lockstep row's ports or SITL.
+    #[error("savsim: lockstep: {0}")]
+    Lockstep(#[from] crate::study::sitl_lockstep::LockstepStartError),
     /// The clocks of the row's vehicles drifted apart by more than [`MAX_CLOCK_SKEW_S`]:
     /// where each was at a given moment is not known well enough.
     #[error(

@@ -83,7 +83,7 @@ pub(super) fn scene_for(
 }
 
 /// Home: `en_m` east and north of the scene's origin, on its ground there.
-pub(super) fn home_of(scene: &Scene, [e_m, n_m]: [f64; 2]) -> Geodetic {
+pub fn home_of(scene: &Scene, [e_m, n_m]: [f64; 2]) -> Geodetic {
     let ground_m = scene.ground_height_enu_m(e_m, n_m).unwrap_or(0.0);
     LocalTangentPlane::new(scene.origin).geodetic_from_enu_m(glam::DVec3::new(e_m, n_m, ground_m))
 }
