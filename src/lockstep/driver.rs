@@ -156,6 +156,23 @@ impl Lockstepped {
     }
 }
 
+/// Where a lockstep run's wall time went.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct LoopTimes {
+    /// Steps taken.
+    pub steps: u64,
+    /// Waiting for the autopilots' servo packets: their own work and the sockets' round
+    /// trip, seconds.
+    pub autopilots_s: f64,
+    /// Waiting for the pilots to act, seconds.
+    pub pilots_s: f64,
+    /// savsim's own work: the dynamics, the world, the collision layers, the feed, the
+    /// replies, seconds.
+    pub savsim_s: f64,
+    /// Sleeping to keep a pace ([`LoopConfig::real_time`]), seconds.
+    pub paced_s: f64,
+}
+
 /// How a lockstep run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ended {
@@ -176,6 +193,19 @@ pub fn run(
     session: &mut Session,
     config: &LoopConfig,
     stop: &dyn Fn(u64) -> bool,
+) -> Result<(u64, Ended), LoopError> {
+    let mut times = LoopTimes::default();
+    run_timed(vehicles, scene, session, config, stop, &mut times)
+}
+
+/// [`run`], adding where the wall time went to `times`.
+pub fn run_timed(
+    vehicles: &mut [Lockstepped],
+    scene: &Scene,
+    session: &mut Session,
+    config: &LoopConfig,
+    stop: &dyn Fn(u64) -> bool,
+    times: &mut LoopTimes,
 ) -> Result<(u64, Ended), LoopError> {
     let plane = LocalTangentPlane::new(scene.origin);
     // One pipeline of exact shapes per vehicle for its rays.
@@ -206,11 +236,15 @@ pub fn run(
         if config.stop_on_collision && collided {
             return Ok((time_us, Ended::Collision));
         }
+        let waited = Instant::now();
         for v in vehicles.iter_mut() {
             let vehicle = v.vehicle.id;
             v.take_outputs(config.silence)
                 .map_err(|source| LoopError::Port { vehicle, source })?;
         }
+        let heard = Instant::now();
+        times.autopilots_s += (heard - waited).as_secs_f64();
+        times.steps += 1;
         let t_s = time_us as f64 / 1e6;
         for v in vehicles.iter_mut() {
             hear(v, session, t_s, time_us)?;
@@ -221,9 +255,12 @@ pub fn run(
                 v.estimates.estimate(estimate.time_boot_ms, enu);
             }
         }
+        let pilots = Instant::now();
         for v in vehicles.iter_mut() {
             pilots_act(v, config)?;
         }
+        let acted = Instant::now();
+        times.pilots_s += (acted - pilots).as_secs_f64();
         time_us += config.step_us;
         for (v, pipeline) in vehicles.iter_mut().zip(&mut pipelines) {
             advance(v, scene, pipeline, config.step_us)?;
@@ -240,10 +277,13 @@ pub fn run(
                 .reply(&v.reply)
                 .map_err(|source| LoopError::Port { vehicle, source })?;
         }
+        let replied = Instant::now();
+        times.savsim_s += ((pilots - heard) + (replied - acted)).as_secs_f64();
         if let Some(speed) = config.real_time {
             let due = Duration::from_secs_f64(time_us as f64 / 1e6 / speed);
             if let Some(wait) = due.checked_sub(started.elapsed()) {
                 std::thread::sleep(wait);
+                times.paced_s += wait.as_secs_f64();
             }
         }
     }

@@ -72,6 +72,7 @@ pub struct JsonPort {
     port: u16,
     peer: Option<SocketAddr>,
     last_count: Option<u32>,
+    wait: Option<Duration>,
     buf: [u8; 128],
 }
 
@@ -86,6 +87,7 @@ impl JsonPort {
             port,
             peer: None,
             last_count: None,
+            wait: None,
             buf: [0; 128],
         })
     }
@@ -100,9 +102,12 @@ impl JsonPort {
     pub fn recv(&mut self, wait: Duration) -> Result<Servo, PortError> {
         let port = self.port;
         let io = |source| PortError::Io { port, source };
-        self.socket
-            .set_read_timeout(Some(wait.max(Duration::from_millis(1))))
-            .map_err(io)?;
+        // One system call less a step: the wait is set only when it changes.
+        let wait = wait.max(Duration::from_millis(1));
+        if self.wait != Some(wait) {
+            self.socket.set_read_timeout(Some(wait)).map_err(io)?;
+            self.wait = Some(wait);
+        }
         let (n, from) = match self.socket.recv_from(&mut self.buf) {
             Ok(r) => r,
             Err(e)

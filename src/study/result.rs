@@ -209,6 +209,8 @@ pub struct StudyResult {
     /// With savsim's physics: the first vehicle's estimate of its position against the truth
     /// (each GLOBAL_POSITION_INT it sent, at its instant).
     pub estimate: Option<crate::lockstep::estimates::ErrorStats>,
+    /// With savsim's physics: where the row's wall time went (measured).
+    pub lockstep_times: Option<crate::lockstep::driver::LoopTimes>,
 }
 
 impl StudyResult {
@@ -246,6 +248,7 @@ impl StudyResult {
             frame: None,
             step_ms: None,
             estimate: None,
+            lockstep_times: None,
         }
     }
 

@@ -214,7 +214,8 @@ fn autopilot_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
     ]
 }
 
-/// With savsim's physics: how far the autopilot's own estimate strayed from the truth.
+/// With savsim's physics: how far the autopilot's own estimate strayed from the truth; the
+/// steps, and where the wall time went (measured).
 fn estimate_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
     vec![
         (
@@ -228,6 +229,22 @@ fn estimate_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         (
             "estimate_error_v_max_m",
             floats(rows, |r| r.estimate.map(|e| e.vertical_max_m)),
+        ),
+        (
+            "lockstep_steps",
+            counts(rows, |r| r.lockstep_times.map(|t| t.steps)),
+        ),
+        (
+            "wall_autopilots_s",
+            floats(rows, |r| r.lockstep_times.map(|t| t.autopilots_s)),
+        ),
+        (
+            "wall_pilots_s",
+            floats(rows, |r| r.lockstep_times.map(|t| t.pilots_s)),
+        ),
+        (
+            "wall_savsim_s",
+            floats(rows, |r| r.lockstep_times.map(|t| t.savsim_s)),
         ),
     ]
 }

@@ -16,7 +16,7 @@ use glam::DVec3;
 use savsim_core::dynamics::Frame;
 
 use crate::geo::LocalTangentPlane;
-use crate::lockstep::driver::{run, Lockstepped, LoopConfig};
+use crate::lockstep::driver::{run_timed, Lockstepped, LoopConfig, LoopTimes};
 use crate::lockstep::physics::{frame_named, step_us, wind_ned_mps};
 use crate::lockstep::vehicle::SimVehicle;
 use crate::scene::Scene;
@@ -147,7 +147,7 @@ pub(super) fn fly_lockstep_row(
     let physics = check_physics(row, &checked)?;
     result.frame = Some(physics.frame_name.clone());
     result.step_ms = Some(physics.step_us as f64 / 1000.0);
-    result.speedup = 0.0;
+    result.speedup = row.speedup.unwrap_or(0.0);
     let scene = scene_for(row, &checked, setup)?;
     let fliers: Vec<&Flier> = std::iter::once(&checked.own)
         .chain(&checked.others)
@@ -184,8 +184,9 @@ pub(super) fn fly_lockstep_row(
     let config = LoopConfig {
         step_us: physics.step_us,
         truth_every_us: (1e6 / FEED_HZ).round() as u64,
-        // As fast as the autopilots go: `speedup` is a pace for SITL's own physics.
-        real_time: None,
+        // The row's own speedup caps its pace; without one, as fast as the autopilots go
+        // (`--speedup` is a pace for SITL's own physics).
+        real_time: row.speedup,
         silence: Duration::from_secs(20),
         end_us: Some(((checked.duration_s + 5.0) * 1e6) as u64),
         stop_on_collision: checked.stop_on_collision,
@@ -208,6 +209,7 @@ pub(super) fn fly_lockstep_row(
         other.estimate = Some(*e);
     }
     result.estimate = flown.estimates.first().copied();
+    result.lockstep_times = Some(flown.times);
     result.clock_skew_s = (!result.others.is_empty()).then_some(0.0);
     record(
         result,
@@ -226,6 +228,8 @@ struct LockstepFlown {
     flights: Vec<Result<FlownBy, RowError>>,
     /// Each vehicle's estimate against the truth.
     estimates: Vec<crate::lockstep::estimates::ErrorStats>,
+    /// Where the loop's wall time went.
+    times: LoopTimes,
     /// The row's wall-clock limit stopped it.
     wall_limited: bool,
     started: Instant,
@@ -255,6 +259,7 @@ fn fly_started(
     let begun = Instant::now();
     let (own_done, loop_done) = (AtomicBool::new(false), AtomicBool::new(false));
     let wall_limited = AtomicBool::new(false);
+    let mut times = LoopTimes::default();
     let (ended, flights) = std::thread::scope(|scope| {
         let physics = std::thread::Builder::new()
             .name("savsim-lockstep".into())
@@ -264,7 +269,7 @@ fn fly_started(
                     wall_limited.store(late, Ordering::Relaxed);
                     setup.stop.load(Ordering::Relaxed) || own_done.load(Ordering::Relaxed) || late
                 };
-                let ended = run(&mut lockstepped, scene, session, config, &stop);
+                let ended = run_timed(&mut lockstepped, scene, session, config, &stop, &mut times);
                 loop_done.store(true, Ordering::Relaxed);
                 ended
             });
@@ -297,6 +302,7 @@ fn fly_started(
     LockstepFlown {
         flights,
         estimates,
+        times,
         wall_limited: wall_limited.load(Ordering::Relaxed),
         started: begun,
         wall_limit,
