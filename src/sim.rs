@@ -13,7 +13,7 @@ use glam::DVec3;
 use crate::cli::SimArgs;
 use crate::error::{Error, Result};
 use crate::geo::LocalTangentPlane;
-use crate::lockstep::driver::{run, Ended, Lockstepped, LoopConfig};
+use crate::lockstep::driver::{run, Lockstepped, LoopConfig};
 use crate::lockstep::physics::{frame_named, step_us, wind_ned_mps};
 use crate::lockstep::vehicle::SimVehicle;
 use crate::scene::Scene;
@@ -97,6 +97,7 @@ impl SimPlan {
                 silence: Duration::from_secs(20),
                 end_us: args.duration_s.map(|d| (d * 1e6) as u64),
                 stop_on_collision: false,
+                end_with_first_pilot: false,
             },
             wind_ned_mps: wind,
             gcs: args.gcs.clone(),
@@ -180,7 +181,7 @@ pub fn fly(
         .collect();
     drop(sitls);
     match flown {
-        Ok((time_us, Ended::Time | Ended::Stopped | Ended::Collision)) => Ok(time_us as f64 / 1e6),
+        Ok((time_us, _)) => Ok(time_us as f64 / 1e6),
         Err(e) if !ended_by_itself.is_empty() => Err(Error::Runtime(format!(
             "{e}; SITL ended by itself: {}",
             ended_by_itself.join("; ")

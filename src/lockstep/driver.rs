@@ -43,6 +43,9 @@ pub struct LoopConfig {
     pub end_us: Option<u64>,
     /// End at the first collision the session reports.
     pub stop_on_collision: bool,
+    /// End when the first vehicle's pilot has finished (at the step it finished on, so that
+    /// the end too depends on the clock alone).
+    pub end_with_first_pilot: bool,
 }
 
 /// Why a lockstep run ended short.
@@ -97,6 +100,8 @@ pub trait Actor: Send {
     fn settle(&mut self, limit: Duration) -> Result<(), super::gate::Stuck>;
     /// What it sent since the last call, in order.
     fn outgoing(&mut self) -> Vec<Vec<u8>>;
+    /// Whether it has finished (it acts no more).
+    fn finished(&self) -> bool;
 }
 
 /// One autopilot in the loop.
@@ -182,6 +187,8 @@ pub enum Ended {
     Stopped,
     /// A vehicle collided ([`LoopConfig::stop_on_collision`]).
     Collision,
+    /// The first vehicle's pilot finished ([`LoopConfig::end_with_first_pilot`]).
+    PilotDone,
 }
 
 /// Run `vehicles` over `scene` in lockstep through `session` until the end of `config`'s
@@ -261,6 +268,13 @@ pub fn run_timed(
         }
         let acted = Instant::now();
         times.pilots_s += (acted - pilots).as_secs_f64();
+        let first_done = vehicles
+            .first()
+            .and_then(|v| v.pilot.as_ref())
+            .is_some_and(|(_, actor)| actor.finished());
+        if config.end_with_first_pilot && first_done {
+            return Ok((time_us, Ended::PilotDone));
+        }
         time_us += config.step_us;
         for (v, pipeline) in vehicles.iter_mut().zip(&mut pipelines) {
             advance(v, scene, pipeline, config.step_us)?;

@@ -64,6 +64,11 @@ impl Gate {
         self.changed.notify_all();
     }
 
+    /// Whether either side is gone.
+    pub fn is_closed(&self) -> bool {
+        self.state.lock().map_or(true, |s| s.closed)
+    }
+
     /// Either side is gone: nobody waits any more.
     pub fn close(&self) {
         if let Ok(mut s) = self.state.lock() {

@@ -63,6 +63,7 @@ fn config(end_s: f64) -> LoopConfig {
         silence: Duration::from_millis(500),
         end_us: Some((end_s * 1e6) as u64),
         stop_on_collision: false,
+        end_with_first_pilot: false,
     }
 }
 

@@ -168,6 +168,10 @@ impl crate::lockstep::driver::Actor for PilotInbox {
             .map(|mut q| std::mem::take(&mut *q))
             .unwrap_or_default()
     }
+
+    fn finished(&self) -> bool {
+        self.gate.is_closed()
+    }
 }
 
 impl Drop for Pilot {

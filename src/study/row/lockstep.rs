@@ -190,6 +190,7 @@ pub(super) fn fly_lockstep_row(
         silence: Duration::from_secs(20),
         end_us: Some(((checked.duration_s + 5.0) * 1e6) as u64),
         stop_on_collision: checked.stop_on_collision,
+        end_with_first_pilot: true,
     };
     let flown = fly_started(started, &checked, &config, setup, (&scene, &mut session));
     let mut flights = flown.flights.into_iter();
@@ -257,7 +258,7 @@ fn fly_started(
     // Boot and the row's time, as fast as the machine goes, at worst 5x slower than real time.
     let wall_limit = Duration::from_secs_f64(5.0 * checked.duration_s + 120.0);
     let begun = Instant::now();
-    let (own_done, loop_done) = (AtomicBool::new(false), AtomicBool::new(false));
+    let loop_done = AtomicBool::new(false);
     let wall_limited = AtomicBool::new(false);
     let mut times = LoopTimes::default();
     let (ended, flights) = std::thread::scope(|scope| {
@@ -267,14 +268,14 @@ fn fly_started(
                 let stop = |_: u64| {
                     let late = begun.elapsed() > wall_limit;
                     wall_limited.store(late, Ordering::Relaxed);
-                    setup.stop.load(Ordering::Relaxed) || own_done.load(Ordering::Relaxed) || late
+                    setup.stop.load(Ordering::Relaxed) || late
                 };
                 let ended = run_timed(&mut lockstepped, scene, session, config, &stop, &mut times);
                 loop_done.store(true, Ordering::Relaxed);
                 ended
             });
         let stop = || setup.stop.load(Ordering::Relaxed) || loop_done.load(Ordering::Relaxed);
-        let flights = fly_pilots(pilots, checked, &stop, &own_done);
+        let flights = fly_pilots(pilots, checked, &stop);
         let ended = match physics {
             Ok(handle) => handle.join().map_err(|_| RowError::SessionThread),
             Err(_) => Err(RowError::SessionThread),
@@ -309,12 +310,12 @@ fn fly_started(
     }
 }
 
-/// Fly each pilot's plan, the others on threads of their own; the first's end tells the loop.
+/// Fly each pilot's plan, the others on threads of their own (the first's end, its pilot
+/// gone, ends the loop at that step).
 fn fly_pilots(
     pilots: Vec<Pilot>,
     checked: &Checked,
     stop: &(dyn Fn() -> bool + Sync),
-    own_done: &AtomicBool,
 ) -> Vec<Result<FlownBy, PilotError>> {
     let mut pilots = pilots.into_iter();
     let Some(own) = pilots.next() else {
@@ -328,7 +329,6 @@ fn fly_pilots(
             })
             .collect();
         let own = fly_vehicle(own, &checked.own, false, checked.duration_s, stop);
-        own_done.store(true, Ordering::Relaxed);
         let joined = others.into_iter().map(|h| {
             h.join()
                 .unwrap_or_else(|_| Err(PilotError::Send("a vehicle's pilot failed".into())))
