@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
 use savsim_core::dynamics::StepError;
 
+use super::backend::{Backend, Outputs};
 use super::estimates::EstimateErrors;
-use super::json::{write_reply, JsonClock, ServoPacket};
-use super::port::{JsonPort, MavPort, PortError, Servo};
+use super::port::{MavPort, PortError};
 use super::surroundings::SceneSurroundings;
 use super::vehicle::SimVehicle;
 use crate::codec::frame::{scan, Scan};
@@ -108,56 +108,38 @@ pub trait Actor: Send {
 pub struct Lockstepped {
     /// The vehicle savsim flies for it.
     pub vehicle: SimVehicle,
-    /// Its physics port.
-    pub json: JsonPort,
+    /// Its protocol (its physics port).
+    pub backend: Box<dyn Backend>,
     /// Its SERIAL0 (the session's port: its estimate in, the feed out).
     pub serial0: MavPort,
     /// Its pilot's port and the pilot, when a pilot flies it.
     pub pilot: Option<(MavPort, Box<dyn Actor>)>,
     /// Its estimate against the truth.
     pub estimates: EstimateErrors,
-    outputs: [f64; 32],
-    clock: JsonClock,
-    reply: String,
+    outputs: Outputs,
     asked: bool,
     gcs: Outbox,
 }
 
 impl Lockstepped {
-    /// `vehicle` on its ports.
-    pub fn new(vehicle: SimVehicle, json: JsonPort, serial0: MavPort) -> Self {
+    /// `vehicle` flown for the autopilot behind `backend`, its SERIAL0 on `serial0`.
+    pub fn new(vehicle: SimVehicle, backend: Box<dyn Backend>, serial0: MavPort) -> Self {
         Lockstepped {
             vehicle,
-            json,
+            backend,
             serial0,
             pilot: None,
             estimates: EstimateErrors::default(),
-            outputs: [0.0; 32],
-            clock: JsonClock::default(),
-            reply: String::new(),
+            outputs: Outputs::default(),
             asked: false,
             gcs: Outbox::new(GCS),
         }
     }
 
-    /// Wait for its next servo packet (answering a re-sent one again), and take its outputs.
+    /// Wait for the autopilot's outputs for the step.
     fn take_outputs(&mut self, silence: Duration) -> Result<(), PortError> {
-        loop {
-            match self.json.recv(silence)? {
-                Servo::New(packet) => {
-                    self.set_outputs(&packet);
-                    return Ok(());
-                }
-                Servo::Repeat => self.json.reply(&self.reply)?,
-            }
-        }
-    }
-
-    fn set_outputs(&mut self, packet: &ServoPacket) {
-        let frame = &self.vehicle.frame;
-        for (out, pwm) in self.outputs.iter_mut().zip(packet.pwm_us) {
-            *out = frame.command_from_pwm_us(f64::from(pwm));
-        }
+        self.outputs = self.backend.take_outputs(&self.vehicle, silence)?;
+        Ok(())
     }
 }
 
@@ -284,11 +266,9 @@ pub fn run_timed(
             tell_world(vehicles, session, &plane, time_us, &mut feed)?;
         }
         for v in vehicles.iter_mut() {
-            let t = v.clock.timestamp_for(time_us);
-            write_reply(&mut v.reply, t, &v.vehicle.body, &v.vehicle.imu, &[]);
             let vehicle = v.vehicle.id;
-            v.json
-                .reply(&v.reply)
+            v.backend
+                .send_state(time_us, &v.vehicle)
                 .map_err(|source| LoopError::Port { vehicle, source })?;
         }
         let replied = Instant::now();
@@ -373,7 +353,12 @@ fn advance(
     let surroundings = SceneSurroundings::new(scene, pipeline, v.vehicle.home_enu_m, own);
     let outputs = v.outputs;
     v.vehicle
-        .advance(&outputs, true, &surroundings, step_us as f64 / 1e6)
+        .advance(
+            &outputs.values,
+            outputs.armed,
+            &surroundings,
+            step_us as f64 / 1e6,
+        )
         .map_err(|source| LoopError::Step {
             vehicle: id,
             source,

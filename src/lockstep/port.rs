@@ -161,13 +161,25 @@ pub struct MavPort {
 impl MavPort {
     /// A port on 127.0.0.1 (any free port: the autopilot is told which).
     pub fn bind() -> std::io::Result<MavPort> {
-        let socket = UdpSocket::bind(("127.0.0.1", 0))?;
+        Self::bind_at(0)
+    }
+
+    /// A port on 127.0.0.1:`port` (where an autopilot sends: PX4's onboard link).
+    pub fn bind_at(port: u16) -> std::io::Result<MavPort> {
+        let socket = UdpSocket::bind(("127.0.0.1", port))?;
         socket.set_nonblocking(true)?;
         Ok(MavPort {
             socket,
             peer: None,
             buf: vec![0; 65_536],
         })
+    }
+
+    /// This port sending to 127.0.0.1:`port` before it hears anything (an autopilot that
+    /// answers whoever sends to it first: PX4's GCS link).
+    pub fn sending_to(mut self, port: u16) -> MavPort {
+        self.peer = Some(SocketAddr::from(([127, 0, 0, 1], port)));
+        self
     }
 
     /// The port bound.

@@ -414,13 +414,14 @@ fn gen(
     }
     let px4 = match (autopilot, kind) {
         ("arducopter", _) => false,
-        ("px4", StudyGenKind::Approaches) => true,
-        ("px4", StudyGenKind::Encounters) => {
+        ("px4", StudyGenKind::Encounters) if equipage.is_some() || model.is_some() => {
             return Err(Error::Usage(
-                "--autopilot px4: encounters are written for ArduCopter's ADS-B avoidance only"
+                "--autopilot px4 --kind encounters: the straight crossings only (not \
+                 --equipage or --model)"
                     .into(),
             ))
         }
+        ("px4", _) => true,
         (other, _) => {
             return Err(Error::Usage(format!(
                 "--autopilot {other:?}: give arducopter or px4"
@@ -445,7 +446,7 @@ fn gen(
                 .collect()
         }
         StudyGenKind::Encounters => match model {
-            None => crate::study::gen::encounters(n, seed),
+            None => crate::study::gen::encounters_for(n, seed, px4),
             Some(path) => {
                 let text = crate::files::read_text(path, crate::files::MAX_TABLE_FILE_BYTES)
                     .map_err(|e| Error::file(path, e))?;

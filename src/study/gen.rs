@@ -54,6 +54,15 @@ pub const ADSB_MITIGATED_PARAMS: &str = "ADSB_TYPE=1;AVD_ENABLE=1;AVD_F_ACTION=3
 /// The encounters' nominal parameters.
 pub const ADSB_NOMINAL_PARAMS: &str = "ADSB_TYPE=1;AVD_ENABLE=0";
 
+/// PX4's encounters, mitigated: traffic avoidance that returns (RTL) on a conflict, read when
+/// PX4 starts (the row's parameters are set before its boot), in the Position-mode variant the
+/// pilot flies. PX4 1.15's navigator checks traffic in every mode but acts only on 2 (return)
+/// or 3 (land): 1 only warns, and 4 (hold) sends a command its commander does not carry out
+/// (docs/study.md, "PX4's traffic avoidance").
+pub const PX4_ADSB_MITIGATED_PARAMS: &str = "NAV_TRAFF_AVOID=2;MPC_POS_MODE=3";
+/// PX4's encounters, nominal: traffic only warned of.
+pub const PX4_ADSB_NOMINAL_PARAMS: &str = "NAV_TRAFF_AVOID=1;MPC_POS_MODE=3";
+
 /// Encounter pairs from `seed` (open air: no scene).
 ///
 /// ```
@@ -62,8 +71,48 @@ pub const ADSB_NOMINAL_PARAMS: &str = "ADSB_TYPE=1;AVD_ENABLE=0";
 /// assert!(e[0][0].intruder.is_some());
 /// ```
 pub fn encounters(n: usize, seed: u64) -> Vec<[StudyRow; 2]> {
+    encounters_for(n, seed, false)
+}
+
+/// [`encounters`] for PX4 (`px4`: [`PX4_ADSB_MITIGATED_PARAMS`], [`PX4_ADSB_NOMINAL_PARAMS`])
+/// or ArduCopter: the same geometry for the same seed.
+///
+/// ```
+/// use savsim::study::gen::{encounters, encounters_for};
+/// let (a, p) = (encounters(3, 9), encounters_for(3, 9, true));
+/// assert_eq!(a[2][0].intruder, p[2][0].intruder);
+/// assert_eq!(p[0][1].autopilot.as_deref(), Some("px4"));
+/// assert!(p[0][1].params.as_deref().unwrap().contains("NAV_TRAFF_AVOID=2"));
+/// ```
+pub fn encounters_for(n: usize, seed: u64, px4: bool) -> Vec<[StudyRow; 2]> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..n).map(|k| encounter(k, seed, &mut rng)).collect()
+    (0..n)
+        .map(|k| {
+            let rows = encounter(k, seed, &mut rng);
+            if px4 {
+                rows.map(for_px4)
+            } else {
+                rows
+            }
+        })
+        .collect()
+}
+
+/// An ArduCopter encounter row flown by PX4 instead.
+fn for_px4(row: StudyRow) -> StudyRow {
+    let mitigated = row.variant.as_deref() == Some("mitigated");
+    StudyRow {
+        autopilot: Some("px4".into()),
+        params: Some(
+            if mitigated {
+                PX4_ADSB_MITIGATED_PARAMS
+            } else {
+                PX4_ADSB_NOMINAL_PARAMS
+            }
+            .into(),
+        ),
+        ..row
+    }
 }
 
 fn encounter(k: usize, seed: u64, rng: &mut ChaCha8Rng) -> [StudyRow; 2] {

@@ -62,7 +62,7 @@ pub struct AutopilotDid {
     /// Avoidance STATUSTEXTs past those 100, counted.
     pub avoidance_texts_not_kept: u64,
     /// When it first acted, seconds of its clock (from its boot): AVOID_ADSB
-    /// entered, a COLLISION sent, or (proximity avoidance, which says nothing) its speed along
+    /// entered (PX4: AUTO.RTL or AUTO.LAND, its traffic avoidance's answers), a COLLISION sent, or (proximity avoidance, which says nothing) its speed along
     /// the commanded velocity fell under half of it after reaching 80% of it.
     pub first_acted_t_s: Option<f64>,
     /// AUTOPILOT_VERSION: `major.minor.patch (git hash)`.

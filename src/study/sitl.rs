@@ -289,6 +289,44 @@ impl Px4 {
         self.start(start).map_err(|source| self.start_error(source))
     }
 
+    /// Start PX4 in lockstep (`PX4_SIM_MODEL=none_iris`: its simulator_mavlink connects to
+    /// savsim on TCP `4560 + N` and its clock is savsim's), `start.params` in force from its
+    /// boot: written as `param set` lines to a `px4-rc.params` its startup script sources
+    /// from the PATH (`rc/` in the row's folder, first on it), with its system id.
+    pub fn start_lockstep(&self, start: &Start<'_>, system_id: u8) -> std::io::Result<Sitl> {
+        std::fs::create_dir_all(start.dir)?;
+        let binary = runnable_px4(&self.binary, start.dir)?;
+        let etc = self.etc().ok_or_else(|| {
+            std::io::Error::other(format!(
+                "{}: no etc folder beside its bin folder",
+                self.binary.display()
+            ))
+        })?;
+        let rc = start.dir.join("rc");
+        std::fs::create_dir_all(&rc)?;
+        let mut lines = format!("#!/bin/sh\nparam set MAV_SYS_ID {system_id}\n");
+        for (name, value) in start.params {
+            lines += &format!("param set {name} {value}\n");
+        }
+        std::fs::write(rc.join("px4-rc.params"), lines)?;
+        let path = std::env::var_os("PATH").unwrap_or_default();
+        let mut paths = vec![rc];
+        paths.extend(std::env::split_paths(&path));
+        let mut command = launcher(&binary);
+        command
+            .current_dir(start.dir)
+            .args(["-d", "-i", &start.instance.to_string(), "-w"])
+            .arg(start.dir)
+            .arg(etc)
+            .env("PX4_SIM_MODEL", "none_iris")
+            .env_remove("PX4_SIMULATOR")
+            .env(
+                "PATH",
+                std::env::join_paths(paths).map_err(std::io::Error::other)?,
+            );
+        Sitl::spawn(command, start.dir, px4_onboard_ports(start.instance).1)
+    }
+
     fn start_error(&self, source: std::io::Error) -> Px4StartError {
         Px4StartError::Start {
             binary: self.binary.display().to_string(),

@@ -1,7 +1,7 @@
 //! An ArduCopter started in lockstep: its physics port and its SERIAL0 port bound on
 //! 127.0.0.1, its SITL started on them (`--model JSON`), and its place in savsim's loop.
 
-use super::sitl::{ArduCopter, Sitl, Start};
+use super::sitl::{px4_gcs_port, px4_onboard_ports, ArduCopter, Px4, Sitl, Start};
 use crate::lockstep::driver::Lockstepped;
 use crate::lockstep::port::{json_port, JsonPort, MavPort, PortError};
 use crate::lockstep::vehicle::SimVehicle;
@@ -65,7 +65,42 @@ pub fn start_lockstepped(
             &serial1_address,
         )
         .map_err(io(&format!("start {}", arducopter.binary.display())))?;
-    Ok((sitl, Lockstepped::new(vehicle, json, serial0), pilot))
+    let backend = Box::new(crate::lockstep::backend::ArduPilotJson::new(json));
+    Ok((sitl, Lockstepped::new(vehicle, backend, serial0), pilot))
+}
+
+/// Start `px4` in lockstep for `vehicle` (system id `system_id`) as `start` says: its
+/// simulator port (`4560 + instance`) listening, its GCS link answered on a port of savsim's,
+/// its onboard link's port (`14540 + instance`) bound for a pilot: its process, its place in
+/// the loop, the pilot's port.
+pub fn start_lockstepped_px4(
+    px4: &Px4,
+    start: &Start<'_>,
+    vehicle: SimVehicle,
+    (system_id, plane): (u8, crate::geo::LocalTangentPlane),
+) -> Result<(Sitl, Lockstepped, MavPort), LockstepStartError> {
+    let io = |what: &str| {
+        let what = what.to_string();
+        move |source| LockstepStartError::Io { what, source }
+    };
+    let simulator = crate::lockstep::px4::Px4Mavlink::bind(
+        crate::lockstep::px4::simulator_port(start.instance),
+        plane,
+        start.home,
+    )?;
+    let serial0 = MavPort::bind()
+        .map_err(io("bind the GCS link's port"))?
+        .sending_to(px4_gcs_port(start.instance));
+    let pilot = MavPort::bind_at(px4_onboard_ports(start.instance).1)
+        .map_err(io("bind the onboard link's port"))?;
+    let sitl = px4
+        .start_lockstep(start, system_id)
+        .map_err(io(&format!("start {}", px4.binary.display())))?;
+    Ok((
+        sitl,
+        Lockstepped::new(vehicle, Box::new(simulator), serial0),
+        pilot,
+    ))
 }
 
 /// The parameters a preset frame needs of ArduCopter (its FRAME_TYPE: plus or X), after

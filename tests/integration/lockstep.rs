@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
+use savsim::lockstep::backend::ArduPilotJson;
 use savsim::lockstep::driver::{run, Ended, Lockstepped, LoopConfig, LoopError};
 use savsim::lockstep::port::{JsonPort, MavPort, PortError};
 use savsim::lockstep::vehicle::SimVehicle;
@@ -48,7 +49,7 @@ fn one_vehicle(scene: &savsim::scene::Scene) -> Lockstepped {
         0.0,
         DVec3::ZERO,
     );
-    Lockstepped::new(vehicle, json, serial0)
+    Lockstepped::new(vehicle, Box::new(ArduPilotJson::new(json)), serial0)
 }
 
 fn flat_scene() -> savsim::scene::Scene {
@@ -102,7 +103,7 @@ fn autopilot(port: u16, n: u32, pwm_us: u16) -> Vec<serde_json::Value> {
 fn the_loop_answers_each_servo_packet_with_the_next_step_of_its_clock() {
     let scene = flat_scene();
     let mut vehicles = [one_vehicle(&scene)];
-    let port = vehicles[0].json.port();
+    let port = vehicles[0].backend.port();
     let player = std::thread::spawn(move || autopilot(port, 400, 1950));
     let mut session = Session::new(
         Some(Arc::new(scene.clone())),
@@ -144,7 +145,7 @@ fn bad_packets_and_a_silent_autopilot_end_the_loop_with_an_error() {
         (packet(18458, 0, 1500, 72), "magic is 18458 for 72 bytes"),
     ] {
         let mut vehicles = [one_vehicle(&scene)];
-        let port = vehicles[0].json.port();
+        let port = vehicles[0].backend.port();
         let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
         socket.send_to(&bytes, ("127.0.0.1", port)).unwrap();
         let e = run(&mut vehicles, &scene, &mut session, &config(1.0), &|_| {
@@ -254,4 +255,63 @@ fn lockstep_rows_flown_twice_give_the_same_results_bit_for_bit() {
         .filter(|(a, b)| a != b)
         .collect();
     assert!(differ.is_empty(), "{differ:#?}");
+}
+
+/// PX4 in lockstep (simulator_mavlink, savsim's Iris): it boots on savsim's sensors, arms,
+/// takes off to 10 m and holds, its estimate within a metre of the truth. Ignored: not yet
+/// reliable enough for CI (docs/lockstep.md: in 3 boots of 16 here PX4 found its
+/// compass and barometer stale and never armed); run it with `cargo test -- --ignored`.
+#[test]
+#[ignore = "PX4 lockstep: 3 boots of 16 never armed here (docs/lockstep.md)"]
+fn a_px4_in_lockstep_takes_off_and_holds() {
+    let Some(_turn) = sitl_test(Autopilot::Px4, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        "id,autopilot,physics,plan,duration_s,params\n\
+         hover,px4,savsim,takeoff 10;hold 5,90,MPC_POS_MODE=3\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = savsim()
+        .args(["study", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert_ran(&run);
+    let flown = results(&out);
+    let value = |name: &str| {
+        flown
+            .iter()
+            .find(|l| l.starts_with(&format!("0 {name} ")))
+            .cloned()
+            .unwrap_or_default()
+    };
+    assert!(value("outcome").contains("\"pass\""), "{}", value("error"));
+    assert!(value("plan_completed").contains("true"), "{flown:#?}");
+    assert!(value("frame").contains("\"iris\""), "{}", value("frame"));
+    // The last point of its track, `t e n u`: at about 10 m.
+    let track = value("vehicle_track");
+    let last = track.rsplit(';').next().unwrap_or_default();
+    let up_m: f64 = last
+        .split_whitespace()
+        .nth(3)
+        .and_then(|u| {
+            u.trim_matches(|c: char| !c.is_ascii_digit() && c != '.')
+                .parse()
+                .ok()
+        })
+        .unwrap_or(0.0);
+    assert!((8.5..=11.5).contains(&up_m), "{track}");
+    let error = value("estimate_error_h_max_m");
+    let metres: f64 = error
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|p| p.parse().ok())
+        .next_back()
+        .unwrap_or(f64::INFINITY);
+    assert!(metres < 1.0, "{error}");
 }

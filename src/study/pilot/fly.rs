@@ -110,6 +110,8 @@ enum Steer {
         position_mode_taken: bool,
         /// When the leg's takeoff or Position mode was last asked for, its clock (ms).
         asked_ms: u32,
+        /// PX4's traffic avoidance took over (RTL or LAND of its own): the plan is left to it.
+        took_over: bool,
     },
 }
 
@@ -150,7 +152,15 @@ impl Steer {
                 map,
                 position_mode_taken,
                 asked_ms,
+                took_over,
             } => {
+                // PX4 took over (its traffic avoidance returns or lands): from then on sticks
+                // centred, no takeoff or mode asked again, whatever the leg.
+                *took_over |= mode_now.is_some_and(px4_avoiding) && !matches!(leg, Leg::Land);
+                if *took_over {
+                    pilot.sticks(0.0, 0.0, 0.0)?;
+                    return Ok(DVec3::ZERO);
+                }
                 // PX4 may refuse a takeoff sent the moment it armed: asked again every 3 s of
                 // its clock while it has not left the ground.
                 let low = fix.enu_m.z - began.enu_m.z < 1.0;
@@ -317,6 +327,18 @@ fn arm(
 /// PX4's main mode POSCTL (custom_mode's third byte).
 const PX4_POSCTL: u32 = 3;
 
+/// Whether PX4's `custom_mode` is AUTO.RTL or AUTO.LAND: what its traffic avoidance switches to
+/// (main mode 4, AUTO, in the third byte; sub mode 5 RTL or 6 LAND in the fourth).
+///
+/// ```
+/// use savsim::study::pilot::fly::px4_avoiding;
+/// assert!(px4_avoiding((4 << 16) | (5 << 24)) && px4_avoiding((4 << 16) | (6 << 24)));
+/// assert!(!px4_avoiding(3 << 16) && !px4_avoiding((4 << 16) | (2 << 24)));
+/// ```
+pub fn px4_avoiding(custom_mode: u32) -> bool {
+    (custom_mode >> 16) & 0xff == 4 && matches!(custom_mode >> 24, 5 | 6)
+}
+
 /// PX4's Position-mode stick mapping, from its parameters (their defaults when unread).
 #[derive(Debug, Clone, Copy)]
 struct StickMap {
@@ -329,6 +351,26 @@ struct StickMap {
 }
 
 impl StickMap {
+    /// The map from PX4's defaults, overridden by `params` (what its launcher set at boot).
+    fn from_params(params: &[(String, f64)]) -> StickMap {
+        let get = |name: &str, default: f64| {
+            params
+                .iter()
+                .rev()
+                .find(|(n, _)| n == name)
+                .map_or(default, |(_, v)| *v)
+                .max(0.0)
+        };
+        StickMap {
+            vel_xy: get("MPC_VEL_MANUAL", 10.0).max(0.1),
+            vel_up: get("MPC_Z_VEL_MAX_UP", 3.0).max(0.1),
+            vel_down: get("MPC_Z_VEL_MAX_DN", 1.5).max(0.1),
+            dz: get("MPC_HOLD_DZ", 0.1).min(0.9),
+            expo_xy: get("MPC_XY_MAN_EXPO", 0.6).min(1.0),
+            expo_z: get("MPC_Z_MAN_EXPO", 0.6).min(1.0),
+        }
+    }
+
     fn read(pilot: &mut Pilot, stop: &dyn Fn() -> bool) -> Result<StickMap, PilotError> {
         let mut get = |name: &str, default: f64| -> Result<f64, PilotError> {
             Ok(pilot
@@ -381,19 +423,34 @@ pub fn fly_px4(
     let Some(first) = first_fix(pilot, stop)? else {
         return Ok(Flown::stopped());
     };
-    for (name, value) in params {
-        pilot.set_param(name, *value, stop)?;
-    }
-    if let Some(Leg::Takeoff { up_m }) = legs.iter().find(|l| matches!(l, Leg::Takeoff { .. })) {
-        pilot.set_param("MIS_TAKEOFF_ALT", *up_m, stop)?;
-    }
-    let map = StickMap::read(pilot, stop)?;
+    // In lockstep the launcher set them at boot (PX4's MAVLink runs outside its lockstep: an
+    // exchange over it is not on the clock).
+    let map = if pilot.in_lockstep() {
+        StickMap::from_params(params)
+    } else {
+        for (name, value) in params {
+            pilot.set_param(name, *value, stop)?;
+        }
+        if let Some(up_m) = takeoff_m(legs) {
+            pilot.set_param("MIS_TAKEOFF_ALT", up_m, stop)?;
+        }
+        StickMap::read(pilot, stop)?
+    };
     let mut steer = Steer::Sticks {
         map,
         position_mode_taken: false,
         asked_ms: first.time_boot_ms,
+        took_over: false,
     };
     fly_legs(pilot, legs, first, duration_s, &mut steer, stop)
+}
+
+/// The height of a plan's (first) takeoff, metres: PX4's MIS_TAKEOFF_ALT for it.
+pub fn takeoff_m(legs: &[Leg]) -> Option<f64> {
+    legs.iter().find_map(|l| match l {
+        Leg::Takeoff { up_m } => Some(*up_m),
+        _ => None,
+    })
 }
 
 /// What a PX4 leg sends once, at its start: AUTO takeoff (to MIS_TAKEOFF_ALT), or land.

@@ -346,6 +346,11 @@ impl Pilot {
         (pilot, inbox)
     }
 
+    /// Whether it flies in lockstep ([`Pilot::lockstep`]).
+    pub fn in_lockstep(&self) -> bool {
+        self.gate.is_some()
+    }
+
     /// The autopilot's mode and whether it is armed, at its last heartbeat.
     pub fn state(&self) -> (Option<u32>, bool) {
         self.heard

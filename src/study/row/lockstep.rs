@@ -24,44 +24,84 @@ use crate::study::manifest::StudyRow;
 use crate::study::pilot::{Pilot, PilotError};
 use crate::study::result::StudyResult;
 use crate::study::sitl::{Sitl, Start};
-use crate::study::sitl_lockstep::{frame_params, start_lockstepped, Serial1};
+use crate::study::sitl_lockstep::{
+    frame_params, start_lockstepped, start_lockstepped_px4, Serial1,
+};
 use crate::world::SenderId;
 
 /// The most vehicles a lockstep row may fly.
 pub const MAX_LOCKSTEP_VEHICLES: usize = 32;
-/// The physics step when a row names none, milliseconds.
+/// The physics step when a row names none, milliseconds: one step per ArduCopter loop (400
+/// Hz); 4 for PX4 alone (its IMU at 250 Hz, `IMU_INTEG_RATE`); 2 when both fly (above
+/// ArduCopter's loop rate, two samples to PX4's integration).
 pub const DEFAULT_STEP_MS: f64 = 2.5;
-/// The frame when a row names none.
+/// The frame of an ArduCopter when a row names none.
 pub const DEFAULT_FRAME: &str = "arducopter-quad";
+/// The frame of a PX4 when a row names none (its `none_iris` airframe's).
+pub const DEFAULT_PX4_FRAME: &str = "iris";
 
 /// A lockstep row's physics columns, checked.
 struct Physics {
-    frame: Frame,
-    frame_name: String,
+    /// The row's `frame`, when it names one (for every vehicle).
+    frame: Option<(String, Frame)>,
     step_us: u64,
     wind_ned_mps: DVec3,
 }
 
+impl Physics {
+    /// The frame (its name and itself) a vehicle flies: the row's, else its autopilot's.
+    fn frame_for(&self, px4: bool) -> (String, Frame) {
+        self.frame.clone().unwrap_or_else(|| {
+            let name = if px4 {
+                DEFAULT_PX4_FRAME
+            } else {
+                DEFAULT_FRAME
+            };
+            // A preset's name: always there.
+            (
+                name.to_string(),
+                frame_named(name).unwrap_or_else(|_| unreachable_frame()),
+            )
+        })
+    }
+}
+
+/// The presets are built in: [`frame_named`] always finds them.
+fn unreachable_frame() -> Frame {
+    savsim_core::dynamics::presets::preset(DEFAULT_FRAME)
+        .unwrap_or_else(|| unreachable!("the preset {DEFAULT_FRAME} is built in"))
+}
+
 fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError> {
-    let fliers = 1 + checked.others.len();
-    if fliers > MAX_LOCKSTEP_VEHICLES {
+    let fliers: Vec<&Flier> = std::iter::once(&checked.own)
+        .chain(&checked.others)
+        .collect();
+    if fliers.len() > MAX_LOCKSTEP_VEHICLES {
         return Err(input(
             "intruder_autopilot",
-            format!("{fliers} vehicles: a lockstep row flies at most {MAX_LOCKSTEP_VEHICLES}"),
+            format!(
+                "{} vehicles: a lockstep row flies at most {MAX_LOCKSTEP_VEHICLES}",
+                fliers.len()
+            ),
         ));
     }
-    if std::iter::once(&checked.own)
-        .chain(&checked.others)
-        .any(|f| f.px4)
-    {
-        return Err(input(
-            "physics",
-            "savsim: lockstep flies ArduCopter only (PX4 flies its own physics: `autopilot`)",
-        ));
-    }
-    let frame_name = row.frame.clone().unwrap_or_else(|| DEFAULT_FRAME.into());
-    let frame = frame_named(&frame_name).map_err(|e| input("frame", e.to_string()))?;
-    let step_us = step_us(row.step_ms.unwrap_or(DEFAULT_STEP_MS))
+    let frame = row
+        .frame
+        .as_deref()
+        .filter(|f| !f.trim().is_empty())
+        .map(|name| {
+            frame_named(name)
+                .map(|f| (name.to_string(), f))
+                .map_err(|e| input("frame", e.to_string()))
+        })
+        .transpose()?;
+    let (px4, arducopter) = (fliers.iter().any(|f| f.px4), fliers.iter().any(|f| !f.px4));
+    let default_step_ms = match (px4, arducopter) {
+        (true, true) => 2.0,
+        (true, false) => 4.0,
+        _ => DEFAULT_STEP_MS,
+    };
+    let step_us = step_us(row.step_ms.unwrap_or(default_step_ms))
         .map_err(|e| input("step_ms", e.to_string()))?;
     let wind_ned_mps = match row.wind.as_deref().filter(|w| !w.trim().is_empty()) {
         None => DVec3::ZERO,
@@ -69,7 +109,6 @@ fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError>
     };
     Ok(Physics {
         frame,
-        frame_name,
         step_us,
         wind_ned_mps,
     })
@@ -96,35 +135,51 @@ fn start_vehicle(
     physics: &Physics,
     (scene, plane, dir): (&Scene, LocalTangentPlane, &Path),
 ) -> Result<Started, RowError> {
-    let arducopter = setup.arducopter.as_ref().ok_or(RowError::NoAutopilot {
-        autopilot: "ArduCopter",
-        flag: "arducopter",
-        variable: "SAVSIM_ARDUCOPTER",
-    })?;
     let id = lockstep_id(k);
+    let (frame_name, frame) = physics.frame_for(flier.px4);
     let mut params = flier.params.clone();
-    params.retain(|(name, _)| name != "SYSID_THISMAV");
-    params.push(("SYSID_THISMAV".into(), f64::from(id.system_id)));
-    frame_params(&physics.frame_name, &mut params);
+    params.retain(|(name, _)| name != "SYSID_THISMAV" && name != "MAV_SYS_ID");
     let home = home_of(scene, flier.home_en_m);
     let vehicle = SimVehicle::landed(
         id,
-        physics.frame.clone(),
+        frame,
         (home, plane.enu_m_from_geodetic(&home)),
         0.0,
         physics.wind_ned_mps,
     );
-    let start = Start {
+    let mut start = Start {
         instance,
         home,
         home_yaw_deg: 0.0,
         speedup: 1.0,
         serial0: "",
-        params: &params,
+        params: &[],
         dir,
     };
-    let (sitl, mut lockstepped, pilot_port) =
-        start_lockstepped(arducopter, &start, vehicle, Serial1::Pilot)?;
+    let (sitl, mut lockstepped, pilot_port) = if flier.px4 {
+        let px4 = setup.px4.as_ref().ok_or(RowError::NoAutopilot {
+            autopilot: "PX4",
+            flag: "px4",
+            variable: "SAVSIM_PX4",
+        })?;
+        if let Some(up_m) = crate::study::pilot::fly::takeoff_m(&flier.legs) {
+            params.push(("MIS_TAKEOFF_ALT".into(), up_m));
+        }
+        start.params = &params;
+        let (sitl, lockstepped, pilot) =
+            start_lockstepped_px4(px4, &start, vehicle, (id.system_id, plane))?;
+        (sitl, lockstepped, Some(pilot))
+    } else {
+        let arducopter = setup.arducopter.as_ref().ok_or(RowError::NoAutopilot {
+            autopilot: "ArduCopter",
+            flag: "arducopter",
+            variable: "SAVSIM_ARDUCOPTER",
+        })?;
+        params.push(("SYSID_THISMAV".into(), f64::from(id.system_id)));
+        frame_params(&frame_name, &mut params);
+        start.params = &params;
+        start_lockstepped(arducopter, &start, vehicle, Serial1::Pilot)?
+    };
     let (pilot, inbox) = Pilot::lockstep(id, plane);
     let pilot_port = pilot_port.ok_or(RowError::NoLinkPort)?;
     lockstepped.pilot = Some((pilot_port, Box::new(inbox)));
@@ -145,7 +200,7 @@ pub(super) fn fly_lockstep_row(
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
     let physics = check_physics(row, &checked)?;
-    result.frame = Some(physics.frame_name.clone());
+    result.frame = Some(physics.frame_for(checked.own.px4).0);
     result.step_ms = Some(physics.step_us as f64 / 1000.0);
     result.speedup = row.speedup.unwrap_or(0.0);
     let scene = scene_for(row, &checked, setup)?;
@@ -195,6 +250,26 @@ pub(super) fn fly_lockstep_row(
     let flown = fly_started(started, &checked, &config, setup, (&scene, &mut session));
     let mut flights = flown.flights.into_iter();
     let (own, heard, _) = flights.next().ok_or(RowError::NoVehicle)??;
+    // The row's time ran out before its autopilot could arm (it never had a position, or
+    // refused): not a flight to judge.
+    let takes_off = checked
+        .own
+        .legs
+        .iter()
+        .any(|l| matches!(l, crate::study::plan::Leg::Takeoff { .. }));
+    if takes_off && own.armed_t_s.is_none() && !setup.stop.load(Ordering::Relaxed) {
+        let texts: Vec<String> = heard
+            .recent_texts
+            .iter()
+            .rev()
+            .take(5)
+            .map(|t| t.2.clone())
+            .collect();
+        return Err(RowError::Pilot(PilotError::NoArm {
+            waited_s: checked.duration_s,
+            texts: texts.join("; "),
+        }));
+    }
     if flown.wall_limited {
         return Err(wall_limit_error(
             &own,
@@ -217,7 +292,7 @@ pub(super) fn fly_lockstep_row(
         &dir,
         &mut session,
         (&own, &heard),
-        false,
+        checked.own.px4,
         checked.own.legs.len(),
     )
 }
@@ -325,10 +400,10 @@ fn fly_pilots(
         let others: Vec<_> = pilots
             .zip(&checked.others)
             .map(|(pilot, flier)| {
-                scope.spawn(move || fly_vehicle(pilot, flier, false, checked.duration_s, stop))
+                scope.spawn(move || fly_vehicle(pilot, flier, flier.px4, checked.duration_s, stop))
             })
             .collect();
-        let own = fly_vehicle(own, &checked.own, false, checked.duration_s, stop);
+        let own = fly_vehicle(own, &checked.own, checked.own.px4, checked.duration_s, stop);
         let joined = others.into_iter().map(|h| {
             h.join()
                 .unwrap_or_else(|_| Err(PilotError::Send("a vehicle's pilot failed".into())))

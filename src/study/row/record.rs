@@ -116,10 +116,17 @@ pub(super) fn record(
 /// What the autopilot did, from what it said.
 pub(super) fn did(heard: &Heard, flown: &Flown, px4: bool) -> AutopilotDid {
     let since = |ms: u32| f64::from(ms) / 1000.0;
+    // ArduCopter's AVOID_ADSB; PX4's traffic avoidance's return or land.
     let avoid_mode = heard
         .modes
         .iter()
-        .find(|(_, m)| *m == mode::AVOID_ADSB)
+        .find(|(_, m)| {
+            if px4 {
+                crate::study::pilot::fly::px4_avoiding(*m)
+            } else {
+                *m == mode::AVOID_ADSB
+            }
+        })
         .map(|(t, _)| since(*t));
     let collision = heard.first_collision_ms.map(since);
     let first_acted_t_s = [avoid_mode, collision, flown.slowed_t_s]
