@@ -35,10 +35,6 @@ pub const MAX_LOCKSTEP_VEHICLES: usize = 32;
 /// Hz); 4 for PX4 alone (its IMU at 250 Hz, `IMU_INTEG_RATE`); 2 when both fly (above
 /// ArduCopter's loop rate, two samples to PX4's integration).
 pub const DEFAULT_STEP_MS: f64 = 2.5;
-/// The frame of an ArduCopter when a row names none.
-pub const DEFAULT_FRAME: &str = "arducopter-quad";
-/// The frame of a PX4 when a row names none (its `none_iris` airframe's).
-pub const DEFAULT_PX4_FRAME: &str = "iris";
 
 /// A lockstep row's physics columns, checked.
 struct Physics {
@@ -52,24 +48,10 @@ impl Physics {
     /// The frame (its name and itself) a vehicle flies: the row's, else its autopilot's.
     fn frame_for(&self, px4: bool) -> (String, Frame) {
         self.frame.clone().unwrap_or_else(|| {
-            let name = if px4 {
-                DEFAULT_PX4_FRAME
-            } else {
-                DEFAULT_FRAME
-            };
-            // A preset's name: always there.
-            (
-                name.to_string(),
-                frame_named(name).unwrap_or_else(|_| unreachable_frame()),
-            )
+            let (name, frame) = savsim_core::dynamics::presets::default_for(px4);
+            (name.to_string(), frame)
         })
     }
-}
-
-/// The presets are built in: [`frame_named`] always finds them.
-fn unreachable_frame() -> Frame {
-    savsim_core::dynamics::presets::preset(DEFAULT_FRAME)
-        .unwrap_or_else(|| unreachable!("the preset {DEFAULT_FRAME} is built in"))
 }
 
 fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError> {

@@ -14,6 +14,11 @@ use super::air::density_kgpm3;
 use super::frame::{Frame, Rotor, RotorModel, Spin};
 use super::GRAVITY_MPS2;
 
+/// ArduPilot's quad motor angles (degrees from the nose toward the right, motors 1..4) in plus.
+const PLUS_DEG: [f64; 4] = [90.0, -90.0, 0.0, 180.0];
+/// The same in X.
+const X_DEG: [f64; 4] = [45.0, -135.0, -45.0, 135.0];
+
 /// The names [`preset`] knows.
 pub const PRESETS: [&str; 3] = ["arducopter-quad", "arducopter-quad-x", "iris"];
 
@@ -28,10 +33,28 @@ pub const PRESETS: [&str; 3] = ["arducopter-quad", "arducopter-quad-x", "iris"];
 /// ```
 pub fn preset(name: &str) -> Option<Frame> {
     match name {
-        "arducopter-quad" => Some(arducopter(name, [90.0, -90.0, 0.0, 180.0])),
-        "arducopter-quad-x" => Some(arducopter(name, [45.0, -135.0, -45.0, 135.0])),
+        "arducopter-quad" => Some(arducopter(name, PLUS_DEG)),
+        "arducopter-quad-x" => Some(arducopter(name, X_DEG)),
         "iris" => Some(iris()),
         _ => None,
+    }
+}
+
+/// The frame an autopilot's own tuning flies when nothing names one: ArduPilot SITL's quad
+/// (plus, as `copter.parm` mixes) for ArduCopter, the Iris for PX4 (`px4`); its preset name
+/// and the frame.
+///
+/// ```
+/// use savsim_core::dynamics::presets::{default_for, preset};
+/// let (name, frame) = default_for(true);
+/// assert_eq!((name, Some(frame)), ("iris", preset("iris")));
+/// ```
+pub fn default_for(px4: bool) -> (&'static str, Frame) {
+    if px4 {
+        ("iris", iris())
+    } else {
+        let name = "arducopter-quad";
+        (name, arducopter(name, PLUS_DEG))
     }
 }
 
