@@ -293,17 +293,9 @@ fn arm(
         }
         let waited_s = f64::from(fix.time_boot_ms.wrapping_sub(began_ms)) / 1000.0;
         if waited_s > ARM_WITHIN_S || clock_s(&fix) >= duration_s {
-            let texts: Vec<String> = pilot
-                .heard()
-                .recent_texts
-                .iter()
-                .rev()
-                .take(5)
-                .map(|t| t.2.clone())
-                .collect();
             return Err(PilotError::NoArm {
                 waited_s,
-                texts: texts.join("; "),
+                texts: pilot.heard().last_texts(),
             });
         }
         let due = asked_ms

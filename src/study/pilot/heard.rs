@@ -117,6 +117,18 @@ pub enum News {
 }
 
 impl Heard {
+    /// Its last five STATUSTEXTs, newest first, joined with "; " (what an error quotes).
+    pub fn last_texts(&self) -> String {
+        let texts: Vec<&str> = self
+            .recent_texts
+            .iter()
+            .rev()
+            .take(5)
+            .map(|t| t.2.as_str())
+            .collect();
+        texts.join("; ")
+    }
+
     /// Take a position at `ms` of the vehicle's clock: the last, and into the track when
     /// [`TRACK_PERIOD_MS`] have passed since its last point.
     pub fn take_position(&mut self, ms: u32, enu_m: DVec3) {

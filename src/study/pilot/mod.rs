@@ -4,6 +4,8 @@
 //!
 //! - here: the link (connect, send, commands, positions, velocity targets and sticks) and the
 //!   reader thread;
+//! - [`lockstep`]: the pilot in savsim's lockstep loop (no socket: the loop hands it what
+//!   the autopilot said and sends what it queues);
 //! - [`heard`]: what the reader thread keeps of what the autopilot said, and the row's clock;
 //! - [`params`]: reading and setting parameters;
 //! - [`fly`]: the plan, leg by leg; [`pace`]: an ArduCopter's speedup kept to another clock.
@@ -15,6 +17,7 @@
 
 pub mod fly;
 pub mod heard;
+mod lockstep;
 pub mod pace;
 mod params;
 
@@ -128,63 +131,11 @@ pub struct Pilot {
     asked_ms: Option<u32>,
 }
 
-/// The physics loop's side of a pilot in lockstep: what the autopilot said goes in here, and
-/// what the pilot sends comes out.
-pub struct PilotInbox {
-    target: SenderId,
-    plane: LocalTangentPlane,
-    heard: Shared,
-    tx: std::sync::mpsc::SyncSender<News>,
-    /// The turn-taking with the pilot.
-    gate: std::sync::Arc<crate::lockstep::gate::Gate>,
-    outgoing: std::sync::Arc<std::sync::Mutex<Vec<Vec<u8>>>>,
-}
-
-impl crate::lockstep::driver::Actor for PilotInbox {
-    fn take(&mut self, bytes: &[u8]) {
-        let mut reader = mavlink::MavlinkReader::new(bytes);
-        let mut sent = 0;
-        while let Ok((h, m)) = reader.read_any_message::<MavMessage>() {
-            if pass_on(h, m, self.target, &self.plane, &self.heard, &self.tx) == Passed::Sent {
-                sent += 1;
-            }
-        }
-        self.gate.delivered(sent);
-    }
-
-    fn tick(&mut self, time_ms: u32) {
-        if self.tx.send(News::Tick(time_ms)).is_ok() {
-            self.gate.delivered(1);
-        }
-    }
-
-    fn settle(&mut self, limit: Duration) -> Result<(), crate::lockstep::gate::Stuck> {
-        self.gate.wait_idle(limit)
-    }
-
-    fn outgoing(&mut self) -> Vec<Vec<u8>> {
-        self.outgoing
-            .lock()
-            .map(|mut q| std::mem::take(&mut *q))
-            .unwrap_or_default()
-    }
-
-    fn finished(&self) -> bool {
-        self.gate.is_closed()
-    }
-}
-
 impl Drop for Pilot {
     fn drop(&mut self) {
         if let Some((gate, _)) = &self.gate {
             gate.close();
         }
-    }
-}
-
-impl Drop for PilotInbox {
-    fn drop(&mut self) {
-        self.gate.close();
     }
 }
 
@@ -295,7 +246,19 @@ impl Pilot {
             .name("savsim-pilot".into())
             .spawn(move || read(&into, &tx))
             .map_err(|e| PilotError::Send(e.to_string()))?;
-        Ok(Pilot {
+        Ok(Pilot::new(wire, target, news, heard, None))
+    }
+
+    /// A pilot writing to `wire` for `target`, its news from `news`, what it heard in `heard`;
+    /// `gate` in lockstep.
+    fn new(
+        wire: Wire,
+        target: SenderId,
+        news: Receiver<News>,
+        heard: Shared,
+        gate: Option<std::sync::Arc<crate::lockstep::gate::Gate>>,
+    ) -> Pilot {
+        Pilot {
             wire,
             outbox: Outbox::new(PILOT),
             target,
@@ -307,43 +270,9 @@ impl Pilot {
             row_clock: None,
             row_offset_s: 0.0,
             pace: None,
-            gate: None,
+            gate: gate.map(|g| (g, 0)),
             asked_ms: None,
-        })
-    }
-
-    /// A pilot in lockstep for the autopilot `target`, positions mapped into `plane`: no
-    /// socket and no reader thread of its own; savsim's physics loop hands it what the
-    /// autopilot said through the returned [`PilotInbox`] and sends what it queues.
-    pub fn lockstep(target: SenderId, plane: LocalTangentPlane) -> (Pilot, PilotInbox) {
-        let heard = std::sync::Arc::new(std::sync::Mutex::new(Heard::default()));
-        let (tx, news) = std::sync::mpsc::sync_channel(crate::session::HELD_ESTIMATES * 8);
-        let gate = std::sync::Arc::new(crate::lockstep::gate::Gate::default());
-        let outgoing = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-        let pilot = Pilot {
-            wire: Wire::Queue(outgoing.clone()),
-            outbox: Outbox::new(PILOT),
-            target,
-            news,
-            heard: heard.clone(),
-            fix: None,
-            last_heartbeat_ms: None,
-            silence_limit: Duration::from_secs(30),
-            row_clock: None,
-            row_offset_s: 0.0,
-            pace: None,
-            gate: Some((gate.clone(), 0)),
-            asked_ms: None,
-        };
-        let inbox = PilotInbox {
-            target,
-            plane,
-            heard,
-            tx,
-            gate,
-            outgoing,
-        };
-        (pilot, inbox)
+        }
     }
 
     /// Whether it flies in lockstep ([`Pilot::lockstep`]).

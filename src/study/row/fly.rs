@@ -4,7 +4,7 @@
 use super::check::{check, Checked, Flier};
 use super::ids::autopilot_id;
 use super::record::{record, record_clocks, record_live, record_other, FlownBy};
-use super::session::{record_to, scene_for, session_for, SessionThread};
+use super::session::{row_folder, scene_for, session_for, SessionThread};
 use super::vehicles::{connect_pilot, start_vehicles, Vehicle};
 use super::{RowError, Setup, FEED_HZ, MAX_CLOCK_SKEW_S};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -36,16 +36,7 @@ pub(super) fn fly_row(
         .enable_all()
         .build()
         .map_err(RowError::Runtime)?;
-    let dir = setup
-        .work
-        .join(crate::runs::row_name(result.index, &result.row_id));
-    if setup
-        .record_rows
-        .as_ref()
-        .is_some_and(|c| c.records(&result.row_id))
-    {
-        record_to(&mut session, &dir)?;
-    }
+    let dir = row_folder(&mut session, setup, result)?;
     let mut vehicles = start_vehicles(&runtime, setup, &checked, (instance, &scene, &dir))?;
     result.system_id = Some(own_id.system_id);
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.

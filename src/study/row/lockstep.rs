@@ -6,7 +6,7 @@ use super::check::{check, Checked, Flier};
 use super::fly::{fly_vehicle, wall_limit_error};
 use super::ids::INSTANCE_OFFSET;
 use super::record::{record, record_other, FlownBy};
-use super::session::{home_of, record_to, scene_for, session_for};
+use super::session::{home_of, row_folder, scene_for, session_for};
 use super::{input, RowError, Setup, FEED_HZ};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -192,16 +192,7 @@ pub(super) fn fly_lockstep_row(
     let ids: Vec<SenderId> = (0..fliers.len()).map(lockstep_id).collect();
     let mut session = session_for(row, result.sensor_seed, scene.clone(), checked.feed, ids[0])?;
     session.set_truth_fed(ids.clone());
-    let dir = setup
-        .work
-        .join(crate::runs::row_name(result.index, &result.row_id));
-    if setup
-        .record_rows
-        .as_ref()
-        .is_some_and(|c| c.records(&result.row_id))
-    {
-        record_to(&mut session, &dir)?;
-    }
+    let dir = row_folder(&mut session, setup, result)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let mut started = Vec::with_capacity(fliers.len());
     for (k, flier) in fliers.iter().enumerate() {
@@ -240,16 +231,9 @@ pub(super) fn fly_lockstep_row(
         .iter()
         .any(|l| matches!(l, crate::study::plan::Leg::Takeoff { .. }));
     if takes_off && own.armed_t_s.is_none() && !setup.stop.load(Ordering::Relaxed) {
-        let texts: Vec<String> = heard
-            .recent_texts
-            .iter()
-            .rev()
-            .take(5)
-            .map(|t| t.2.clone())
-            .collect();
         return Err(RowError::Pilot(PilotError::NoArm {
             waited_s: checked.duration_s,
-            texts: texts.join("; "),
+            texts: heard.last_texts(),
         }));
     }
     if flown.wall_limited {

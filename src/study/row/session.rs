@@ -4,7 +4,7 @@
 
 use super::check::Checked;
 use super::{input, RowError, Setup, FEED_HZ};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -18,6 +18,7 @@ use crate::pipeline::CollisionConfig;
 use crate::scene::Scene;
 use crate::session::Session;
 use crate::study::manifest::StudyRow;
+use crate::study::result::StudyResult;
 use crate::world::SenderId;
 
 /// The session for a row: its scene, on the vehicle's clock, small-UAS well clear, its feed
@@ -50,8 +51,25 @@ pub(super) fn session_for(
 /// The file in a row's folder its recording is written to while it flies.
 pub const RECORDING: &str = "row.rrd";
 
+/// The row's folder under the study's work folder; its session recorded there when the study
+/// records this row.
+pub(super) fn row_folder(
+    session: &mut Session,
+    setup: &Setup,
+    result: &StudyResult,
+) -> Result<PathBuf, RowError> {
+    let dir = setup
+        .work
+        .join(crate::runs::row_name(result.index, &result.row_id));
+    let records = setup.record_rows.as_ref();
+    if records.is_some_and(|c| c.records(&result.row_id)) {
+        record_to(session, &dir)?;
+    }
+    Ok(dir)
+}
+
 /// Record the row's session for the rerun viewer, to [`RECORDING`] in `dir` (made).
-pub(super) fn record_to(session: &mut Session, dir: &Path) -> Result<(), RowError> {
+fn record_to(session: &mut Session, dir: &Path) -> Result<(), RowError> {
     std::fs::create_dir_all(dir).map_err(|source| RowError::Folder {
         path: dir.to_path_buf(),
         source,
