@@ -6,6 +6,7 @@
 //!   and its clock mirrored;
 //! - [`port`]: an autopilot's sockets (its physics port, its MAVLink ports);
 //! - [`px4`]: PX4's simulator_mavlink (HIL_SENSOR and HIL_GPS out, HIL_ACTUATOR_CONTROLS in);
+//! - [`hil_noise`]: the compass's and barometer's noise PX4 needs to take them as alive;
 //! - [`vehicle`]: a vehicle flown by the core's dynamics, and its truth for the world;
 //! - [`physics`]: the frame, step and wind from text;
 //! - [`surroundings`]: the scene's ground and obstacles as the dynamics ask for them;
@@ -17,6 +18,7 @@ pub mod backend;
 pub mod driver;
 pub mod estimates;
 pub mod gate;
+pub mod hil_noise;
 pub mod json;
 pub mod physics;
 pub mod port;

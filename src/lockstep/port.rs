@@ -65,6 +65,23 @@ pub enum Servo {
     Repeat,
 }
 
+/// How long [`JsonPort::bind`] tries a port that is in use.
+pub const BIND_WITHIN: Duration = Duration::from_secs(3);
+
+/// Bind 127.0.0.1:`port`, trying again every 50 ms for `within` while it is in use.
+fn bind_within(port: u16, within: Duration) -> Result<UdpSocket, PortError> {
+    let started = std::time::Instant::now();
+    loop {
+        match UdpSocket::bind(("127.0.0.1", port)) {
+            Ok(socket) => return Ok(socket),
+            Err(e) if e.kind() == std::io::ErrorKind::AddrInUse && started.elapsed() < within => {
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            Err(source) => return Err(PortError::Bind { port, source }),
+        }
+    }
+}
+
 /// One autopilot's physics port.
 #[derive(Debug)]
 pub struct JsonPort {
@@ -77,10 +94,10 @@ pub struct JsonPort {
 }
 
 impl JsonPort {
-    /// Bind 127.0.0.1:`port`.
+    /// Bind 127.0.0.1:`port`; a port in use is tried again for [`BIND_WITHIN`] (the row
+    /// before on this instance may still be letting it go).
     pub fn bind(port: u16) -> Result<JsonPort, PortError> {
-        let socket = UdpSocket::bind(("127.0.0.1", port))
-            .map_err(|source| PortError::Bind { port, source })?;
+        let socket = bind_within(port, BIND_WITHIN)?;
         let port = socket.local_addr().map_or(port, |a| a.port());
         Ok(JsonPort {
             socket,
@@ -212,5 +229,28 @@ impl MavPort {
     /// Whether the autopilot has been heard.
     pub fn heard(&self) -> bool {
         self.peer.is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_port_let_go_within_the_wait_is_bound_and_one_held_is_an_error() {
+        let held = UdpSocket::bind(("127.0.0.1", 0)).unwrap();
+        let port = held.local_addr().unwrap().port();
+        let err = bind_within(port, Duration::from_millis(200)).unwrap_err();
+        assert!(
+            matches!(err, PortError::Bind { port: p, .. } if p == port),
+            "{err}"
+        );
+        let release = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(300));
+            drop(held);
+        });
+        let bound = JsonPort::bind(port).unwrap();
+        assert_eq!(bound.port(), port);
+        release.join().unwrap();
     }
 }

@@ -10,8 +10,10 @@ use glam::DVec3;
 use mavlink::dialects::ardupilotmega::{
     HilSensorUpdatedFlags, MavMessage, HIL_GPS_DATA, HIL_SENSOR_DATA,
 };
+use savsim_core::dynamics::{air, GRAVITY_MPS2};
 
 use super::backend::{Backend, Outputs};
+use super::hil_noise::HilNoise;
 use super::port::PortError;
 use super::vehicle::SimVehicle;
 use crate::codec::frame::FrameStatus;
@@ -46,6 +48,8 @@ pub struct Px4Mavlink {
     answered: bool,
     last_gps_us: Option<u64>,
     buf: Vec<u8>,
+    /// The compass's and barometer's noise (without it PX4 takes them for dead at rest).
+    noise: HilNoise,
 }
 
 impl Px4Mavlink {
@@ -72,6 +76,7 @@ impl Px4Mavlink {
             answered: false,
             last_gps_us: None,
             buf: vec![0; 4096],
+            noise: HilNoise::for_port(port),
         })
     }
 
@@ -221,9 +226,12 @@ impl Backend for Px4Mavlink {
     fn send_state(&mut self, time_us: u64, vehicle: &SimVehicle) -> Result<(), PortError> {
         let body = &vehicle.body;
         let frd_from_ned = body.ned_from_frd.inverse();
-        let mag = frd_from_ned * self.field_ned_gauss;
+        let mag = frd_from_ned * self.field_ned_gauss + self.noise.mag_gauss(time_us);
         let at = self.plane.geodetic_from_enu_m(vehicle.position_enu_m());
-        let pressure_hpa = savsim_core::dynamics::air::pressure_pa(at.alt_m) / 100.0;
+        let noise_pa = self.noise.baro_pa(time_us);
+        let pressure_hpa = (air::pressure_pa(at.alt_m) + noise_pa) / 100.0;
+        // The altitude the noisy pressure gives (PX4 reads the pressure, not this field).
+        let pressure_alt_m = at.alt_m - noise_pa / (air::density_kgpm3(at.alt_m) * GRAVITY_MPS2);
         let (a, g) = (vehicle.imu.accel_frd_mps2, vehicle.imu.gyro_frd_radps);
         self.send(&MavMessage::HIL_SENSOR(HIL_SENSOR_DATA {
             time_usec: time_us,
@@ -238,7 +246,7 @@ impl Backend for Px4Mavlink {
             zmag: mag.z as f32,
             abs_pressure: pressure_hpa as f32,
             diff_pressure: 0.0,
-            pressure_alt: at.alt_m as f32,
+            pressure_alt: pressure_alt_m as f32,
             temperature: 25.0,
             fields_updated: HilSensorUpdatedFlags::from_bits_truncate(ALL_FIELDS),
             id: 0,
