@@ -245,10 +245,13 @@ mod tests {
             matches!(err, PortError::Bind { port: p, .. } if p == port),
             "{err}"
         );
-        let release = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(300));
-            drop(held);
-        });
+        let release = std::thread::Builder::new()
+            .name("port-holder".into())
+            .spawn(move || {
+                std::thread::sleep(Duration::from_millis(300));
+                drop(held);
+            })
+            .unwrap();
         let bound = JsonPort::bind(port).unwrap();
         assert_eq!(bound.port(), port);
         release.join().unwrap();
