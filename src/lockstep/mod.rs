@@ -9,6 +9,7 @@
 //! - [`hil_noise`]: the compass's and barometer's noise PX4 needs to take them as alive;
 //! - [`vehicle`]: a vehicle flown by the core's dynamics, and its truth for the world;
 //! - [`physics`]: the frame, step and wind from text;
+//! - [`pin`]: a row of one autopilot kept to one core;
 //! - [`surroundings`]: the scene's ground and obstacles as the dynamics ask for them;
 //! - [`gate`]: the turn-taking with a pilot thread;
 //! - [`estimates`]: an autopilot's estimate against the truth;
@@ -21,6 +22,7 @@ pub mod gate;
 pub mod hil_noise;
 pub mod json;
 pub mod physics;
+pub mod pin;
 pub mod port;
 pub mod px4;
 pub mod surroundings;

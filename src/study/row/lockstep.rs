@@ -18,6 +18,7 @@ use savsim_core::dynamics::Frame;
 use crate::geo::LocalTangentPlane;
 use crate::lockstep::driver::{run_timed, Lockstepped, LoopConfig, LoopTimes};
 use crate::lockstep::physics::{frame_named, step_us, wind_ned_mps};
+use crate::lockstep::pin::Pinned;
 use crate::lockstep::vehicle::SimVehicle;
 use crate::scene::Scene;
 use crate::study::manifest::StudyRow;
@@ -189,6 +190,11 @@ pub(super) fn fly_lockstep_row(
     let fliers: Vec<&Flier> = std::iter::once(&checked.own)
         .chain(&checked.others)
         .collect();
+    // One ArduCopter and savsim take turns: on one core the turn hands over without waking
+    // another (twice the speed on a quiet machine; lockstep::pin). Several autopilots compute
+    // at once, and PX4 runs threads of its own: left to every core.
+    let one_arducopter = fliers.len() == 1 && !checked.own.px4;
+    let _pinned = one_arducopter.then(|| Pinned::to_core(usize::from(instance)));
     let ids: Vec<SenderId> = (0..fliers.len()).map(lockstep_id).collect();
     let mut session = session_for(row, result.sensor_seed, scene.clone(), checked.feed, ids[0])?;
     session.set_truth_fed(ids.clone());
