@@ -259,8 +259,9 @@ fn lockstep_rows_flown_twice_give_the_same_results_bit_for_bit() {
 
 /// PX4 in lockstep (simulator_mavlink, savsim's Iris): it boots on savsim's sensors, arms,
 /// takes off to 10 m and holds, its estimate within a metre of the truth. Held 20 of 20 here
-/// in the release build and 10 of 10 beside two CPU hogs (docs/lockstep.md); before the
-/// compass and barometer had noise, 3 boots of 16 never armed.
+/// in the release build, 20 of 20 in the debug build CI runs, and 10 of 10 beside two CPU
+/// hogs (docs/lockstep.md); before the compass and barometer had noise, 3 boots of 16 never
+/// armed.
 #[test]
 fn a_px4_in_lockstep_takes_off_and_holds() {
     let Some(_turn) = sitl_test(Autopilot::Px4, Netns::Study, &[]) else {
