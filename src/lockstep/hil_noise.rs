@@ -3,10 +3,10 @@
 //! PX4's sensors module takes a reading that repeats exactly (each axis within 1e-6) for a
 //! dead sensor (its `DataValidator`: more than 100 repeats in a row for a barometer, 1000
 //! counted over a compass's axes) and stops publishing it. A landed body's truth repeats
-//! bit for bit, so without noise PX4 dropped the barometer 0.14 s and the compass 1.3 s into
-//! the clock, and its estimator aligned only if it had started before then: one boot in five
-//! never armed (docs/lockstep.md). PX4's own simulators add noise for this reason; the sizes
-//! here are Gazebo classic's plugins' defaults (magnetometer 0.4 mgauss, barometer 1 Pa).
+//! bit for bit, so without noise PX4 soon dropped both, and its estimator aligned only if it
+//! had started before then: some boots never armed (docs/lockstep.md). PX4's own simulators
+//! add noise for this reason; the sizes here are Gazebo classic's plugins' defaults
+//! (magnetometer 0.4 mgauss, barometer 1 Pa).
 //!
 //! Each draw is a function of the instance's port and the step's time alone
 //! ([`Draws`]): the readings depend on the clock, not on the machine.

@@ -1,11 +1,11 @@
 //! A lockstep row of one autopilot on one core.
 //!
 //! In lockstep savsim and the autopilot take turns: one computes while the other waits on a
-//! socket. On two cores the turn hands over from one core to the other at every step, and an
-//! idle core wakes slowly: an ArduCopter row ran at 23x on a quiet machine and at 41-48x
-//! beside a CPU hog that kept the cores awake, and at 47-50x with the row on one core
-//! (docs/lockstep.md, "Speed"). Pinning the thread that starts the row pins what it starts:
-//! a child process and a new thread inherit the mask of the thread that made them (Linux).
+//! socket. Left to the scheduler, the turn hands over from one core to the other at every
+//! step, and waking an idle core is slow: a row on one core runs about twice as fast on a
+//! quiet machine (docs/lockstep.md, "Speed", has the figures). Pinning the thread that starts
+//! the row pins what it starts: a child process and a new thread inherit the mask of the
+//! thread that made them (Linux).
 
 use nix::sched::{sched_getaffinity, sched_setaffinity, CpuSet};
 use nix::unistd::Pid;
