@@ -238,8 +238,14 @@ pub fn px4_onboard_ports(instance: u16) -> (u16, u16) {
 
 impl Px4 {
     /// Its `etc` folder (ROMFS), beside `bin/`.
-    fn etc(&self) -> Option<PathBuf> {
-        Some(self.binary.parent()?.parent()?.join("etc"))
+    fn etc(&self) -> std::io::Result<PathBuf> {
+        let folder = self.binary.parent().and_then(|bin| bin.parent());
+        folder.map(|build| build.join("etc")).ok_or_else(|| {
+            std::io::Error::other(format!(
+                "{}: no etc folder beside its bin folder",
+                self.binary.display()
+            ))
+        })
     }
 
     /// Whether this PX4 takes SIH's home (`PX4_HOME_LAT`/`LON`, set into SIH_LOC_LAT0/LON0 by
@@ -264,6 +270,7 @@ impl Px4 {
     pub fn home_alt_by_param(&self) -> bool {
         let script = self
             .etc()
+            .ok()
             .map(|etc| etc.join("init.d-posix/px4-rc.simulator"))
             .and_then(|p| std::fs::read_to_string(p).ok())
             .unwrap_or_default();
@@ -296,12 +303,7 @@ impl Px4 {
     pub fn start_lockstep(&self, start: &Start<'_>, system_id: u8) -> std::io::Result<Sitl> {
         std::fs::create_dir_all(start.dir)?;
         let binary = runnable_px4(&self.binary, start.dir)?;
-        let etc = self.etc().ok_or_else(|| {
-            std::io::Error::other(format!(
-                "{}: no etc folder beside its bin folder",
-                self.binary.display()
-            ))
-        })?;
+        let etc = self.etc()?;
         let rc = start.dir.join("rc");
         std::fs::create_dir_all(&rc)?;
         let mut lines = format!("#!/bin/sh\nparam set MAV_SYS_ID {system_id}\n");
@@ -379,12 +381,7 @@ impl Px4 {
     pub fn start(&self, start: &Start<'_>) -> std::io::Result<Sitl> {
         std::fs::create_dir_all(start.dir)?;
         let binary = runnable_px4(&self.binary, start.dir)?;
-        let etc = self.etc().ok_or_else(|| {
-            std::io::Error::other(format!(
-                "{}: no etc folder beside its bin folder",
-                self.binary.display()
-            ))
-        })?;
+        let etc = self.etc()?;
         let e7 = self.home_in_e7();
         let home = |deg: f64| {
             if e7 {
