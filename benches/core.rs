@@ -7,6 +7,10 @@
 //! - `broadphase/*`: the obstacles in a 600 m box, by savsim's octree, parry's Bvh and a
 //!   linear scan;
 //! - `mesh_build/*`: turning a building and an airliner model into parry TriMeshes.
+//! - `image/*`: a whole reading of an image device or a lidar cast from a street corner
+//!   downtown (20 m up, looking north-east across the blocks) through the exact rays the feed
+//!   casts: the 160 x 120 planner image, a D435 at 424 x 240 and 848 x 480 (to 10 m, and to
+//!   300 m), a VLP-16 turn and an OS1-64 turn. Throughput in rays.
 //!
 //! `cargo bench --bench core`; figures in docs/accuracy-vs-speed.md.
 
@@ -158,5 +162,62 @@ fn mesh_build(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, step, ray_fan, broadphase, mesh_build);
+fn images(c: &mut Criterion) {
+    use savsim::pipeline::{BodySource, MovingBodies, Rays};
+    use savsim_core::sensors::device::Model;
+    use savsim_core::sensors::spec::DeviceSpec;
+    let scene = city();
+    let mut pipeline = Pipeline::new(&scene, CollisionConfig::default());
+    let own = BodySource::Vehicle {
+        vehicle: 1,
+        component_id: 1,
+    };
+    let origin = DVec3::new(8.0, 50.0, 20.0);
+    // Looking north-east: the device's x (boresight) to ENU north-east, its y (right) to
+    // south-east, its z (down) down.
+    let (ne, se) = (
+        DVec3::new(1.0, 1.0, 0.0).normalize(),
+        DVec3::new(1.0, -1.0, 0.0).normalize(),
+    );
+    let to_enu = |d: DVec3| ne * d.x + se * d.y - DVec3::Z * d.z;
+    let mut group = c.benchmark_group("image");
+    group.sample_size(10);
+    for (name, spec) in [
+        ("depth-160x120", "preset = \"depth-160x120\""),
+        ("d435-424x240", "preset = \"realsense-d435-depth\"\nimage_px = [424, 240]"),
+        ("d435-848x480", "preset = \"realsense-d435-depth\""),
+        (
+            "d435-424x240-to-300m",
+            "preset = \"realsense-d435-depth\"\nimage_px = [424, 240]\nrange_m = [0.2, 300.0]",
+        ),
+        ("vlp16", "preset = \"velodyne-vlp16\""),
+        ("os1-64", "preset = \"ouster-os1-64\""),
+    ] {
+        let spec: DeviceSpec = toml::from_str(spec).expect("a device");
+        let Model::Range(model) = spec.build().expect("it builds").model else {
+            unreachable!("a range device")
+        };
+        let dirs: Vec<DVec3> = model
+            .beams()
+            .iter()
+            .map(|b| to_enu(b[0]))
+            .collect();
+        let mut out = vec![None; dirs.len()];
+        group.throughput(Throughput::Elements(dirs.len() as u64));
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let rays = Rays {
+                    origin_enu_m: origin,
+                    dirs_enu: &dirs,
+                    max_m: model.range_m[1],
+                };
+                pipeline.cast_exact_rays(&scene, own, &MovingBodies::default(), rays, &mut out);
+                out.iter().flatten().count()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, step, ray_fan, broadphase, mesh_build, images);
 criterion_main!(benches);

@@ -10,6 +10,7 @@ use glam::DVec3;
 use crate::collision::events::Event;
 use crate::collision::ColliderKind;
 use crate::error::Result;
+use crate::feed::capture::Capture;
 use crate::feed::{AdsbSent, Reading};
 use crate::pipeline::{BodyKey, BodyPose, ObstacleRef, TickReport};
 use crate::scene::{Aabb64, Kind, Scene};
@@ -55,6 +56,8 @@ pub struct TickFrame {
     /// The ADS-B reports the feed sent the vehicle at this tick: where each put its aircraft
     /// (its errors included).
     pub adsb_sent: Vec<AdsbSent>,
+    /// The depth images and point clouds the vehicle's modelled devices made at this tick.
+    pub captures: Vec<Arc<Capture>>,
     /// The vehicle's octree leaf.
     pub node: Option<Aabb64>,
     /// Obstacles with a collider: which, and beta.

@@ -24,11 +24,15 @@ use std::sync::Arc;
 
 use glam::{DQuat, DVec3};
 
-use savsim_core::sensors::device::{Device, Model};
+use savsim_core::collision::fan::segment_of;
+use savsim_core::pipeline::ObstacleRef;
+use savsim_core::sensors::device::{Device, Model, RangeModel};
+use savsim_core::sensors::image::{DepthImage, PointCloud, Segment};
 use savsim_core::sensors::draws::{mix, Draws};
 use savsim_core::sensors::range::{Beam, BeamReading, BeamTruth, RangeState};
 use savsim_core::sensors::surveillance::{Look, Own, Target, TargetReport, TargetState};
 
+use super::capture::{Capture, CaptureData};
 use super::aircraft::{aircraft, body_velocity, has_transponder};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
@@ -85,11 +89,16 @@ pub(super) struct Devices {
     send_adsb: bool,
     /// The combined range of the range devices (the messages' min and max).
     pub(super) range: Range,
-    /// Scratch: ray directions, hits, truths, readings.
+    /// Scratch: ray directions, hits, truths, readings, what each beam met.
     dirs: Vec<DVec3>,
-    hits: Vec<Option<f64>>,
+    hits: Vec<Option<(ObstacleRef, f64)>>,
     truths: Vec<BeamTruth>,
     readings: Vec<BeamReading>,
+    segments: Vec<Segment>,
+    /// Whether readings are kept whole for the viewer ([`Devices::captures`]).
+    pub(super) keep_captures: bool,
+    /// The readings kept whole at this sample.
+    pub(super) captures: Vec<Arc<Capture>>,
 }
 
 /// ICAO addresses of radar and EO/IR tracks: `0xF2xxxx`.
@@ -141,6 +150,9 @@ impl Devices {
             hits: Vec::new(),
             truths: Vec::new(),
             readings: Vec::new(),
+            segments: Vec::new(),
+            keep_captures: false,
+            captures: Vec::new(),
         }
     }
 
@@ -165,6 +177,7 @@ impl Devices {
         f: &mut Frame<'_, '_>,
     ) -> Picture {
         let t_s = f64::from(f.input.current.time_boot_ms) / 1000.0;
+        self.captures.clear();
         if v.devices.len() != self.devices.len() {
             v.devices = vec![DeviceState::default(); self.devices.len()];
         }
@@ -249,14 +262,19 @@ impl Devices {
             max_m: model.range_m[1],
         };
         let own = f.input.key.source();
-        pipeline.cast_exact_rays(f.input.scene, own, f.input.dynamic, rays, &mut self.hits);
+        pipeline.cast_exact_hits(f.input.scene, own, f.input.dynamic, rays, &mut self.hits);
         self.truths.clear();
+        self.segments.clear();
+        let scene = f.input.scene;
         let mut at = 0;
         for b in beams.iter() {
             let hits = &self.hits[at..at + b.len()];
             at += b.len();
-            let nearest_m = hits.iter().flatten().copied().min_by(f64::total_cmp);
-            self.truths.push(BeamTruth::along(b, nearest_m));
+            let nearest = hits.iter().flatten().copied().min_by(|a, b| a.1.total_cmp(&b.1));
+            self.truths.push(BeamTruth::along(b, nearest.map(|(_, d)| d)));
+            self.segments.push(nearest.map_or_else(Segment::default, |(o, _)| {
+                segment_of(o, |i| scene.obstacles.get(i).map(|s| s.kind))
+            }));
         }
         self.readings.clear();
         self.readings.resize(beams.len(), BeamReading::NoData);
@@ -268,6 +286,17 @@ impl Devices {
             &self.truths,
             &mut self.readings,
         );
+        if self.keep_captures {
+            let capture = Capture {
+                device: device.name.clone(),
+                system_id: f.input.sender.system_id,
+                instant_s: k as f64 / device.rate_hz,
+                origin_enu_m: origin,
+                enu_from_device: current.attitude.enu_from_frd * mount,
+                data: self.capture_data(model, &beams),
+            };
+            self.captures.push(Arc::new(capture));
+        }
         let down_enu = (enu_from_frd * DVec3::Z).normalize_or(-f.up_enu);
         let mut picture = Picture::default();
         let Some(levelled) = Levelled::new(current.attitude.forward_enu(), down_enu, f.up_enu)
@@ -295,6 +324,25 @@ impl Devices {
             *cell = nearer(*cell, *reading);
         }
         picture
+    }
+
+    /// The last reading whole: a depth image for an image device, else a point cloud.
+    fn capture_data(&self, model: &RangeModel, beams: &[Beam]) -> CaptureData {
+        match model.image_px {
+            Some([w, h]) => {
+                let mut image = DepthImage::default();
+                image.fill(w, h, &self.readings, &self.truths, &self.segments);
+                CaptureData::Depth {
+                    image,
+                    fov_deg: model.fov_deg,
+                }
+            }
+            None => {
+                let mut cloud = PointCloud::default();
+                cloud.fill(beams, &self.readings, &self.segments);
+                CaptureData::Points(cloud)
+            }
+        }
     }
 
     /// Device `i` surveys the aircraft around the vehicle at instant `k`: each report that gets

@@ -20,6 +20,7 @@
 //! - [`threats`]: closest approach of the other aircraft, for COLLISION.
 
 mod aircraft;
+pub mod capture;
 mod config;
 pub mod devices;
 mod ideal;
@@ -195,6 +196,19 @@ impl Feed {
     /// none): what the viewer draws.
     pub fn readings(&self) -> &[Reading] {
         &self.readings
+    }
+
+    /// Keep each image device's and lidar's readings whole ([`Feed::captures`]): for the
+    /// viewer; off by default (a reading is then only what the autopilot is sent).
+    pub fn keep_captures(&mut self, on: bool) {
+        if let Some(d) = self.devices.as_mut() {
+            d.keep_captures = on;
+        }
+    }
+
+    /// The range devices' readings made whole at the last [`Feed::on_sample`], when kept.
+    pub fn captures(&self) -> &[std::sync::Arc<capture::Capture>] {
+        self.devices.as_ref().map_or(&[], |d| &d.captures)
     }
 
     /// The ADS-B reports the last [`Feed::on_sample`] sent: what the viewer draws.

@@ -311,6 +311,9 @@ impl Session {
     /// the closest approaches at its end.
     pub fn observe(&mut self, observer: Box<dyn Observer>) {
         self.observer = Some(observer);
+        if let Some(feed) = self.feed.as_mut() {
+            feed.keep_captures(true);
+        }
     }
 
     /// What an observer is told of this run before its first frame: its scene, the scene's
@@ -332,7 +335,9 @@ impl Session {
             return Err(Error::Usage("--feed needs --scene".into()));
         }
         config.validate().map_err(|e| Error::Usage(e.to_string()))?;
-        self.feed = Some(Feed::new(config));
+        let mut feed = Feed::new(config);
+        feed.keep_captures(self.observer.is_some());
+        self.feed = Some(feed);
         Ok(())
     }
 

@@ -120,6 +120,10 @@ impl Session {
                 .feed
                 .as_ref()
                 .map_or_else(Vec::new, |f| f.adsb_sent().to_vec()),
+            captures: self
+                .feed
+                .as_ref()
+                .map_or_else(Vec::new, |f| f.captures().to_vec()),
             node: sensing
                 .and_then(|s| s.node())
                 .map(|n| pipeline.octree().node_aabb(n)),

@@ -40,6 +40,9 @@ pub struct Layout {
     pub vehicle_time: bool,
     /// The overview frames the scene alone (nothing flew): closely, not with a flight's margin.
     pub scene_only: bool,
+    /// The depth cameras of the chased vehicles: each image's entity (its pinhole), which gets
+    /// a 2D view beside the chase views.
+    pub images: Vec<String>,
 }
 
 /// Send `layout` as the recording's active and default blueprint.
@@ -253,6 +256,27 @@ impl Writer<'_> {
                         .0,
                 );
             }
+        }
+        if !layout.images.is_empty() {
+            let mut views = Vec::new();
+            for image in &layout.images {
+                let name = image
+                    .trim_end_matches("/image")
+                    .trim_start_matches("world/vehicles/")
+                    .replace("/sensors/", " ");
+                views.push(self.view(
+                    "2D",
+                    &format!("vehicle {name}"),
+                    &format!("/{image}"),
+                    &[format!("/{image}/**")],
+                    None,
+                )?);
+            }
+            let shares = vec![1.0; views.len()];
+            top.push(
+                self.container("images", ContainerKind::Vertical, views, &shares)?
+                    .0,
+            );
         }
         top.push(overview);
         let top_shares = vec![1.0; top.len()];

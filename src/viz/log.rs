@@ -124,6 +124,7 @@ fn scene_area(scene: &Scene, offset: DVec3) -> Option<(Vec3, Vec3)> {
 
 fn log_scene(rec: &RecordingStream, state: &State<'_>) -> RecordingStreamResult<()> {
     rec.log_static(paths::WORLD, &ViewCoordinates::RIGHT_HAND_Z_UP())?;
+    super::captures::log_classes(rec)?;
     let scene = state.scene;
     // A scene small enough is drawn with its real shapes; a big one (a generated city of
     // millions of triangles) with boxes.
@@ -194,6 +195,35 @@ fn log_scene(rec: &RecordingStream, state: &State<'_>) -> RecordingStreamResult<
     Ok(())
 }
 
+/// A chased vehicle's depth camera seen for the first time gets a view beside the chase
+/// views (the layout is sent again).
+fn image_appears(
+    rec: &RecordingStream,
+    layout: &mut Layout,
+    c: &crate::feed::capture::Capture,
+) -> RecordingStreamResult<()> {
+    if !matches!(c.data, crate::feed::capture::CaptureData::Depth { .. })
+        || !layout.chased.iter().any(|(id, _)| *id == c.system_id)
+    {
+        return Ok(());
+    }
+    let image = format!("{}/image", paths::sensor(c.system_id, &c.device));
+    if layout.images.contains(&image) {
+        return Ok(());
+    }
+    layout.images.push(image);
+    send_live(rec, layout)
+}
+
+/// The layout while the flight goes on: the overview frames a kilometre around what is known.
+fn send_live(rec: &RecordingStream, layout: &Layout) -> RecordingStreamResult<()> {
+    let mut live = layout.clone();
+    live.overview = live
+        .overview
+        .map(|(min, max)| (min - Vec3::splat(500.0), max + Vec3::splat(500.0)));
+    blueprint::send(rec, &live)
+}
+
 /// The distance a chase eye keeps from a vehicle of this model: ten model radii, at least 5 m.
 fn chase_distance_m(scene: &Scene, model: usize) -> f32 {
     let (cuboid, _) = scene.geometries[model].box_collider();
@@ -236,6 +266,10 @@ fn log_tick(
     log_rays(rec, rows, v, f, state.offset, position)?;
     log_feed(rec, f, position)?;
     log_adsb_sent(rec, state.offset, f)?;
+    for c in &f.captures {
+        super::captures::log_capture(rec, state.offset, c)?;
+        image_appears(rec, &mut state.layout, c)?;
+    }
     log_node(rec, v, f, state.leaves, state.offset)?;
     // Colliders (what changed), and the beta of each one a ray sees.
     v.colliders.log(rec, scene, state.offset, f)?;
@@ -299,12 +333,7 @@ fn vehicle_appears(
         .layout
         .chased
         .push((id, chase_distance_m(state.scene, f.model)));
-    // Until the flight is over, the overview frames a kilometre around what is known.
-    let mut live = state.layout.clone();
-    live.overview = live
-        .overview
-        .map(|(min, max)| (min - Vec3::splat(500.0), max + Vec3::splat(500.0)));
-    blueprint::send(rec, &live)
+    send_live(rec, &state.layout)
 }
 
 /// The body's pose, its model and axes (once per model), and the chase frame (position and

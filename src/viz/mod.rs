@@ -9,6 +9,7 @@
 //! origin), so f32 stays precise; the 3D views are Z up. The layout is in [`blueprint`].
 
 pub mod blueprint;
+mod captures;
 mod colliders;
 pub mod draw;
 mod log;

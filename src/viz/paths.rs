@@ -62,6 +62,13 @@ pub fn vehicle_part(system_id: u8, part: &str) -> String {
     format!("world/vehicles/{system_id}/{part}")
 }
 
+/// A modelled device on a vehicle (Transform3D: where it was and looked at its last reading;
+/// `image` (a pinhole, `depth`, `class`) or `points` below it):
+/// `world/vehicles/{sysid}/sensors/{device}`.
+pub fn sensor(system_id: u8, device: &str) -> String {
+    format!("world/vehicles/{system_id}/sensors/{}", sanitize(device))
+}
+
 /// A vehicle's colliders of one group (`boxes`, `seen`, `moving`; see
 /// `viz::colliders`): `world/vehicles/{sysid}/colliders/{group}`.
 pub fn colliders(system_id: u8, group: &str) -> String {

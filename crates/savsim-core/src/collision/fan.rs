@@ -8,11 +8,12 @@
 
 use glam::DVec3;
 
-use crate::collision::bodies::ObstacleRef;
+use crate::collision::bodies::{BodySource, ObstacleRef};
 use crate::collision::contact::queries;
 use crate::collision::meshes::MeshCache;
 use crate::collision::view::{view, World};
-use crate::scene::Aabb64;
+use crate::scene::{Aabb64, Kind};
+use crate::sensors::image::{Segment, SegmentClass};
 
 /// A fan of rays from one point: unit directions, ENU, and how far they reach.
 #[derive(Debug, Clone, Copy)]
@@ -71,4 +72,58 @@ pub(crate) fn nearest(
         }
     });
     best
+}
+
+/// The first segment id of a scene's moving obstacle (`| index`); static obstacles are
+/// `index + 1` below it.
+pub const SEGMENT_SCRIPTED: u32 = 0x0100_0000;
+/// The first segment id of a vehicle (`| system id << 8 | component id`).
+pub const SEGMENT_VEHICLE: u32 = 0x0200_0000;
+/// The first segment id of ADS-B traffic (`| ICAO address`).
+pub const SEGMENT_TRAFFIC: u32 = 0x0300_0000;
+
+/// What obstacle `o` is in a segmentation: its id (a static obstacle's index + 1; a moving
+/// obstacle's, a vehicle's and an aircraft's by the constants above, so that an id names the
+/// same body in every frame) and its class (a static obstacle's from its kind, which
+/// `static_kind` gives by index: `|i| scene.obstacles.get(i).map(|o| o.kind)`).
+///
+/// ```
+/// use savsim_core::collision::fan::{segment_of, SEGMENT_VEHICLE};
+/// use savsim_core::pipeline::{BodyKey, BodySource, ObstacleRef};
+/// use savsim_core::sensors::image::SegmentClass;
+/// let other = BodyKey {
+///     source: BodySource::Vehicle { vehicle: 2, component_id: 1 },
+///     generation: 0,
+/// };
+/// let s = segment_of(ObstacleRef::Dynamic(other), |_| None);
+/// assert_eq!((s.id, s.class), (SEGMENT_VEHICLE | 0x0201, SegmentClass::Vehicle));
+/// ```
+pub fn segment_of(o: ObstacleRef, static_kind: impl FnOnce(usize) -> Option<Kind>) -> Segment {
+    match o {
+        ObstacleRef::Static(i) => Segment {
+            id: i.saturating_add(1).min(SEGMENT_SCRIPTED - 1),
+            class: match static_kind(i as usize) {
+                Some(Kind::Mountain) => SegmentClass::Terrain,
+                Some(Kind::Tree) => SegmentClass::Tree,
+                _ => SegmentClass::Building,
+            },
+        },
+        ObstacleRef::Dynamic(key) => match key.source {
+            BodySource::Scripted(j) => Segment {
+                id: SEGMENT_SCRIPTED | (j & 0x00FF_FFFF),
+                class: SegmentClass::Aircraft,
+            },
+            BodySource::Vehicle {
+                vehicle,
+                component_id,
+            } => Segment {
+                id: SEGMENT_VEHICLE | (u32::from(vehicle) & 0xFFFF) << 8 | u32::from(component_id),
+                class: SegmentClass::Vehicle,
+            },
+            BodySource::Traffic(icao) => Segment {
+                id: SEGMENT_TRAFFIC | (icao & 0x00FF_FFFF),
+                class: SegmentClass::Aircraft,
+            },
+        },
+    }
 }

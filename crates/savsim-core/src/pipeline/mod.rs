@@ -261,6 +261,38 @@ impl Pipeline {
         rays: Rays<'_>,
         out: &mut [Option<f64>],
     ) {
+        self.cast_each(scene, own, dynamic, rays, |i, hit| {
+            if let Some(o) = out.get_mut(i) {
+                *o = hit.map(|(_, d)| d);
+            }
+        });
+    }
+
+    /// As [`Pipeline::cast_exact_rays`], with what each ray met: `out[i]` the obstacle and
+    /// its distance.
+    pub fn cast_exact_hits(
+        &mut self,
+        scene: &Scene,
+        own: BodySource,
+        dynamic: &MovingBodies,
+        rays: Rays<'_>,
+        out: &mut [Option<(ObstacleRef, f64)>],
+    ) {
+        self.cast_each(scene, own, dynamic, rays, |i, hit| {
+            if let Some(o) = out.get_mut(i) {
+                *o = hit;
+            }
+        });
+    }
+
+    fn cast_each(
+        &mut self,
+        scene: &Scene,
+        own: BodySource,
+        dynamic: &MovingBodies,
+        rays: Rays<'_>,
+        mut put: impl FnMut(usize, Option<(ObstacleRef, f64)>),
+    ) {
         let world = World {
             scene,
             dynamic,
@@ -269,15 +301,15 @@ impl Pipeline {
             statics: &self.statics,
             shapes: &self.shapes,
         };
-        for (dir, hit) in rays.dirs_enu.iter().zip(out.iter_mut()) {
-            *hit = crate::collision::fan::nearest(
+        for (i, dir) in rays.dirs_enu.iter().enumerate() {
+            let hit = crate::collision::fan::nearest(
                 &world,
                 &mut self.meshes,
                 rays.origin_enu_m,
                 *dir,
                 rays.max_m,
-            )
-            .map(|(_, d)| d);
+            );
+            put(i, hit);
         }
     }
 

@@ -8,6 +8,7 @@ use crate::sensors::device::{
 };
 use crate::sensors::errors::{sigma_from_bound95, GaussMarkov};
 use crate::sensors::presets;
+use crate::sensors::range::focal_px;
 use crate::sensors::spec::{DeviceSpec, MountSpec, SpecError};
 
 /// The kind a spec makes.
@@ -52,7 +53,8 @@ impl DeviceSpec {
         };
         let (a, b) = (self, base);
         let mut out = each_or!(a, b;
-            name, preset, kind, mount, rate_hz, latency_s, fov_deg, step_deg, beam_deg, range_m,
+            name, preset, kind, mount, rate_hz, latency_s, fov_deg, step_deg, beam_deg, image_px,
+            channels, range_m,
             sigma_m, proportional, stereo_subpixel_px, stereo_focal_px, stereo_baseline_m, bias_m,
             markov_sigma_m, markov_tau_s, quantum_m, dropout, burst_enter, burst_mean_readings,
             invalid_ray, false_return, nacp, nacv, tau_s, position_sigma_m, velocity_sigma_mps,
@@ -176,6 +178,8 @@ impl Check<'_> {
             ("fov_deg", s.fov_deg.is_some()),
             ("step_deg", s.step_deg.is_some()),
             ("beam_deg", s.beam_deg.is_some()),
+            ("image_px", s.image_px.is_some()),
+            ("channels", s.channels.is_some()),
             ("sigma_m", s.sigma_m.is_some()),
             ("proportional", s.proportional.is_some()),
             ("stereo_subpixel_px", s.stereo_subpixel_px.is_some()),
@@ -251,13 +255,33 @@ impl Check<'_> {
     }
 }
 
-fn range_model(s: &DeviceSpec, c: &Check<'_>) -> Result<RangeModel, SpecError> {
+/// The most pixels an image has across or down.
+pub const MAX_IMAGE_SIDE_PX: u32 = 4096;
+/// The most channels a lidar has.
+pub const MAX_CHANNELS: u32 = 256;
+
+/// A range device's rays as written: its field of view and steps (a grid), or an image's
+/// pixels, or a lidar's channels; each checked.
+struct Pattern {
+    fov_deg: [f64; 2],
+    step_deg: [f64; 2],
+    image_px: Option<[u32; 2]>,
+    channels: Option<u32>,
+}
+
+fn pattern(s: &DeviceSpec, c: &Check<'_>) -> Result<Pattern, SpecError> {
     let fov = s.fov_deg.unwrap_or([0.0, 0.0]);
+    if let Some(px) = s.image_px {
+        return image_pattern(s, c, fov, px);
+    }
     c.number("fov_deg", fov[0], 0.0, 360.0)?;
     c.number("fov_deg", fov[1], 0.0, 180.0)?;
     let step = s.step_deg.unwrap_or([1.0, 1.0]);
     for (i, v) in step.into_iter().enumerate() {
         let v = c.number("step_deg", v, 0.0, 90.0)?;
+        if i == 1 && s.channels.is_some() {
+            continue;
+        }
         if fov[i] > 0.0 && v < 0.05 {
             return Err(c.err(
                 "step_deg",
@@ -268,6 +292,71 @@ fn range_model(s: &DeviceSpec, c: &Check<'_>) -> Result<RangeModel, SpecError> {
             return Err(c.err("step_deg", "more than 10,000 rays along a field".into()));
         }
     }
+    if let Some(n) = s.channels {
+        if !(1..=MAX_CHANNELS).contains(&n) {
+            return Err(c.err("channels", format!("{n}: give 1 to {MAX_CHANNELS}")));
+        }
+        if n > 1 && fov[1] <= 0.0 {
+            return Err(c.err(
+                "channels",
+                format!("{n} channels need a field of view up-down (fov_deg's second)"),
+            ));
+        }
+    }
+    Ok(Pattern {
+        fov_deg: fov,
+        step_deg: step,
+        image_px: None,
+        channels: s.channels,
+    })
+}
+
+/// A pinhole image's pattern: 1 to 4096 pixels a side, a field of view above 0 and below 180
+/// degrees each way; no steps, channels or beam width.
+fn image_pattern(
+    s: &DeviceSpec,
+    c: &Check<'_>,
+    fov: [f64; 2],
+    px: [u32; 2],
+) -> Result<Pattern, SpecError> {
+    for side in px {
+        if !(1..=MAX_IMAGE_SIDE_PX).contains(&side) {
+            return Err(c.err(
+                "image_px",
+                format!("{px:?}: give 1 to {MAX_IMAGE_SIDE_PX} pixels across and down"),
+            ));
+        }
+    }
+    for v in fov {
+        if !(v.is_finite() && v > 0.0 && v < 180.0) {
+            return Err(c.err(
+                "fov_deg",
+                format!(
+                    "{}: a camera's field of view is above 0 and below 180 degrees",
+                    shown(v)
+                ),
+            ));
+        }
+    }
+    for (field, set) in [
+        ("step_deg", s.step_deg.is_some()),
+        ("channels", s.channels.is_some()),
+        ("beam_deg", s.beam_deg.is_some()),
+    ] {
+        if set {
+            return Err(c.err(field, "not a setting of an image (image_px)".into()));
+        }
+    }
+    Ok(Pattern {
+        fov_deg: fov,
+        step_deg: [0.0, 0.0],
+        image_px: Some(px),
+        channels: None,
+    })
+}
+
+fn range_model(s: &DeviceSpec, c: &Check<'_>) -> Result<RangeModel, SpecError> {
+    let p = pattern(s, c)?;
     let range = c.required("range_m", s.range_m)?;
     c.number("range_m", range[0], 0.0, 650.0)?;
     c.number("range_m", range[1], 0.0, 650.0)?;
@@ -277,8 +366,10 @@ fn range_model(s: &DeviceSpec, c: &Check<'_>) -> Result<RangeModel, SpecError> {
             format!("{range:?}: the nearest must be below the farthest"),
         ));
     }
+    // An image's stereo focal length is its own unless given.
+    let image_focal = p.image_px.map(|px| focal_px(px[0], p.fov_deg[0]));
     let stereo =
-        match (s.stereo_subpixel_px, s.stereo_focal_px, s.stereo_baseline_m) {
+        match (s.stereo_subpixel_px, s.stereo_focal_px.or(image_focal), s.stereo_baseline_m) {
             (None, None, None) => None,
             (Some(subpixel_px), Some(focal_px), Some(baseline_m)) => Some(Stereo {
                 subpixel_px: c.number("stereo_subpixel_px", subpixel_px, 0.0, 10.0)?,
@@ -299,8 +390,10 @@ fn range_model(s: &DeviceSpec, c: &Check<'_>) -> Result<RangeModel, SpecError> {
         }),
     };
     Ok(RangeModel {
-        fov_deg: fov,
-        step_deg: step,
+        fov_deg: p.fov_deg,
+        step_deg: p.step_deg,
+        image_px: p.image_px,
+        channels: p.channels,
         beam_deg: c.number("beam_deg", s.beam_deg.unwrap_or(0.0), 0.0, 45.0)?,
         range_m: range,
         sigma_m: c.number("sigma_m", s.sigma_m.unwrap_or(0.0), 0.0, 100.0)?,

@@ -61,6 +61,12 @@ pub struct RangeModel {
     /// Width of a single beam (a rangefinder's), degrees: its edge is cast too (5 rays), the
     /// nearest return counts. 0 for a ray.
     pub beam_deg: f64,
+    /// A depth image: pixels across and down of a pinhole camera whose field of view is
+    /// `fov_deg` (edge to edge), one ray through each pixel's centre; `step_deg` unused.
+    pub image_px: Option<[u32; 2]>,
+    /// A multi-channel lidar's rows, spread evenly over `fov_deg`'s second (its first and last
+    /// at the field's edges); `step_deg`'s second unused.
+    pub channels: Option<u32>,
     /// Nearest and farthest distance it reads, metres; a return nearer than the first is
     /// invalid (no reading), none within the second is "nothing in range".
     pub range_m: [f64; 2],

@@ -17,13 +17,16 @@
 //! - [`build`]: a spec built into a device, its preset resolved and every field checked.
 //! - [`presets`]: the named devices.
 //! - [`suite`]: a vehicle's devices, and the names (`ideal`, lists, files) that give them.
-//! - [`range`]: what a range device reads along its rays.
+//! - [`range`]: what a range device reads along its rays (a grid, a lidar's channels, a
+//!   pinhole image's pixels).
+//! - [`image`]: a reading as a depth image and segmentation, or a point cloud.
 //! - [`surveillance`]: what ADS-B, radar and EO/IR report of other aircraft.
 
 pub mod build;
 pub mod device;
 pub mod draws;
 pub mod errors;
+pub mod image;
 pub mod presets;
 pub mod range;
 pub mod spec;

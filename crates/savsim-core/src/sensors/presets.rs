@@ -4,8 +4,13 @@
 use crate::sensors::spec::{DeviceSpec, MountSpec};
 
 /// Every preset's name.
-pub const NAMES: [&str; 10] = [
+pub const NAMES: [&str; 15] = [
     "realsense-d435",
+    "realsense-d435-depth",
+    "realsense-d455-depth",
+    "depth-160x120",
+    "velodyne-vlp16",
+    "ouster-os1-64",
     "rplidar-a2",
     "tfmini",
     "tfmini-down",
@@ -85,6 +90,71 @@ fn range_device(name: &str) -> Option<DeviceSpec> {
             ..spec("tfmini")?
         }
         .named(name),
+        _ => return image_or_lidar(name),
+    })
+}
+
+/// The image devices (depth cameras) and the multi-channel lidars.
+fn image_or_lidar(name: &str) -> Option<DeviceSpec> {
+    Some(match name {
+        // Intel RealSense D435's depth stream at 848 x 480 (Intel's best depth resolution for
+        // it), 30 Hz: 87 x 58 degrees, 0.2 to 10 m; depth RMS z^2 0.08 / (focal 446.8 px x
+        // 0.05 m), the focal length the image's own; 2% of pixels invalid; 1 mm steps.
+        "realsense-d435-depth" => DeviceSpec {
+            rate_hz: Some(30.0),
+            latency_s: Some(0.03),
+            image_px: Some([848, 480]),
+            fov_deg: Some([87.0, 58.0]),
+            range_m: Some([0.2, 10.0]),
+            stereo_subpixel_px: Some(0.08),
+            stereo_baseline_m: Some(0.05),
+            quantum_m: Some(0.001),
+            invalid_ray: Some(0.02),
+            ..kind("range", name)
+        },
+        // Intel RealSense D455 at 848 x 480, 30 Hz: 87 x 58 degrees, 95 mm baseline, 0.4 to
+        // 20 m.
+        "realsense-d455-depth" => DeviceSpec {
+            stereo_baseline_m: Some(0.095),
+            range_m: Some([0.4, 20.0]),
+            ..spec("realsense-d435-depth")?
+        }
+        .named(name),
+        // A planner's input: the D435's 848 x 480 depth image decimated to 160 x 120, its
+        // errors those of the full image (focal 446.8 px).
+        "depth-160x120" => DeviceSpec {
+            image_px: Some([160, 120]),
+            stereo_focal_px: Some(crate::sensors::range::focal_px(848, 87.0)),
+            ..spec("realsense-d435-depth")?
+        }
+        .named(name),
+        // Velodyne VLP-16 at 10 Hz: 16 channels over +-15 degrees (2 degrees apart), every 0.2
+        // degree around (28,800 points a turn, 288,000 a second); to 100 m (from 0.9 m, the
+        // ROS driver's default), +-3 cm, 2 mm steps.
+        "velodyne-vlp16" => DeviceSpec {
+            rate_hz: Some(10.0),
+            latency_s: Some(0.1),
+            fov_deg: Some([360.0, 30.0]),
+            step_deg: Some([0.2, 2.0]),
+            channels: Some(16),
+            range_m: Some([0.9, 100.0]),
+            sigma_m: Some(0.03),
+            quantum_m: Some(0.002),
+            ..kind("range", name)
+        },
+        // Ouster OS1-64 (gen 1) at 1024 x 10 Hz: 64 channels over 33.2 degrees, 0.35 degree
+        // around (655,360 points a second); 0.8 to 120 m, +-3 cm, 3 mm steps.
+        "ouster-os1-64" => DeviceSpec {
+            rate_hz: Some(10.0),
+            latency_s: Some(0.1),
+            fov_deg: Some([360.0, 33.2]),
+            step_deg: Some([360.0 / 1024.0, 33.2 / 63.0]),
+            channels: Some(64),
+            range_m: Some([0.8, 120.0]),
+            sigma_m: Some(0.03),
+            quantum_m: Some(0.003),
+            ..kind("range", name)
+        },
         _ => return None,
     })
 }

@@ -88,6 +88,11 @@ impl RangeModel {
     /// assert_eq!((beam.beams().len(), beam.beams()[0].len()), (1, 5));
     /// ```
     pub fn beams(&self) -> Vec<Beam> {
+        if let Some([w, h]) = self.image_px {
+            return pinhole_rays(w, h, self.fov_deg)
+                .map(|d| Beam::from_elem(d, 1))
+                .collect();
+        }
         let angles = |fov: f64, step: f64| -> Vec<f64> {
             if fov <= 0.0 || step <= 0.0 {
                 return vec![0.0];
@@ -103,7 +108,10 @@ impl RangeModel {
             (0..=n).map(|i| first + i as f64 * step).collect()
         };
         let across = angles(self.fov_deg[0], self.step_deg[0]);
-        let up_down = angles(self.fov_deg[1], self.step_deg[1]);
+        let up_down = match self.channels {
+            Some(n) => channel_angles(n, self.fov_deg[1]),
+            None => angles(self.fov_deg[1], self.step_deg[1]),
+        };
         let mut out = Vec::with_capacity(across.len() * up_down.len());
         for &el in up_down.iter().rev() {
             for &az in &across {
@@ -242,6 +250,60 @@ impl RangeModel {
         state.burst_instant = Some(k);
         in_burst
     }
+}
+
+/// The elevations of `n` channels spread evenly over `fov_deg` (up-down, centred on the
+/// boresight), lowest first; one channel looks along the boresight.
+///
+/// ```
+/// use savsim_core::sensors::range::channel_angles;
+/// assert_eq!(channel_angles(16, 30.0)[..3], [-15.0, -13.0, -11.0]);
+/// assert_eq!(channel_angles(16, 30.0)[15], 15.0);
+/// assert_eq!(channel_angles(1, 30.0), [0.0]);
+/// ```
+pub fn channel_angles(n: u32, fov_deg: f64) -> Vec<f64> {
+    if n <= 1 {
+        return vec![0.0];
+    }
+    let step = fov_deg / f64::from(n - 1);
+    (0..n).map(|i| -fov_deg / 2.0 + f64::from(i) * step).collect()
+}
+
+/// A pinhole image's focal length across, pixels: half its width over the tangent of half
+/// its field of view (446.8 for 848 pixels over 87 degrees).
+///
+/// ```
+/// assert!((savsim_core::sensors::range::focal_px(848, 87.0) - 446.8).abs() < 0.05);
+/// ```
+pub fn focal_px(width_px: u32, fov_across_deg: f64) -> f64 {
+    f64::from(width_px) / 2.0 / (fov_across_deg / 2.0).to_radians().tan()
+}
+
+/// The rays of a pinhole image `w` x `h` pixels whose field of view is `fov_deg` (across and
+/// down, edge to edge): through each pixel's centre, row by row from the top left, in the
+/// device's frame (x along the optical axis, y right, z down), unit vectors. Pixel `(u, v)`'s
+/// ray is `(1, (u + 0.5 - w/2) / fx, (v + 0.5 - h/2) / fy)` normalised, with `fx = w / 2 /
+/// tan(fov across / 2)` and `fy` alike.
+///
+/// ```
+/// use savsim_core::sensors::range::pinhole_rays;
+/// let rays: Vec<_> = pinhole_rays(2, 2, [90.0, 90.0]).collect();
+/// // The four pixels' centres sit half way to the edges: tan(a) = 0.5.
+/// let a = 0.5f64.atan();
+/// assert!((rays[0].y / rays[0].x + 0.5).abs() < 1e-12 && rays[0].z < 0.0);
+/// assert!((rays[3].z / rays[3].x - a.tan()).abs() < 1e-12);
+/// ```
+pub fn pinhole_rays(w: u32, h: u32, fov_deg: [f64; 2]) -> impl Iterator<Item = DVec3> {
+    let tan = |fov: f64| (fov / 2.0).to_radians().tan();
+    let (tx, ty) = (tan(fov_deg[0]), tan(fov_deg[1]));
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    (0..h).flat_map(move |v| {
+        (0..w).map(move |u| {
+            let y = (f64::from(u) + 0.5 - wf / 2.0) / (wf / 2.0) * tx;
+            let z = (f64::from(v) + 0.5 - hf / 2.0) / (hf / 2.0) * ty;
+            DVec3::new(1.0, y, z).normalize()
+        })
+    })
 }
 
 /// The unit vector at azimuth `az_deg` (right) and elevation `el_deg` (up) in a forward-right-

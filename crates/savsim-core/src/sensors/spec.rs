@@ -42,6 +42,12 @@ pub struct DeviceSpec {
     pub step_deg: Option<[f64; 2]>,
     /// Range: a single beam's width, degrees.
     pub beam_deg: Option<f64>,
+    /// Range: a depth image of this many pixels across and down (a pinhole camera over
+    /// `fov_deg`, one ray through each pixel's centre) in place of a grid of rays.
+    pub image_px: Option<[u32; 2]>,
+    /// Range: a multi-channel lidar's rows (lasers), spread evenly over `fov_deg`'s second
+    /// in place of `step_deg`'s second.
+    pub channels: Option<u32>,
     /// Range (and radar): nearest and farthest distance, metres.
     pub range_m: Option<[f64; 2]>,
     /// Range: white noise sigma, metres.
