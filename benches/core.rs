@@ -176,15 +176,18 @@ fn images(c: &mut Criterion) {
     // Looking north-east: the device's x (boresight) to ENU north-east, its y (right) to
     // south-east, its z (down) down.
     let (ne, se) = (
-        DVec3::new(1.0, 1.0, 0.0).normalize(),
-        DVec3::new(1.0, -1.0, 0.0).normalize(),
+        DVec3::new(1.0, 1.0, 0.0).normalize_or_zero(),
+        DVec3::new(1.0, -1.0, 0.0).normalize_or_zero(),
     );
     let to_enu = |d: DVec3| ne * d.x + se * d.y - DVec3::Z * d.z;
     let mut group = c.benchmark_group("image");
     group.sample_size(10);
     for (name, spec) in [
         ("depth-160x120", "preset = \"depth-160x120\""),
-        ("d435-424x240", "preset = \"realsense-d435-depth\"\nimage_px = [424, 240]"),
+        (
+            "d435-424x240",
+            "preset = \"realsense-d435-depth\"\nimage_px = [424, 240]",
+        ),
         ("d435-848x480", "preset = \"realsense-d435-depth\""),
         (
             "d435-424x240-to-300m",
@@ -197,11 +200,7 @@ fn images(c: &mut Criterion) {
         let Model::Range(model) = spec.build().expect("it builds").model else {
             unreachable!("a range device")
         };
-        let dirs: Vec<DVec3> = model
-            .beams()
-            .iter()
-            .map(|b| to_enu(b[0]))
-            .collect();
+        let dirs: Vec<DVec3> = model.beams().iter().map(|b| to_enu(b[0])).collect();
         let mut out = vec![None; dirs.len()];
         group.throughput(Throughput::Elements(dirs.len() as u64));
         group.bench_function(name, |b| {

@@ -10,7 +10,7 @@ use glam::DVec3;
 use crate::collision::events::Event;
 use crate::collision::ColliderKind;
 use crate::error::Result;
-use crate::feed::capture::Capture;
+pub use crate::feed::capture::{Capture, CaptureData};
 use crate::feed::{AdsbSent, Reading};
 use crate::pipeline::{BodyKey, BodyPose, ObstacleRef, TickReport};
 use crate::scene::{Aabb64, Kind, Scene};

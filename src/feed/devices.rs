@@ -27,13 +27,13 @@ use glam::{DQuat, DVec3};
 use savsim_core::collision::fan::segment_of;
 use savsim_core::pipeline::ObstacleRef;
 use savsim_core::sensors::device::{Device, Model, RangeModel};
-use savsim_core::sensors::image::{DepthImage, PointCloud, Segment};
 use savsim_core::sensors::draws::{mix, Draws};
+use savsim_core::sensors::image::{DepthImage, PointCloud, Segment};
 use savsim_core::sensors::range::{Beam, BeamReading, BeamTruth, RangeState};
 use savsim_core::sensors::surveillance::{Look, Own, Target, TargetReport, TargetState};
 
-use super::capture::{Capture, CaptureData};
 use super::aircraft::{aircraft, body_velocity, has_transponder};
+use super::capture::{Capture, CaptureData};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
 use super::tracks::{in_range, send_report, Told};
@@ -270,11 +270,17 @@ impl Devices {
         for b in beams.iter() {
             let hits = &self.hits[at..at + b.len()];
             at += b.len();
-            let nearest = hits.iter().flatten().copied().min_by(|a, b| a.1.total_cmp(&b.1));
-            self.truths.push(BeamTruth::along(b, nearest.map(|(_, d)| d)));
-            self.segments.push(nearest.map_or_else(Segment::default, |(o, _)| {
-                segment_of(o, |i| scene.obstacles.get(i).map(|s| s.kind))
-            }));
+            let nearest = hits
+                .iter()
+                .flatten()
+                .copied()
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            self.truths
+                .push(BeamTruth::along(b, nearest.map(|(_, d)| d)));
+            self.segments
+                .push(nearest.map_or_else(Segment::default, |(o, _)| {
+                    segment_of(o, |i| scene.obstacles.get(i).map(|s| s.kind))
+                }));
         }
         self.readings.clear();
         self.readings.resize(beams.len(), BeamReading::NoData);

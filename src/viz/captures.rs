@@ -14,7 +14,7 @@ use savsim_core::sensors::image::SegmentClass;
 
 use super::draw::local;
 use super::paths;
-use crate::feed::capture::{Capture, CaptureData};
+use crate::observe::{Capture, CaptureData};
 
 /// Each class's colour in the segmentation and the points.
 fn class_color(class: SegmentClass) -> [u8; 3] {
@@ -79,12 +79,8 @@ pub(super) fn log_capture(
                 .collect();
             rec.log(
                 format!("{image_path}/depth"),
-                &DepthImage::from_data_type_and_bytes(
-                    depth,
-                    size,
-                    ChannelDatatype::F32,
-                )
-                .with_meter(1.0),
+                &DepthImage::from_data_type_and_bytes(depth, size, ChannelDatatype::F32)
+                    .with_meter(1.0),
             )?;
             rec.log(
                 format!("{image_path}/class"),

@@ -200,9 +200,9 @@ fn log_scene(rec: &RecordingStream, state: &State<'_>) -> RecordingStreamResult<
 fn image_appears(
     rec: &RecordingStream,
     layout: &mut Layout,
-    c: &crate::feed::capture::Capture,
+    c: &crate::observe::Capture,
 ) -> RecordingStreamResult<()> {
-    if !matches!(c.data, crate::feed::capture::CaptureData::Depth { .. })
+    if !matches!(c.data, crate::observe::CaptureData::Depth { .. })
         || !layout.chased.iter().any(|(id, _)| *id == c.system_id)
     {
         return Ok(());

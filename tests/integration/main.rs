@@ -41,6 +41,8 @@
 //!   along faces and edges, millimetre to 10 km meshes, coplanar contact, gimbal lock.
 //! - `sensed_daa`: batch rows alerting on sensed states, against `savsim daa` (and DAIDALUS).
 //! - `sensor_feed`: the feed from modelled devices; `ideal` as before, bit for bit.
+//! - `images`: depth images, segmentation and lidar channels against a scalar cast over
+//!   every triangle; a field of view's edges to 0.01 degree; bad definitions.
 //! - `sensor_models`: the sensor models against their specifications (distributions,
 //!   correlation, reception, fields of regard, determinism, bad definitions).
 //! - `scenes`: the scene file format and its errors.
@@ -113,6 +115,7 @@ mod flight_logs;
 mod forward;
 mod geo;
 mod identities;
+mod images;
 mod ingest;
 mod live;
 mod lockstep;

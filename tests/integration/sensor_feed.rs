@@ -17,7 +17,10 @@ use crate::cli::savsim;
 use crate::common::{feed, frame_v2, heartbeat, position_frames, scene_at};
 
 /// SHA-256 of `savsim demo --feed KINDS --feed-out` as savsim wrote it before sensors were
-/// modelled (commit b2432dd), for each KINDS.
+/// modelled (commit b2432dd), for each KINDS; `obstacle-distance`'s as savsim writes it since
+/// boxes are cast in f64 (2026-12-07): 3 of its 145,800 distances moved by 1 cm (pymavlink
+/// read both), where parry's f32 cast had rounded across a centimetre (b2432dd's was
+/// 0be43f2ac6c1291ea5a5c728ea5d593966eaf2d6a786111ec8dbb4e7a2cbef18).
 const BEFORE_SENSORS: [(&str, &str); 2] = [
     (
         "proximity,rangefinder,adsb,collision",
@@ -25,7 +28,7 @@ const BEFORE_SENSORS: [(&str, &str); 2] = [
     ),
     (
         "obstacle-distance",
-        "0be43f2ac6c1291ea5a5c728ea5d593966eaf2d6a786111ec8dbb4e7a2cbef18",
+        "511d1fcb1ee1d5f9e28bb048bec55e75bccbdbde28ca1c6cdcf8af1773a4ea7f",
     ),
 ];
 

@@ -367,9 +367,16 @@ fn range_model(s: &DeviceSpec, c: &Check<'_>) -> Result<RangeModel, SpecError> {
         ));
     }
     // An image's stereo focal length is its own unless given.
-    let image_focal = p.image_px.map(|px| focal_px(px[0], p.fov_deg[0]));
+    let image_focal = p
+        .image_px
+        .filter(|_| s.stereo_subpixel_px.is_some() || s.stereo_baseline_m.is_some())
+        .map(|px| focal_px(px[0], p.fov_deg[0]));
     let stereo =
-        match (s.stereo_subpixel_px, s.stereo_focal_px.or(image_focal), s.stereo_baseline_m) {
+        match (
+            s.stereo_subpixel_px,
+            s.stereo_focal_px.or(image_focal),
+            s.stereo_baseline_m,
+        ) {
             (None, None, None) => None,
             (Some(subpixel_px), Some(focal_px), Some(baseline_m)) => Some(Stereo {
                 subpixel_px: c.number("stereo_subpixel_px", subpixel_px, 0.0, 10.0)?,

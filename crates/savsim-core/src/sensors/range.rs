@@ -266,7 +266,9 @@ pub fn channel_angles(n: u32, fov_deg: f64) -> Vec<f64> {
         return vec![0.0];
     }
     let step = fov_deg / f64::from(n - 1);
-    (0..n).map(|i| -fov_deg / 2.0 + f64::from(i) * step).collect()
+    (0..n)
+        .map(|i| -fov_deg / 2.0 + f64::from(i) * step)
+        .collect()
 }
 
 /// A pinhole image's focal length across, pixels: half its width over the tangent of half
@@ -301,7 +303,7 @@ pub fn pinhole_rays(w: u32, h: u32, fov_deg: [f64; 2]) -> impl Iterator<Item = D
         (0..w).map(move |u| {
             let y = (f64::from(u) + 0.5 - wf / 2.0) / (wf / 2.0) * tx;
             let z = (f64::from(v) + 0.5 - hf / 2.0) / (hf / 2.0) * ty;
-            DVec3::new(1.0, y, z).normalize()
+            DVec3::new(1.0, y, z).normalize_or_zero()
         })
     })
 }

@@ -354,6 +354,31 @@ pub(crate) fn bisect_first<T: num_traits::Float>(
     hit
 }
 
+/// Where a ray from `o` along `d` (in a box's frame) enters the box of half extents `h`
+/// centred on the frame's origin, within `max_m`; 0 from inside (a solid). The slab test in
+/// f64.
+fn ray_cuboid(o: DVec3, d: DVec3, h: DVec3, max_m: f64) -> Option<f64> {
+    let (mut t0, mut t1) = (0.0f64, max_m);
+    for a in 0..3 {
+        if d[a] == 0.0 {
+            if o[a].abs() > h[a] {
+                return None;
+            }
+            continue;
+        }
+        let (mut ta, mut tb) = ((-h[a] - o[a]) / d[a], (h[a] - o[a]) / d[a]);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+        if t0 > t1 {
+            return None;
+        }
+    }
+    Some(t0)
+}
+
 /// Distance along a ray from `origin_enu_m` in direction `dir_enu` (normalised here; a zero or
 /// non-finite direction hits nothing) to the placed shape, up to `max_m`. From inside a solid
 /// (a box, a compound, a closed mesh) the distance is 0.
@@ -375,6 +400,16 @@ pub fn ray_distance_m(
             field,
             origin,
             to_shape * dir_enu,
+            max_m,
+        );
+    }
+    if let Some(cuboid) = b.shape.as_cuboid() {
+        // A box in f64 (parry's cast is f32: micrometres off at metres).
+        let to_shape = b.enu_from_shape.inverse();
+        return ray_cuboid(
+            to_shape * (origin_enu_m - b.position_enu_m),
+            to_shape * dir_enu,
+            cuboid.half_extents.as_dvec3(),
             max_m,
         );
     }
