@@ -202,6 +202,18 @@ fn images(c: &mut Criterion) {
         };
         let dirs: Vec<DVec3> = model.beams().iter().map(|b| to_enu(b[0])).collect();
         let mut out = vec![None; dirs.len()];
+        let rays = Rays {
+            origin_enu_m: origin,
+            dirs_enu: &dirs,
+            max_m: model.range_m[1],
+        };
+        pipeline.cast_exact_rays(&scene, own, &MovingBodies::default(), rays, &mut out);
+        let hits = out.iter().flatten().count();
+        eprintln!(
+            "image/{name}: {} rays, {hits} hit ({:.0}%)",
+            dirs.len(),
+            100.0 * hits as f64 / dirs.len() as f64
+        );
         group.throughput(Throughput::Elements(dirs.len() as u64));
         group.bench_function(name, |b| {
             b.iter(|| {

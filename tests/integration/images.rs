@@ -116,11 +116,13 @@ fn device(toml_text: &str) -> RangeModel {
     }
 }
 
-/// A camera at `origin` looking along ENU `forward` (levelled), its right to the right.
+/// A camera looking along ENU `forward`, its right level, its down square to both: the
+/// camera's frame to ENU.
 fn camera_to_enu(forward: DVec3) -> impl Fn(DVec3) -> DVec3 {
     let f = forward.normalize_or_zero();
     let right = f.cross(DVec3::Z).normalize_or_zero();
-    move |d: DVec3| f * d.x + right * d.y - DVec3::Z * d.z
+    let down = f.cross(right);
+    move |d: DVec3| f * d.x + right * d.y + down * d.z
 }
 
 /// What the pipeline's exact rays say from `origin` along `dirs`.
@@ -427,4 +429,49 @@ fn bad_images_and_lidars_are_errors_naming_the_field() {
     // A value that is not a pixel count at all is the parser's error, naming the field.
     let err = toml::from_str::<DeviceSpec>("image_px = [-1, 5]").unwrap_err();
     assert!(err.to_string().contains("image_px"), "{err}");
+}
+
+#[test]
+fn a_crowded_scene_gives_every_depth_of_the_scalar_cast_near_and_far() {
+    // 144 posts on a 12 x 12 grid 4 m apart: a chunk of rays meets more of them than it tries
+    // one by one, so far rays go through the tree; near and far, the depths are the cast's.
+    let posts: Vec<([f64; 3], [f64; 3])> = (0..144)
+        .map(|k| {
+            let (x, y) = (
+                f64::from(k % 12) * 4.0 - 22.0,
+                f64::from(k / 12) * 4.0 + 3.0,
+            );
+            let h = 2.0 + f64::from((k * 7) % 5);
+            ([x, y, 0.0], [x + 0.8, y + 0.6, h])
+        })
+        .collect();
+    let camera = device(
+        "kind = \"range\"\nrate_hz = 30.0\nimage_px = [80, 60]\nfov_deg = [120.0, 60.0]\nrange_m = [0.1, 200.0]",
+    );
+    let origin = DVec3::new(0.3, 0.0, 2.5);
+    let to_enu = camera_to_enu(DVec3::new(0.05, 1.0, -0.1));
+    let beams = camera.beams();
+    let dirs: Vec<DVec3> = beams.iter().map(|b| to_enu(b[0])).collect();
+    let hits = cast(&posts, origin, &dirs, 200.0);
+    let (mut seen, mut far) = (0, 0);
+    for (k, (dir, got)) in dirs.iter().zip(&hits).enumerate() {
+        let want = scalar_cast(&posts, origin, *dir, 200.0);
+        match (got, want) {
+            (Some((o, d)), Some((t, b))) => {
+                assert!(
+                    (d - t).abs() < 1e-6,
+                    "ray {k}: {d} m ({o:?}), want {t} m (post {b}) along {dir} from {origin}"
+                );
+                assert_eq!(*o, ObstacleRef::Static(b as u32), "ray {k}");
+                seen += 1;
+                far += usize::from(t > 20.0);
+            }
+            (None, None) => {}
+            _ => panic!("ray {k}: {got:?}, want {want:?}"),
+        }
+    }
+    assert!(
+        seen > 1_000 && far > 100,
+        "{seen} rays hit, {far} beyond 20 m"
+    );
 }

@@ -75,6 +75,11 @@ impl StaticBroadPhase {
         }
     }
 
+    /// The objects' boxes, by index.
+    pub fn boxes(&self) -> &[Aabb64] {
+        &self.boxes
+    }
+
     /// Number of objects indexed.
     pub fn object_count(&self) -> usize {
         self.boxes.len()

@@ -146,6 +146,8 @@ pub struct Pipeline {
     contacts: Contacts,
     static_triangles: usize,
     has_terrain: bool,
+    /// Scratch of the exact ray fans.
+    fan: crate::collision::fan::FanScratch,
 }
 
 impl Pipeline {
@@ -173,6 +175,7 @@ impl Pipeline {
                 .map(|o| o.geometry.triangle_count())
                 .sum(),
             has_terrain: scene.obstacles.iter().any(|o| o.geometry.is_terrain()),
+            fan: Default::default(),
         };
         if config.mode == Mode::Mesh {
             // "Every obstacle a mesh" keeps them all: what that costs is what it shows.
@@ -291,7 +294,7 @@ impl Pipeline {
         own: BodySource,
         dynamic: &MovingBodies,
         rays: Rays<'_>,
-        mut put: impl FnMut(usize, Option<(ObstacleRef, f64)>),
+        put: impl FnMut(usize, Option<(ObstacleRef, f64)>),
     ) {
         let world = World {
             scene,
@@ -301,16 +304,7 @@ impl Pipeline {
             statics: &self.statics,
             shapes: &self.shapes,
         };
-        for (i, dir) in rays.dirs_enu.iter().enumerate() {
-            let hit = crate::collision::fan::nearest(
-                &world,
-                &mut self.meshes,
-                rays.origin_enu_m,
-                *dir,
-                rays.max_m,
-            );
-            put(i, hit);
-        }
+        crate::collision::fan::cast_fan(&world, &mut self.meshes, rays, &mut self.fan, put);
     }
 
     /// Run one tick for one vehicle: `current` is its new sample, `previous` the one before
