@@ -14,6 +14,7 @@ pub mod bundled;
 pub mod chart_font;
 pub mod cli;
 pub mod codec;
+pub mod companion;
 pub mod costs;
 pub mod daa_csv;
 pub mod error;

@@ -16,6 +16,8 @@ use super::surroundings::SceneSurroundings;
 use super::vehicle::SimVehicle;
 use crate::codec::frame::{scan, Scan};
 use crate::codec::outbox::{gcs_heartbeat, Outbox};
+use crate::companion::protocol::State;
+use crate::companion::slot::{Slot, SlotError};
 use crate::geo::LocalTangentPlane;
 use crate::pipeline::{BodySource, CollisionConfig, Mode, Pipeline};
 use crate::scene::Scene;
@@ -78,6 +80,14 @@ pub enum LoopError {
     /// The session.
     #[error("{0}")]
     Session(#[from] crate::error::Error),
+    /// Its companion.
+    #[error("{vehicle}: {source}")]
+    Companion {
+        /// The vehicle.
+        vehicle: SenderId,
+        /// What happened.
+        source: SlotError,
+    },
     /// A MAVLink port.
     #[error("{vehicle}: MAVLink port: {source}")]
     Mav {
@@ -116,6 +126,8 @@ pub struct Lockstepped {
     pub pilot: Option<(MavPort, Box<dyn Actor>)>,
     /// Its estimate against the truth.
     pub estimates: EstimateErrors,
+    /// Its companion (a user's planner), when the row has one.
+    pub companion: Option<Slot>,
     outputs: Outputs,
     asked: bool,
     gcs: Outbox,
@@ -130,6 +142,7 @@ impl Lockstepped {
             serial0,
             pilot: None,
             estimates: EstimateErrors::default(),
+            companion: None,
             outputs: Outputs::default(),
             asked: false,
             gcs: Outbox::new(GCS),
@@ -265,6 +278,7 @@ pub fn run_timed(
         if time_us.is_multiple_of(config.truth_every_us) {
             tell_world(vehicles, session, &plane, time_us, &mut feed)?;
         }
+        companions(vehicles, session, time_us)?;
         for v in vehicles.iter_mut() {
             let vehicle = v.vehicle.id;
             v.backend
@@ -281,6 +295,64 @@ pub fn run_timed(
             }
         }
     }
+}
+
+/// Each companion: what its vehicle's devices made and was sent, handed over; at its
+/// instants, its frame and commands (the loop waits for them); its commands that are due, sent
+/// on the vehicle's SERIAL0.
+fn companions(
+    vehicles: &mut [Lockstepped],
+    session: &mut Session,
+    time_us: u64,
+) -> Result<(), LoopError> {
+    if vehicles.iter().all(|v| v.companion.is_none()) {
+        return Ok(());
+    }
+    let inputs = session.drain_companion_inputs();
+    for v in vehicles.iter_mut() {
+        let vehicle = v.vehicle.id;
+        let Some(slot) = v.companion.as_mut() else {
+            continue;
+        };
+        let id = vehicle.system_id;
+        let captures: Vec<_> = inputs
+            .captures
+            .iter()
+            .filter(|c| c.system_id == id)
+            .cloned()
+            .collect();
+        let traffic: Vec<_> = inputs
+            .traffic
+            .iter()
+            .filter(|(to, _)| *to == id)
+            .map(|(_, a)| a.clone())
+            .collect();
+        slot.collect(&captures, &traffic);
+        let body = &v.vehicle.body;
+        let [roll, pitch, yaw] = body.euler_rad();
+        let velocity = body.velocity_ned_mps;
+        let truth = State {
+            position_enu_m: v.vehicle.position_enu_m(),
+            velocity_enu_mps: glam::DVec3::new(velocity.y, velocity.x, -velocity.z),
+            attitude_deg: [
+                roll.to_degrees(),
+                pitch.to_degrees(),
+                yaw.to_degrees().rem_euclid(360.0),
+            ],
+        };
+        let estimate = v.estimates.last().map(|(ms, enu)| {
+            let age_s = time_us as f64 / 1e6 - f64::from(ms) / 1000.0;
+            (enu, age_s.max(0.0))
+        });
+        slot.at(time_us, truth, estimate)
+            .map_err(|source| LoopError::Companion { vehicle, source })?;
+        for bytes in slot.due(time_us) {
+            v.serial0
+                .send(&bytes)
+                .map_err(|source| LoopError::Mav { vehicle, source })?;
+        }
+    }
+    Ok(())
 }
 
 /// What `v`'s autopilot sent since the last step: SERIAL0's frames to the session (its

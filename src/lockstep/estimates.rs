@@ -14,6 +14,7 @@ const KEPT: usize = 8192;
 pub struct EstimateErrors {
     truth: VecDeque<(u64, DVec3)>,
     stats: ErrorStats,
+    last: Option<(u32, DVec3)>,
 }
 
 /// The estimate's error, metres.
@@ -41,6 +42,7 @@ impl EstimateErrors {
     /// An estimate at `time_ms` of the clock (`enu_m`, scene ENU): compared with the truth
     /// there (between the two steps about it, linearly).
     pub fn estimate(&mut self, time_ms: u32, enu_m: DVec3) {
+        self.last = Some((time_ms, enu_m));
         let t_us = u64::from(time_ms) * 1000;
         let after = self.truth.partition_point(|(t, _)| *t < t_us);
         let Some(&(t1, p1)) = self.truth.get(after) else {
@@ -58,6 +60,11 @@ impl EstimateErrors {
         s.horizontal_mean_m += (horizontal - s.horizontal_mean_m) / s.count as f64;
         s.horizontal_max_m = s.horizontal_max_m.max(horizontal);
         s.vertical_max_m = s.vertical_max_m.max(error.z.abs());
+    }
+
+    /// The newest estimate: its time on the clock (ms) and where, scene ENU metres.
+    pub fn last(&self) -> Option<(u32, DVec3)> {
+        self.last
     }
 
     /// The error so far.

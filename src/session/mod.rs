@@ -42,6 +42,16 @@ const HELD_NOTES: usize = 64;
 /// Estimated positions held between two [`Session::drain_estimates`], at most.
 pub const HELD_ESTIMATES: usize = 1024;
 
+/// What a run's feed made for companions: each device's reading whole (images, clouds) and
+/// each ADS-B report it sent, with the vehicle's system id.
+#[derive(Debug, Clone, Default)]
+pub struct CompanionInputs {
+    /// Readings made whole (each names its vehicle).
+    pub captures: Vec<Arc<crate::feed::capture::Capture>>,
+    /// ADS-B reports sent: the vehicle's system id, the report.
+    pub traffic: Vec<(u8, crate::feed::AdsbSent)>,
+}
+
 /// A run's state.
 pub struct Session {
     /// Decoding and its counters.
@@ -92,6 +102,9 @@ pub struct Session {
     feed: Option<Feed>,
     /// Feed messages made and not yet sent (live) or written (replay).
     feed_out: Vec<FeedMessage>,
+    /// What the feed's devices made and sent at each sample, kept for companions
+    /// ([`Session::keep_companion_inputs`]).
+    companion_inputs: Option<CompanionInputs>,
     /// Where replay writes the feed (`--feed-out`): a tlog, encoded as the feed's identity.
     feed_tlog: Option<(PathBuf, TlogWriter<BufWriter<File>>, Outbox)>,
     /// savsim's own MAVLink identities (its GCS, its feed): their frames, echoed back by a
@@ -174,6 +187,7 @@ impl Session {
             ticks: 0,
             feed: None,
             feed_out: Vec::new(),
+            companion_inputs: None,
             feed_tlog: None,
             own: Vec::new(),
             vehicle_clock: false,
@@ -301,6 +315,36 @@ impl Session {
         self.feed_out.drain(..)
     }
 
+    /// Keep what the feed's devices make (images, clouds) and the ADS-B reports it sends, for
+    /// companions ([`Session::drain_companion_inputs`]).
+    pub fn keep_companion_inputs(&mut self) {
+        self.companion_inputs
+            .get_or_insert_with(CompanionInputs::default);
+        if let Some(feed) = self.feed.as_mut() {
+            feed.keep_captures(true);
+        }
+    }
+
+    /// The names of the feed's modelled devices (none with `ideal` sensors or no feed).
+    pub fn sensor_names(&self) -> Vec<String> {
+        self.feed.as_ref().map_or_else(Vec::new, |f| {
+            f.config
+                .sensors
+                .devices()
+                .iter()
+                .map(|d| d.name.clone())
+                .collect()
+        })
+    }
+
+    /// What was kept for companions since the last call.
+    pub fn drain_companion_inputs(&mut self) -> CompanionInputs {
+        self.companion_inputs
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
     /// savsim's own MAVLink identities: their frames, echoed back by a router, are never
     /// applied to the world.
     pub fn set_own(&mut self, own: Vec<SenderId>) {
@@ -336,7 +380,7 @@ impl Session {
         }
         config.validate().map_err(|e| Error::Usage(e.to_string()))?;
         let mut feed = Feed::new(config);
-        feed.keep_captures(self.observer.is_some());
+        feed.keep_captures(self.observer.is_some() || self.companion_inputs.is_some());
         self.feed = Some(feed);
         Ok(())
     }

@@ -166,6 +166,12 @@ impl Session {
             dynamic: &self.dynamic,
         };
         feed.on_sample(pipeline, &input, &mut self.feed_out);
+        if let Some(kept) = self.companion_inputs.as_mut() {
+            kept.captures.extend_from_slice(feed.captures());
+            let id = tick.sender.system_id;
+            kept.traffic
+                .extend(feed.adsb_sent().iter().map(|a| (id, a.clone())));
+        }
     }
 }
 

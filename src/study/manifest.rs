@@ -86,6 +86,14 @@ pub struct StudyRow {
     /// With `physics = savsim`: a constant wind, `E N U` m/s where the air goes, scene frame
     /// (default none).
     pub wind: Option<String>,
+    /// With `physics = savsim`: a planner of your own flying the vehicle as its companion
+    /// computer: its command line, started with `SAVSIM_COMPANION` set (docs/companion.md).
+    pub companion: Option<String>,
+    /// The companion's instants a second of the vehicle's clock (default 10).
+    pub companion_hz: Option<f64>,
+    /// Its modelled compute time: its commands reach the autopilot this long after its
+    /// instant, seconds of the vehicle's clock (default 0).
+    pub companion_latency_s: Option<f64>,
 }
 
 impl StudyRow {

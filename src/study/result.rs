@@ -211,6 +211,13 @@ pub struct StudyResult {
     pub estimate: Option<crate::lockstep::estimates::ErrorStats>,
     /// With savsim's physics: where the row's wall time went (measured).
     pub lockstep_times: Option<crate::lockstep::driver::LoopTimes>,
+    /// Frames its companion was handed (docs/companion.md).
+    pub companion_calls: Option<u64>,
+    /// Commands its companion sent.
+    pub companion_commands: Option<u64>,
+    /// The 99th percentile of the companion's round trips (frame out, commands back), wall
+    /// milliseconds.
+    pub companion_p99_ms: Option<f64>,
 }
 
 impl StudyResult {
@@ -249,6 +256,9 @@ impl StudyResult {
             step_ms: None,
             estimate: None,
             lockstep_times: None,
+            companion_calls: None,
+            companion_commands: None,
+            companion_p99_ms: None,
         }
     }
 

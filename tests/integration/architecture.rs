@@ -219,6 +219,12 @@ fn savsim_imports_downward_only() {
         &[&inputs[..], &["feed"][..], &wiring[..]].concat(),
     );
     must_not(&app, "error", &[&inputs[..], &wiring[..]].concat());
+    // A planner's link is below the loop that asks it.
+    must_not(
+        &app,
+        "companion",
+        &[&["lockstep", "sim"][..], &wiring[..]].concat(),
+    );
 }
 
 /// Every file of the crate under `src` as its module path (`a/b.rs` and `a/b/mod.rs` are

@@ -41,6 +41,8 @@
 //!   along faces and edges, millimetre to 10 km meshes, coplanar contact, gimbal lock.
 //! - `sensed_daa`: batch rows alerting on sensed states, against `savsim daa` (and DAIDALUS).
 //! - `sensor_feed`: the feed from modelled devices; `ideal` as before, bit for bit.
+//! - `companion`: the companion link against a planner using the Python client: arrays whole,
+//!   commands back as MAVLink at their latency, every failure an error naming the planner.
 //! - `images`: depth images, segmentation and lidar channels against a scalar cast over
 //!   every triangle; a field of view's edges to 0.01 degree; bad definitions.
 //! - `sensor_models`: the sensor models against their specifications (distributions,
@@ -105,6 +107,7 @@ mod cli;
 mod clocks;
 mod collision;
 mod common;
+mod companion;
 mod daa;
 mod daa_sum;
 mod extremes;

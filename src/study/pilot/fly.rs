@@ -139,6 +139,13 @@ impl Steer {
     ) -> Result<DVec3, PilotError> {
         let command = command_of(leg, fix);
         match self {
+            Steer::Guided if pilot.companion_intent.is_some() => {
+                // A companion flies: it is told what the plan asks.
+                if let Some(Ok(mut intent)) = pilot.companion_intent.as_ref().map(|i| i.lock()) {
+                    *intent = command;
+                }
+                Ok(command.unwrap_or(DVec3::ZERO))
+            }
             Steer::Guided => {
                 // Targets only in GUIDED: in a mode the autopilot chose (AVOID_ADSB, RTL, ...)
                 // it flies itself, and a GUIDED-derived mode would take a target over its own.

@@ -129,6 +129,9 @@ pub struct Pilot {
     gate: Option<(std::sync::Arc<crate::lockstep::gate::Gate>, u64)>,
     /// In lockstep: when positions were last asked for (the row's clock, ms).
     asked_ms: Option<u32>,
+    /// With a companion: the plan's velocity goes here for the companion's frames instead of
+    /// to the autopilot (the companion flies; the pilot arms, takes off and lands).
+    pub companion_intent: Option<std::sync::Arc<std::sync::Mutex<Option<DVec3>>>>,
 }
 
 impl Drop for Pilot {
@@ -272,6 +275,7 @@ impl Pilot {
             pace: None,
             gate: gate.map(|g| (g, 0)),
             asked_ms: None,
+            companion_intent: None,
         }
     }
 

@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use savsim_core::dynamics::Frame;
 
+use crate::companion::slot::{CompanionConfig, Slot};
 use crate::geo::LocalTangentPlane;
 use crate::lockstep::driver::{run_timed, Lockstepped, LoopConfig, LoopTimes};
 use crate::lockstep::physics::{frame_named, step_us, wind_ned_mps};
@@ -96,6 +97,49 @@ fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError>
         wind_ned_mps,
     })
 }
+
+/// The row's companion columns, checked (none when it names no companion).
+fn check_companion(row: &StudyRow) -> Result<Option<CompanionConfig>, RowError> {
+    let Some(command) = row
+        .companion
+        .as_deref()
+        .map(str::trim)
+        .filter(|c| !c.is_empty())
+    else {
+        for (column, set) in [
+            ("companion_hz", row.companion_hz.is_some()),
+            ("companion_latency_s", row.companion_latency_s.is_some()),
+        ] {
+            if set {
+                return Err(input(column, "give a companion to go with it"));
+            }
+        }
+        return Ok(None);
+    };
+    let hz = row.companion_hz.unwrap_or(10.0);
+    if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
+        return Err(input(
+            "companion_hz",
+            format!("{hz}: give more than 0 and at most 1000"),
+        ));
+    }
+    let latency_s = row.companion_latency_s.unwrap_or(0.0);
+    if !(latency_s.is_finite() && (0.0..=10.0).contains(&latency_s)) {
+        return Err(input(
+            "companion_latency_s",
+            format!("{latency_s}: give 0 to 10 seconds"),
+        ));
+    }
+    Ok(Some(CompanionConfig {
+        command: command.to_string(),
+        hz,
+        latency_s,
+        timeout: COMPANION_TIMEOUT,
+    }))
+}
+
+/// How long a row waits for its companion's answer to one frame, wall time.
+pub const COMPANION_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The system id of a lockstep row's vehicle `k` (from 0): `k + 1`.
 fn lockstep_id(k: usize) -> SenderId {
@@ -183,6 +227,7 @@ pub(super) fn fly_lockstep_row(
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
     let physics = check_physics(row, &checked)?;
+    let companion = check_companion(row)?;
     result.frame = Some(physics.frame_for(checked.own.px4).0);
     result.step_ms = Some(physics.step_us as f64 / 1000.0);
     result.speedup = row.speedup.unwrap_or(0.0);
@@ -198,6 +243,9 @@ pub(super) fn fly_lockstep_row(
     let ids: Vec<SenderId> = (0..fliers.len()).map(lockstep_id).collect();
     let mut session = session_for(row, result.sensor_seed, scene.clone(), checked.feed, ids[0])?;
     session.set_truth_fed(ids.clone());
+    if companion.is_some() {
+        session.keep_companion_inputs();
+    }
     let dir = row_folder(&mut session, setup, result)?;
     let plane = LocalTangentPlane::new(scene.origin);
     let mut started = Vec::with_capacity(fliers.len());
@@ -213,6 +261,12 @@ pub(super) fn fly_lockstep_row(
             &physics,
             (&scene, plane, &folder),
         )?);
+    }
+    if let (Some(config), Some(own)) = (&companion, started.first_mut()) {
+        let devices: Vec<String> = session.sensor_names();
+        let slot = Slot::start(config, ids[0], checked.own.px4, &dir, &devices)?;
+        own.pilot.companion_intent = Some(slot.intent());
+        own.lockstepped.companion = Some(slot);
     }
     result.system_id = Some(ids[0].system_id);
     let config = LoopConfig {
@@ -258,6 +312,11 @@ pub(super) fn fly_lockstep_row(
     }
     result.estimate = flown.estimates.first().copied();
     result.lockstep_times = Some(flown.times);
+    if let Some(c) = &flown.companion {
+        result.companion_calls = Some(c.calls);
+        result.companion_commands = Some(c.commands);
+        result.companion_p99_ms = c.p99_ms();
+    }
     result.clock_skew_s = (!result.others.is_empty()).then_some(0.0);
     record(
         result,
@@ -278,6 +337,8 @@ struct LockstepFlown {
     estimates: Vec<crate::lockstep::estimates::ErrorStats>,
     /// Where the loop's wall time went.
     times: LoopTimes,
+    /// What the first vehicle's companion did.
+    companion: Option<crate::companion::slot::CompanionCounts>,
     /// The row's wall-clock limit stopped it.
     wall_limited: bool,
     started: Instant,
@@ -330,6 +391,10 @@ fn fly_started(
         (ended, flights)
     });
     let estimates = lockstepped.iter().map(|v| v.estimates.stats()).collect();
+    let companion = lockstepped
+        .first()
+        .and_then(|v| v.companion.as_ref())
+        .map(|c| c.counts.clone());
     let failed = match ended {
         Ok(Ok(_)) => None,
         Ok(Err(e)) => Some(e.to_string()),
@@ -351,6 +416,7 @@ fn fly_started(
         flights,
         estimates,
         times,
+        companion,
         wall_limited: wall_limited.load(Ordering::Relaxed),
         started: begun,
         wall_limit,

@@ -1,0 +1,240 @@
+//! The companion link against a planner in Python using the package's client (loaded from
+//! python/savsim/companion.py): a 160 x 120 image and its segmentation arrive whole as numpy
+//! views and the commands come back as MAVLink; a planner that crashes, hangs, answers
+//! garbage, floods or sends NaN is an error naming it, within its deadline, and its process
+//! is gone afterwards.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::{DQuat, DVec3};
+use mavlink::dialects::ardupilotmega::MavMessage;
+use savsim::companion::link::{CompanionError, Link};
+use savsim::companion::outgoing;
+use savsim::companion::protocol::{self, Command, FrameOut, State};
+use savsim::companion::slot::{CompanionConfig, Slot};
+use savsim::feed::capture::{Capture, CaptureData};
+use savsim::world::SenderId;
+use savsim_core::sensors::image::DepthImage;
+
+use crate::common::root;
+
+fn planner(behaviour: &str) -> String {
+    format!(
+        "python3 {} {behaviour}",
+        root().join("tests/python/companion_planner.py").display()
+    )
+}
+
+/// A 160 x 120 image whose depth at (row r, column c) is `r + c / 1000` m and whose class is
+/// `(r + c) % 6`.
+fn image() -> Arc<Capture> {
+    let (w, h) = (160u32, 120u32);
+    let mut img = DepthImage {
+        width_px: w,
+        height_px: h,
+        ..DepthImage::default()
+    };
+    for r in 0..h {
+        for c in 0..w {
+            img.depth_m.push(r as f32 + c as f32 / 1000.0);
+            img.segment_id.push(r * w + c);
+            img.class.push(((r + c) % 6) as u8);
+        }
+    }
+    Arc::new(Capture {
+        device: "cam".into(),
+        system_id: 1,
+        instant_s: 0.5,
+        origin_enu_m: DVec3::new(1.0, 2.0, 3.0),
+        enu_from_device: DQuat::IDENTITY,
+        data: CaptureData::Depth {
+            image: img,
+            fov_deg: [87.0, 58.0],
+        },
+    })
+}
+
+fn truth() -> State {
+    State {
+        position_enu_m: DVec3::new(1.0, 2.0, 3.0),
+        velocity_enu_mps: DVec3::ZERO,
+        attitude_deg: [0.0; 3],
+    }
+}
+
+fn frame_bytes(seq: u64, captures: &[Arc<Capture>]) -> Vec<u8> {
+    let (mut payload, mut out) = (Vec::new(), Vec::new());
+    protocol::frame(
+        &FrameOut {
+            seq,
+            t_s: seq as f64 / 10.0,
+            truth: truth(),
+            estimate: None,
+            intent_enu_mps: Some(DVec3::X),
+            captures,
+            traffic: &[],
+        },
+        &mut payload,
+        &mut out,
+    );
+    out
+}
+
+fn started(behaviour: &str, timeout: Duration) -> (Link, tempfile::TempDir) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut link = Link::start(&planner(behaviour), dir.path(), timeout).unwrap();
+    let mut hello = Vec::new();
+    protocol::message(
+        &protocol::hello(1, &["cam".into()], 10.0, 0.0),
+        &[],
+        &mut hello,
+    );
+    link.tell(&hello).unwrap();
+    (link, dir)
+}
+
+#[test]
+fn an_image_arrives_whole_and_the_commands_come_back() {
+    let (mut link, _dir) = started("echo", Duration::from_secs(20));
+    let capture = image();
+    for seq in 0..5 {
+        let commands = link
+            .ask(seq, &frame_bytes(seq, std::slice::from_ref(&capture)))
+            .unwrap();
+        // The mean of r + c/1000 over the image, the pixel at (7, 9), the class at (3, 4).
+        let mean = 59.5 + 0.0795;
+        match &commands[0] {
+            Command::Velocity { enu_mps, yaw_deg } => {
+                assert!((enu_mps.x - mean).abs() < 1e-3, "{enu_mps}");
+                assert!((enu_mps.y - 7.009).abs() < 1e-5, "{enu_mps}");
+                assert_eq!(enu_mps.z, 1.0);
+                assert_eq!(*yaw_deg, Some(seq as f64));
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(commands[1], Command::Mode("GUIDED".into()));
+    }
+}
+
+#[test]
+fn a_slot_sends_the_commands_as_the_companion_its_latency_later() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = CompanionConfig {
+        command: planner("echo"),
+        hz: 10.0,
+        latency_s: 0.25,
+        timeout: Duration::from_secs(20),
+    };
+    let vehicle = SenderId {
+        system_id: 1,
+        component_id: 1,
+    };
+    let mut slot = Slot::start(&config, vehicle, false, dir.path(), &["cam".into()]).unwrap();
+    slot.collect(&[image()], &[]);
+    let mut sent = Vec::new();
+    // 1 s of a 2.5 ms clock: frames at 0, 100, ... 900 ms.
+    for step in 0..400u64 {
+        let t_us = step * 2500;
+        slot.at(t_us, truth(), None).unwrap();
+        for bytes in slot.due(t_us) {
+            sent.push((t_us, bytes));
+        }
+    }
+    assert_eq!(slot.counts.calls, 10);
+    assert_eq!(slot.counts.commands, 20);
+    // Each frame's two commands go 250 ms after it, from the companion's identity.
+    let times: Vec<u64> = sent.iter().map(|(t, _)| *t).step_by(2).collect();
+    assert_eq!(
+        times,
+        (0..8).map(|k| 250_000 + k * 100_000).collect::<Vec<_>>()
+    );
+    for (_, bytes) in &sent {
+        let mut reader = mavlink::MavlinkReader::new(&bytes[..]);
+        let (header, message) = reader
+            .read_any_message::<MavMessage>()
+            .expect("a MAVLink frame");
+        assert_eq!(
+            (header.system_id as u8, header.component_id),
+            (1, outgoing::COMPANION_COMPONENT)
+        );
+        match message {
+            MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) => {
+                assert_eq!((m.target_system, m.target_component), (1, 1));
+                // East (the mean depth) goes to NED's y.
+                assert!((m.vy - 59.5795).abs() < 1e-3);
+            }
+            MavMessage::COMMAND_LONG(m) => assert_eq!(m.param2, 4.0, "GUIDED is mode 4"),
+            other => panic!("{other:?}"),
+        }
+    }
+}
+
+/// The error `behaviour` ends with, asked within `timeout`, and how long it took.
+fn failure(behaviour: &str, timeout: Duration) -> (CompanionError, Duration) {
+    let (mut link, _dir) = started(behaviour, timeout);
+    let began = Instant::now();
+    let mut seq = 0;
+    loop {
+        match link.ask(seq, &frame_bytes(seq, &[image()])) {
+            Ok(_) => seq += 1,
+            Err(e) => return (e, began.elapsed()),
+        }
+        assert!(seq < 3, "{behaviour}: no error");
+    }
+}
+
+#[test]
+fn a_planner_that_fails_is_an_error_naming_it_and_nothing_hangs() {
+    let (e, _) = failure("crash", Duration::from_secs(20));
+    let text = e.to_string();
+    assert!(
+        text.contains("companion_planner.py crash") && text.contains("giving up on frame 0"),
+        "{text}"
+    );
+    let (e, took) = failure("hang", Duration::from_millis(1500));
+    assert!(matches!(e, CompanionError::Timeout { seq: 0, .. }), "{e}");
+    assert!(took < Duration::from_secs(5), "{took:?}");
+    for (behaviour, says) in [
+        ("garbage", "not the protocol's JSON"),
+        ("flood", "a header of 100000000 bytes"),
+        ("many", "1000 commands"),
+        ("nan", "not the protocol's JSON"),
+    ] {
+        let (e, _) = failure(behaviour, Duration::from_secs(20));
+        let text = e.to_string();
+        assert!(
+            text.contains(says) && text.contains(behaviour),
+            "{behaviour}: {text}"
+        );
+    }
+    // A planner that exits before it connects.
+    let dir = tempfile::tempdir().unwrap();
+    let e = Link::start("echo leaving; exit 7", dir.path(), Duration::from_secs(1)).unwrap_err();
+    assert!(
+        e.to_string().contains("exit status: 7") && e.to_string().contains("leaving"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_hanging_planner_is_ended_with_its_link() {
+    let dir = tempfile::tempdir().unwrap();
+    let pid_file = dir.path().join("pid");
+    let command = format!("echo $$ > {}; exec {}", pid_file.display(), planner("hang"));
+    let mut link = Link::start(&command, dir.path(), Duration::from_millis(300)).unwrap();
+    let mut hello = Vec::new();
+    protocol::message(&protocol::hello(1, &[], 10.0, 0.0), &[], &mut hello);
+    link.tell(&hello).unwrap();
+    assert!(link.ask(0, &frame_bytes(0, &[])).is_err());
+    let pid = std::fs::read_to_string(&pid_file)
+        .unwrap()
+        .trim()
+        .to_string();
+    drop(link);
+    let alive = std::path::Path::new("/proc").join(&pid).exists()
+        && !std::fs::read_to_string(format!("/proc/{pid}/stat"))
+            .unwrap_or_default()
+            .contains(") Z ");
+    assert!(!alive, "the planner {pid} outlived its link");
+}
