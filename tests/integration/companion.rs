@@ -238,3 +238,86 @@ fn a_hanging_planner_is_ended_with_its_link() {
             .contains(") Z ");
     assert!(!alive, "the planner {pid} outlived its link");
 }
+
+/// ArduCopter in lockstep flies north at 4 m/s towards a wall 40 m ahead: without avoidance
+/// it hits it; flown by examples/companion_vfh.py from the `depth-160x120` camera, with its
+/// own avoidance off, it does not, and a planner that spends 60 ms of wall time on each frame
+/// (more than its modelled 50 ms) gives the same row to the last bit (every result column but
+/// the wall times, the round trips, the row's id and the command line; both rows draw their
+/// camera's errors with one `sensor_seed`).
+#[test]
+fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed() {
+    use crate::sitl::{sitl_test, Autopilot, Netns};
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("wall.toml"),
+        "[origin]\nlat_deg = -35.363261\nlon_deg = 149.16523\nalt_m = 584\n\n\
+         [[obstacle]]\nid = \"wall\"\nkind = \"building\"\n\
+         shape = { box = [16.0, 2.0, 40.0] }\nposition_enu_m = [0.0, 41.0, 0.0]\n",
+    )
+    .unwrap();
+    let planner = |sleep: &str| {
+        format!(
+            "VFH_SLEEP_S={sleep} python3 {}",
+            root().join("examples/companion_vfh.py").display()
+        )
+    };
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        format!(
+            "id,scene,physics,plan,duration_s,params,feed,sensors,sensor_seed,companion,companion_hz,companion_latency_s\n\
+             nominal,wall.toml,savsim,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,,,,,,\n\
+             fast,wall.toml,savsim,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,proximity,depth-160x120,5,{},10,0.05\n\
+             slow,wall.toml,savsim,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,proximity,depth-160x120,5,{},10,0.05\n",
+            planner("0"),
+            planner("0.06"),
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = crate::cli::savsim()
+        .args(["study", "--jobs", "2", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    crate::common::assert_ran(&run);
+    let rows = crate::lockstep::results(&out);
+    let value = |name: &str, row: usize| {
+        rows.iter()
+            .find(|l| l.starts_with(&format!("{row} {name} ")))
+            .cloned()
+            .unwrap_or_default()
+    };
+    assert!(
+        value("outcome", 0).contains("\"collision\""),
+        "{}",
+        value("error", 0)
+    );
+    for row in [1, 2] {
+        assert!(
+            value("outcome", row).contains("\"pass\""),
+            "{}",
+            value("error", row)
+        );
+        // A frame every 100 ms of the row's 72 s.
+        let calls = value("companion_calls", row);
+        assert!(calls.contains("[   723, ]"), "{calls}");
+    }
+    let skip = ["index", "row_id", "companion", "companion_p99_ms"];
+    let column = |l: &str| l.split(' ').nth(1).unwrap_or_default().to_string();
+    let of = |row: usize| -> Vec<String> {
+        rows.iter()
+            .filter(|l| l.starts_with(&format!("{row} ")))
+            .filter(|l| !skip.contains(&column(l).as_str()))
+            .map(|l| l.split_once(' ').unwrap().1.to_string())
+            .collect()
+    };
+    let (fast, slow) = (of(1), of(2));
+    let differ: Vec<_> = fast.iter().zip(&slow).filter(|(a, b)| a != b).collect();
+    assert!(differ.is_empty(), "{differ:#?}");
+}

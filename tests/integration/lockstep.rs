@@ -176,7 +176,7 @@ fn bad_packets_and_a_silent_autopilot_end_the_loop_with_an_error() {
 
 /// The results of a study's rows as (row id, column, value) text, every column but the
 /// wall-clock ones (`wall_*`, `achieved_speedup`).
-fn results(dir: &std::path::Path) -> Vec<String> {
+pub(crate) fn results(dir: &std::path::Path) -> Vec<String> {
     let mut shards: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .flatten()
