@@ -89,8 +89,10 @@ impl std::fmt::Debug for Link {
 pub const CONNECT_WITHIN: Duration = Duration::from_secs(30);
 
 impl Link {
-    /// Start `command` (through `sh -c`, in `dir`, its output to `dir/companion.log`) and wait
-    /// for it to connect; each answer is then awaited at most `timeout`.
+    /// Start `command` (through `sh -c`, from savsim's working folder, its output to
+    /// `dir/companion.log`) and wait for it to connect; each answer is then awaited at most
+    /// `timeout`. A planner that exits or does not connect within [`CONNECT_WITHIN`] is ended
+    /// and its error says so.
     pub fn start(command: &str, dir: &Path, timeout: Duration) -> Result<Link, CompanionError> {
         let start_err = |why: String| CompanionError::Start {
             command: command.to_string(),
@@ -107,56 +109,59 @@ impl Link {
         let out = std::fs::File::create(&log)
             .map_err(|e| start_err(format!("{}: {e}", log.display())))?;
         let err = out.try_clone().map_err(|e| start_err(e.to_string()))?;
-        let child = Process::new("sh")
+        let mut child = Process::new("sh")
             .arg("-c")
             .arg(command)
-            .current_dir(std::env::current_dir().unwrap_or_else(|_| dir.to_path_buf()))
             .env("SAVSIM_COMPANION", address.to_string())
             .stdin(Stdio::null())
             .stdout(out)
             .stderr(err)
             .spawn()
             .map_err(|e| start_err(e.to_string()))?;
-        let mut link = Link {
-            command: command.to_string(),
-            child,
-            // Replaced once the planner connects.
-            stream: TcpStream::connect(address).map_err(|e| start_err(e.to_string()))?,
-            log,
-            timeout,
-            buffer: Vec::new(),
-        };
-        // The connection just made to ourselves is accepted and dropped first.
         let began = Instant::now();
-        let mut ours = true;
+        let failed = |child: &mut Child, why: Option<String>| {
+            let tail = log_tail(&log);
+            let _ = child.kill();
+            let _ = child.wait();
+            match why {
+                Some(why) => CompanionError::Closed {
+                    command: command.to_string(),
+                    why,
+                    log: tail,
+                },
+                None => CompanionError::NoConnect {
+                    command: command.to_string(),
+                    waited_s: began.elapsed().as_secs_f64(),
+                    log: tail,
+                },
+            }
+        };
         loop {
             match listener.accept() {
-                Ok((stream, _)) if ours => {
-                    ours = false;
-                    drop(stream);
-                }
                 Ok((stream, _)) => {
                     stream.set_nodelay(true).ok();
-                    stream
-                        .set_nonblocking(false)
-                        .map_err(|e| start_err(e.to_string()))?;
-                    link.stream = stream;
-                    return Ok(link);
+                    if let Err(e) = stream.set_nonblocking(false) {
+                        return Err(failed(&mut child, Some(e.to_string())));
+                    }
+                    return Ok(Link {
+                        command: command.to_string(),
+                        child,
+                        stream,
+                        log,
+                        timeout,
+                        buffer: Vec::new(),
+                    });
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                    if let Ok(Some(status)) = link.child.try_wait() {
-                        return Err(link.closed(format!("it exited: {status}")));
+                    if let Ok(Some(status)) = child.try_wait() {
+                        return Err(failed(&mut child, Some(format!("it exited: {status}"))));
                     }
                     if began.elapsed() > CONNECT_WITHIN {
-                        return Err(CompanionError::NoConnect {
-                            command: link.command.clone(),
-                            waited_s: began.elapsed().as_secs_f64(),
-                            log: link.log_tail(),
-                        });
+                        return Err(failed(&mut child, None));
                     }
                     std::thread::sleep(Duration::from_millis(5));
                 }
-                Err(e) => return Err(start_err(e.to_string())),
+                Err(e) => return Err(failed(&mut child, Some(e.to_string()))),
             }
         }
     }
@@ -250,23 +255,22 @@ impl Link {
         CompanionError::Closed {
             command: self.command.clone(),
             why,
-            log: self.log_tail(),
+            log: log_tail(&self.log),
         }
     }
+}
 
-    /// The last lines the planner wrote, for an error.
-    fn log_tail(&self) -> String {
-        // The last 4 KiB (a planner may write much).
-        let text = crate::files::read(&self.log, u64::MAX)
-            .map(|b| String::from_utf8_lossy(&b[b.len().saturating_sub(4096)..]).into_owned())
-            .unwrap_or_default();
-        let lines: Vec<&str> = text.lines().rev().take(5).collect();
-        if lines.is_empty() {
-            return String::new();
-        }
-        let lines: Vec<&str> = lines.into_iter().rev().collect();
-        format!("; it said: {}", lines.join(" | "))
+/// The last lines a planner wrote (its log's last 4 KiB), for an error.
+fn log_tail(log: &Path) -> String {
+    let text = crate::files::read(log, u64::MAX)
+        .map(|b| String::from_utf8_lossy(&b[b.len().saturating_sub(4096)..]).into_owned())
+        .unwrap_or_default();
+    let lines: Vec<&str> = text.lines().rev().take(5).collect();
+    if lines.is_empty() {
+        return String::new();
     }
+    let lines: Vec<&str> = lines.into_iter().rev().collect();
+    format!("; it said: {}", lines.join(" | "))
 }
 
 impl Drop for Link {

@@ -166,6 +166,8 @@ pub struct LoopTimes {
     pub autopilots_s: f64,
     /// Waiting for the pilots to act, seconds.
     pub pilots_s: f64,
+    /// Waiting for the companions' answers (their planners' work and the sockets), seconds.
+    pub companions_s: f64,
     /// savsim's own work: the dynamics, the world, the collision layers, the feed, the
     /// replies, seconds.
     pub savsim_s: f64,
@@ -278,7 +280,10 @@ pub fn run_timed(
         if time_us.is_multiple_of(config.truth_every_us) {
             tell_world(vehicles, session, &plane, time_us, &mut feed)?;
         }
+        let asking = Instant::now();
         companions(vehicles, session, time_us)?;
+        let companions_s = asking.elapsed().as_secs_f64();
+        times.companions_s += companions_s;
         for v in vehicles.iter_mut() {
             let vehicle = v.vehicle.id;
             v.backend
@@ -286,7 +291,7 @@ pub fn run_timed(
                 .map_err(|source| LoopError::Port { vehicle, source })?;
         }
         let replied = Instant::now();
-        times.savsim_s += ((pilots - heard) + (replied - acted)).as_secs_f64();
+        times.savsim_s += ((pilots - heard) + (replied - acted)).as_secs_f64() - companions_s;
         if let Some(speed) = config.real_time {
             let due = Duration::from_secs_f64(time_us as f64 / 1e6 / speed);
             if let Some(wait) = due.checked_sub(started.elapsed()) {

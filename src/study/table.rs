@@ -246,6 +246,10 @@ fn estimate_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
             "wall_savsim_s",
             floats(rows, |r| r.lockstep_times.map(|t| t.savsim_s)),
         ),
+        (
+            "wall_companions_s",
+            floats(rows, |r| r.lockstep_times.map(|t| t.companions_s)),
+        ),
         ("companion_calls", counts(rows, |r| r.companion_calls)),
         ("companion_commands", counts(rows, |r| r.companion_commands)),
         ("companion_p99_ms", floats(rows, |r| r.companion_p99_ms)),

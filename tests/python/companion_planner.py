@@ -8,7 +8,9 @@
 - ``garbage``: answers with bytes that are not the protocol;
 - ``flood``: announces a header of 100 MB;
 - ``many``: answers with 1000 commands;
-- ``nan``: answers with a velocity of NaN.
+- ``nan``: answers with a velocity of NaN;
+- ``noop``: answers each frame with one velocity at once, touching its image (the round-trip
+  bench).
 
 The client is loaded from the source tree (python/savsim/companion.py), not an installed
 package.
@@ -48,5 +50,8 @@ for frame in link.frames():
         link.sock.sendall(struct.pack("<I", 100_000_000) + b"x" * 65536)
     elif behaviour == "many":
         link.reply(frame, [companion.velocity([0, 0, 0])] * 1000)
+    elif behaviour == "noop":
+        depth = frame.images()["cam"]["depth_m"]
+        link.reply(frame, [companion.velocity([float(depth[0, 0]), 0, 0])])
     elif behaviour == "nan":
         link.reply(frame, [{"velocity_enu_mps": [math.nan, 0, 0]}])

@@ -1,8 +1,9 @@
 //! Exact ray fans: what a range sensor on the vehicle measures. Each ray is cast against the
-//! exact shape of every obstacle it can reach (static ones front to back through the static `Bvh`,
-//! stopping at the nearest hit; moving ones by a scan), whatever collider the sensing layer
-//! holds for it: a sensor sees the world, not the model of it. The closed-loop feed casts its
-//! sectors here (`crate::feed`).
+//! exact shape of every obstacle it can reach (static ones found for chunks of neighbouring
+//! rays, stretch by stretch outwards, or through the static `Bvh` where a stretch holds many;
+//! moving ones by a scan), whatever collider the sensing layer holds for it: a sensor sees the
+//! world, not the model of it. The closed-loop feed casts its sectors and its devices' images
+//! here (`crate::feed`); [`segment_of`] names what a ray met in a segmentation.
 //!
 //! Pure and synchronous; imports no I/O.
 
