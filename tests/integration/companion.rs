@@ -321,3 +321,49 @@ fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed()
     let differ: Vec<_> = fast.iter().zip(&slow).filter(|(a, b)| a != b).collect();
     assert!(differ.is_empty(), "{differ:#?}");
 }
+
+/// Rows whose companion cannot fly are error rows naming the column, and the study goes on
+/// (no autopilot is needed to find out).
+#[test]
+fn rows_with_a_companion_they_cannot_fly_are_error_rows_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        "id,autopilot,physics,plan,duration_s,companion,companion_hz,companion_latency_s\n\
+         sitl,arducopter,,takeoff 10,30,python3 planner.py,,\n\
+         px4,px4,savsim,takeoff 10,30,python3 planner.py,,\n\
+         zero-hz,arducopter,savsim,takeoff 10,30,python3 planner.py,0,\n\
+         late,arducopter,savsim,takeoff 10,30,python3 planner.py,,11\n\
+         nan,arducopter,savsim,takeoff 10,30,python3 planner.py,,nan\n\
+         alone,arducopter,savsim,takeoff 10,30,,5,\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = crate::cli::savsim()
+        .env_remove("SAVSIM_ARDUCOPTER")
+        .env_remove("SAVSIM_PX4")
+        .args(["study", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    crate::common::assert_ran(&run);
+    let rows = crate::lockstep::results(&out);
+    let error = |row: usize| {
+        rows.iter()
+            .find(|l| l.starts_with(&format!("{row} error ")))
+            .cloned()
+            .unwrap_or_default()
+    };
+    for (row, says) in [
+        (0, "companion: a companion flies in lockstep rows only"),
+        (1, "companion: a companion flies ArduCopter rows only"),
+        (2, "companion_hz: 0"),
+        (3, "companion_latency_s: 11"),
+        (4, "companion_latency_s: NaN"),
+        (5, "companion_hz: give a companion"),
+    ] {
+        assert!(error(row).contains(says), "row {row}: {}", error(row));
+    }
+}

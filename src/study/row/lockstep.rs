@@ -228,6 +228,14 @@ pub(super) fn fly_lockstep_row(
     let checked = check(row, setup.speedup)?;
     let physics = check_physics(row, &checked)?;
     let companion = check_companion(row)?;
+    if companion.is_some() && checked.own.px4 {
+        // PX4's pilot flies by sticks in position mode; a companion's setpoints would need
+        // OFFBOARD and the pilot to hand over: not built.
+        return Err(input(
+            "companion",
+            "a companion flies ArduCopter rows only (a PX4 row's pilot flies it by sticks)",
+        ));
+    }
     result.frame = Some(physics.frame_for(checked.own.px4).0);
     result.step_ms = Some(physics.step_us as f64 / 1000.0);
     result.speedup = row.speedup.unwrap_or(0.0);
