@@ -277,10 +277,13 @@ impl Devices {
                 .min_by(|a, b| a.1.total_cmp(&b.1));
             self.truths
                 .push(BeamTruth::along(b, nearest.map(|(_, d)| d)));
-            self.segments
-                .push(nearest.map_or_else(Segment::default, |(o, _)| {
-                    segment_of(o, |i| scene.obstacles.get(i).map(|s| s.kind))
-                }));
+            // What each beam met: only for a reading kept whole.
+            if self.keep_captures {
+                self.segments
+                    .push(nearest.map_or_else(Segment::default, |(o, _)| {
+                        segment_of(o, |i| scene.obstacles.get(i).map(|s| s.kind))
+                    }));
+            }
         }
         self.readings.clear();
         self.readings.resize(beams.len(), BeamReading::NoData);

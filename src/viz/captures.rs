@@ -57,7 +57,7 @@ pub(super) fn log_capture(
     match &c.data {
         CaptureData::Depth { image, fov_deg } => {
             let size = [image.width_px, image.height_px];
-            let focal = |px: u32, fov: f64| f64::from(px) / 2.0 / (fov / 2.0).to_radians().tan();
+            let focal = savsim_core::sensors::range::focal_px;
             let image_path = format!("{path}/image");
             rec.log(
                 image_path.as_str(),
