@@ -128,19 +128,29 @@ fn state(s: &State) -> Value {
     })
 }
 
-/// An array in the payload: its name, element type (numpy's spelling), shape, and where.
-fn array(name: &str, dtype: &str, shape: &[usize], bytes: &[u8], payload: &mut Vec<u8>) -> Value {
+/// An array in the payload: its name, element type (numpy's spelling), shape, and where;
+/// `write` appends its bytes to the payload (once, straight from the reading).
+fn array(
+    (name, dtype, shape): (&str, &str, &[usize]),
+    payload: &mut Vec<u8>,
+    write: impl FnOnce(&mut Vec<u8>),
+) -> Value {
     let offset = payload.len();
-    payload.extend_from_slice(bytes);
-    json!({ "name": name, "dtype": dtype, "shape": shape, "offset": offset, "bytes": bytes.len() })
+    write(payload);
+    let bytes = payload.len() - offset;
+    json!({ "name": name, "dtype": dtype, "shape": shape, "offset": offset, "bytes": bytes })
 }
 
-fn f32_bytes(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+fn f32s(v: &[f32]) -> impl FnOnce(&mut Vec<u8>) + '_ {
+    move |p| p.extend(v.iter().flat_map(|x| x.to_le_bytes()))
 }
 
-fn u32_bytes(v: &[u32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+fn u32s(v: &[u32]) -> impl FnOnce(&mut Vec<u8>) + '_ {
+    move |p| p.extend(v.iter().flat_map(|x| x.to_le_bytes()))
+}
+
+fn u8s(v: &[u8]) -> impl FnOnce(&mut Vec<u8>) + '_ {
+    move |p| p.extend_from_slice(v)
 }
 
 fn capture(c: &Capture, payload: &mut Vec<u8>) -> Value {
@@ -149,37 +159,27 @@ fn capture(c: &Capture, payload: &mut Vec<u8>) -> Value {
         CaptureData::Depth { image, fov_deg } => {
             let shape = [image.height_px as usize, image.width_px as usize];
             let arrays = vec![
+                array(("depth_m", "<f4", &shape), payload, f32s(&image.depth_m)),
                 array(
-                    "depth_m",
-                    "<f4",
-                    &shape,
-                    &f32_bytes(&image.depth_m),
+                    ("segment_id", "<u4", &shape),
                     payload,
+                    u32s(&image.segment_id),
                 ),
-                array(
-                    "segment_id",
-                    "<u4",
-                    &shape,
-                    &u32_bytes(&image.segment_id),
-                    payload,
-                ),
-                array("class", "|u1", &shape, &image.class, payload),
+                array(("class", "|u1", &shape), payload, u8s(&image.class)),
             ];
             ("depth", json!({ "fov_deg": fov_deg }), arrays)
         }
         CaptureData::Points(cloud) => {
             let n = cloud.points_m.len();
-            let flat: Vec<f32> = cloud.points_m.iter().flatten().copied().collect();
+            let points = cloud.points_m.as_flattened();
             let arrays = vec![
-                array("points_m", "<f4", &[n, 3], &f32_bytes(&flat), payload),
+                array(("points_m", "<f4", &[n, 3]), payload, f32s(points)),
                 array(
-                    "segment_id",
-                    "<u4",
-                    &[n],
-                    &u32_bytes(&cloud.segment_id),
+                    ("segment_id", "<u4", &[n]),
                     payload,
+                    u32s(&cloud.segment_id),
                 ),
-                array("class", "|u1", &[n], &cloud.class, payload),
+                array(("class", "|u1", &[n]), payload, u8s(&cloud.class)),
             ];
             ("points", json!({}), arrays)
         }

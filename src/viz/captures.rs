@@ -58,7 +58,7 @@ pub(super) fn log_capture(
         CaptureData::Depth { image, fov_deg } => {
             let size = [image.width_px, image.height_px];
             let focal = savsim_core::sensors::range::focal_px;
-            let image_path = format!("{path}/image");
+            let image_path = paths::sensor_image(c.system_id, &c.device);
             rec.log(
                 image_path.as_str(),
                 &Pinhole::from_focal_length_and_resolution(

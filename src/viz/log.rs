@@ -207,7 +207,7 @@ fn image_appears(
     {
         return Ok(());
     }
-    let image = format!("{}/image", paths::sensor(c.system_id, &c.device));
+    let image = paths::sensor_image(c.system_id, &c.device);
     if layout.images.contains(&image) {
         return Ok(());
     }

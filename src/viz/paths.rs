@@ -69,6 +69,12 @@ pub fn sensor(system_id: u8, device: &str) -> String {
     format!("world/vehicles/{system_id}/sensors/{}", sanitize(device))
 }
 
+/// A depth camera's pinhole, with `depth` and `class` below it:
+/// `world/vehicles/{sysid}/sensors/{device}/image`.
+pub fn sensor_image(system_id: u8, device: &str) -> String {
+    format!("{}/image", sensor(system_id, device))
+}
+
 /// A vehicle's colliders of one group (`boxes`, `seen`, `moving`; see
 /// `viz::colliders`): `world/vehicles/{sysid}/colliders/{group}`.
 pub fn colliders(system_id: u8, group: &str) -> String {

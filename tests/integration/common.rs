@@ -176,6 +176,22 @@ pub fn scene_at(origin: Geodetic, body: &str) -> Scene {
     parse(&text, Path::new("test.toml"), "test").unwrap()
 }
 
+/// A scene body of building boxes, each given by its (min, max) ENU corners (placed by its
+/// base centre), named `b0`, `b1`, ...
+pub fn boxes_scene(boxes: &[([f64; 3], [f64; 3])]) -> String {
+    boxes
+        .iter()
+        .enumerate()
+        .map(|(i, (lo, hi))| {
+            let size = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+            let at = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]];
+            format!(
+                "[[obstacle]]\nid = \"b{i}\"\nkind = \"building\"\nshape = {{ box = {size:?} }}\nposition_enu_m = {at:?}\n"
+            )
+        })
+        .collect()
+}
+
 /// ATTITUDE (roll, pitch, yaw: NED Euler, radians) and GLOBAL_POSITION_INT (heading from the
 /// yaw) at ENU `p`, flying along ENU `v`, stamped `time_boot_ms`.
 pub fn pose_messages(

@@ -289,12 +289,7 @@ fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed()
         .unwrap();
     crate::common::assert_ran(&run);
     let rows = crate::lockstep::results(&out);
-    let value = |name: &str, row: usize| {
-        rows.iter()
-            .find(|l| l.starts_with(&format!("{row} {name} ")))
-            .cloned()
-            .unwrap_or_default()
-    };
+    let value = |name: &str, row: usize| crate::lockstep::cell(&rows, name, row);
     assert!(
         value("outcome", 0).contains("\"collision\""),
         "{}",
@@ -352,12 +347,7 @@ fn rows_with_a_companion_they_cannot_fly_are_error_rows_naming_it() {
         .unwrap();
     crate::common::assert_ran(&run);
     let rows = crate::lockstep::results(&out);
-    let error = |row: usize| {
-        rows.iter()
-            .find(|l| l.starts_with(&format!("{row} error ")))
-            .cloned()
-            .unwrap_or_default()
-    };
+    let error = |row: usize| crate::lockstep::cell(&rows, "error", row);
     for (row, says) in [
         (0, "companion: a companion flies in lockstep rows only"),
         (1, "companion: a companion flies ArduCopter rows only"),

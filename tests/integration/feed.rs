@@ -32,17 +32,7 @@ const BOXES: [([f64; 3], [f64; 3]); 3] = [
 ];
 
 fn boxes_scene() -> String {
-    BOXES
-        .iter()
-        .enumerate()
-        .map(|(i, (lo, hi))| {
-            let size = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
-            let at = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]];
-            format!(
-                "[[obstacle]]\nid = \"b{i}\"\nkind = \"building\"\nshape = {{ box = {size:?} }}\nposition_enu_m = {at:?}\n"
-            )
-        })
-        .collect()
+    crate::common::boxes_scene(&BOXES)
 }
 
 /// The nearest entry of the ray into any box within `max_m` (slab test).

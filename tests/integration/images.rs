@@ -10,10 +10,10 @@ use savsim::pipeline::{BodySource, CollisionConfig, MovingBodies, ObstacleRef, P
 use savsim_core::sensors::device::{Model, RangeModel};
 use savsim_core::sensors::draws::Draws;
 use savsim_core::sensors::image::{DepthImage, PointCloud, Segment, SegmentClass};
-use savsim_core::sensors::range::{BeamReading, BeamTruth, RangeState};
+use savsim_core::sensors::range::{Beam, BeamReading, BeamTruth, RangeState};
 use savsim_core::sensors::spec::DeviceSpec;
 
-use crate::common::scene_at;
+use crate::common::{boxes_scene, scene_at};
 
 const ORIGIN: Geodetic = Geodetic::new(-35.363261, 149.165230, 584.0);
 
@@ -30,20 +30,6 @@ const BOXES: [([f64; 3], [f64; 3]); 4] = [
     ([-3.1, 3.3, 0.0], [-2.6, 3.9, 9.0]),
     ([-2.0, 4.0, 0.0], [2.0, 7.0, 2.5]),
 ];
-
-fn boxes_scene(boxes: &[([f64; 3], [f64; 3])]) -> String {
-    boxes
-        .iter()
-        .enumerate()
-        .map(|(i, (lo, hi))| {
-            let size = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
-            let at = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]];
-            format!(
-                "[[obstacle]]\nid = \"b{i}\"\nkind = \"building\"\nshape = {{ box = {size:?} }}\nposition_enu_m = {at:?}\n"
-            )
-        })
-        .collect()
-}
 
 /// A box's twelve triangles, from its eight corners.
 fn box_triangles((lo, hi): ([f64; 3], [f64; 3])) -> Vec<[DVec3; 3]> {
@@ -125,6 +111,32 @@ fn camera_to_enu(forward: DVec3) -> impl Fn(DVec3) -> DVec3 {
     move |d: DVec3| f * d.x + right * d.y + down * d.z
 }
 
+/// `model`'s reading at instant `(k, dt_s)` of what `hits` says is along each of its `beams`,
+/// drawing with `seed` and `key`: the truths and the readings.
+fn read(
+    model: &RangeModel,
+    beams: &[Beam],
+    hits: &[Option<(ObstacleRef, f64)>],
+    (seed, key): (u64, u64),
+    instant: (u64, f64),
+) -> (Vec<BeamTruth>, Vec<BeamReading>) {
+    let truths: Vec<BeamTruth> = beams
+        .iter()
+        .zip(hits)
+        .map(|(b, hit)| BeamTruth::along(b, hit.map(|(_, d)| d)))
+        .collect();
+    let mut readings = vec![BeamReading::NoData; beams.len()];
+    model.read(
+        &mut RangeState::default(),
+        &Draws::new(seed),
+        key,
+        instant,
+        &truths,
+        &mut readings,
+    );
+    (truths, readings)
+}
+
 /// What the pipeline's exact rays say from `origin` along `dirs`.
 fn cast(
     boxes: &[([f64; 3], [f64; 3])],
@@ -165,20 +177,7 @@ fn a_depth_image_and_its_segmentation_match_a_scalar_cast_over_every_triangle() 
     let dirs: Vec<DVec3> = beams.iter().map(|b| to_enu(b[0])).collect();
     let hits = cast(&BOXES, origin, &dirs, 20.0);
     // The reading without errors, made into an image.
-    let truths: Vec<BeamTruth> = beams
-        .iter()
-        .zip(&hits)
-        .map(|(b, hit)| BeamTruth::along(b, hit.map(|(_, d)| d)))
-        .collect();
-    let mut readings = vec![BeamReading::NoData; beams.len()];
-    camera.read(
-        &mut RangeState::default(),
-        &Draws::new(1),
-        7,
-        (0, 1.0 / 30.0),
-        &truths,
-        &mut readings,
-    );
+    let (truths, readings) = read(&camera, &beams, &hits, (1, 7), (0, 1.0 / 30.0));
     let segments: Vec<Segment> = hits
         .iter()
         .map(|hit| {
@@ -306,20 +305,7 @@ fn a_vlp16_turn_has_its_channels_and_its_returns_lie_on_the_faces() {
     let to_enu = camera_to_enu(DVec3::Y);
     let dirs: Vec<DVec3> = beams.iter().map(|b| to_enu(b[0])).collect();
     let hits = cast(&room, origin, &dirs, 100.0);
-    let truths: Vec<BeamTruth> = beams
-        .iter()
-        .zip(&hits)
-        .map(|(b, hit)| BeamTruth::along(b, hit.map(|(_, d)| d)))
-        .collect();
-    let mut readings = vec![BeamReading::NoData; beams.len()];
-    lidar.read(
-        &mut RangeState::default(),
-        &Draws::new(3),
-        1,
-        (0, 0.1),
-        &truths,
-        &mut readings,
-    );
+    let (_, readings) = read(&lidar, &beams, &hits, (3, 1), (0, 0.1));
     let mut cloud = PointCloud::default();
     cloud.fill(&beams, &readings, &vec![Segment::default(); beams.len()]);
     // Every ray within +-15 degrees meets a wall from 2 m up (the 0.9 m minimum: none nearer).
@@ -343,21 +329,8 @@ fn a_noisy_image_is_the_same_for_a_seed_and_another_for_another() {
     let to_enu = camera_to_enu(DVec3::new(0.1, 1.0, 0.0));
     let dirs: Vec<DVec3> = beams.iter().map(|b| to_enu(b[0])).collect();
     let hits = cast(&BOXES, DVec3::new(0.0, 0.0, 5.0), &dirs, 10.0);
-    let truths: Vec<BeamTruth> = beams
-        .iter()
-        .zip(&hits)
-        .map(|(b, hit)| BeamTruth::along(b, hit.map(|(_, d)| d)))
-        .collect();
     let image = |seed: u64, k: u64| {
-        let mut readings = vec![BeamReading::NoData; beams.len()];
-        camera.read(
-            &mut RangeState::default(),
-            &Draws::new(seed),
-            5,
-            (k, 1.0 / 30.0),
-            &truths,
-            &mut readings,
-        );
+        let (truths, readings) = read(&camera, &beams, &hits, (seed, 5), (k, 1.0 / 30.0));
         let mut image = DepthImage::default();
         image.fill(
             160,

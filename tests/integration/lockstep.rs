@@ -200,6 +200,14 @@ pub(crate) fn results(dir: &std::path::Path) -> Vec<String> {
     out
 }
 
+/// Column `name` of row `row` in [`results`]' lines (empty when it has none).
+pub(crate) fn cell(rows: &[String], name: &str, row: usize) -> String {
+    rows.iter()
+        .find(|l| l.starts_with(&format!("{row} {name} ")))
+        .cloned()
+        .unwrap_or_default()
+}
+
 /// A row of one ArduCopter and a row of two (the second flying 300 m from the first) flown in
 /// lockstep, two at once, twice: every result column the same to the last bit (the truth
 /// track, the collisions and approaches, the outcome, the autopilot's modes and estimate).
@@ -229,13 +237,7 @@ fn lockstep_rows_flown_twice_give_the_same_results_bit_for_bit() {
         assert_ran(&run);
         flown.push(results(&out));
     }
-    let value = |name: &str, row: usize| {
-        flown[0]
-            .iter()
-            .find(|l| l.starts_with(&format!("{row} {name} ")))
-            .cloned()
-            .unwrap_or_default()
-    };
+    let value = |name: &str, row: usize| cell(&flown[0], name, row);
     for row in 0..2 {
         assert!(
             value("outcome", row).contains("\"pass\""),
@@ -284,13 +286,7 @@ fn a_px4_in_lockstep_takes_off_and_holds() {
         .unwrap();
     assert_ran(&run);
     let flown = results(&out);
-    let value = |name: &str| {
-        flown
-            .iter()
-            .find(|l| l.starts_with(&format!("0 {name} ")))
-            .cloned()
-            .unwrap_or_default()
-    };
+    let value = |name: &str| cell(&flown, name, 0);
     assert!(value("outcome").contains("\"pass\""), "{}", value("error"));
     assert!(value("plan_completed").contains("true"), "{flown:#?}");
     assert!(value("frame").contains("\"iris\""), "{}", value("frame"));
