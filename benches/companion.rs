@@ -27,7 +27,7 @@ fn main() {
     let mut link = Link::start(&command, dir.path(), Duration::from_secs(20)).expect("it starts");
     let mut hello = Vec::new();
     protocol::message(
-        &protocol::hello(1, &["cam".into()], 30.0, 0.0),
+        &protocol::hello(1, &["cam".into()], (30.0, 0.0), protocol::Clock::Lockstep),
         &[],
         &mut hello,
     );

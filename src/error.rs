@@ -75,6 +75,10 @@ pub enum Error {
         /// Where they were heard.
         endpoint: String,
     },
+    /// The companion (`--companion`, a row's `companion`) failed: its process, its link, or
+    /// what it answered.
+    #[error(transparent)]
+    Companion(#[from] crate::companion::slot::SlotError),
 }
 
 impl Error {

@@ -1,6 +1,6 @@
 //! The one place that wires things together: commands, threads, channels, signals, files.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
@@ -13,6 +13,7 @@ use crate::cli::{
 use crate::codec::signing::SigningKey;
 use crate::collision::events::EventKind;
 use crate::collision::sensing::threat::AhpWeights;
+use crate::companion::slot::CompanionConfig;
 use crate::error::{Error, Result};
 use crate::links::address::ConnectAddress;
 use crate::live::{self, LiveOptions, LiveRun};
@@ -482,6 +483,7 @@ fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
         // The feed is cast at samples: ask for them at least as often.
         options.rate_hz = options.rate_hz.max(feed_hz);
     }
+    options.companion = companion_options(&args.companion)?;
     let mut run = live::run_blocking(&options, session, args.record.as_deref(), shutdown)?;
     let finished = run.session.finish();
     write_live_summary(&run, "live", args.collision.summary_json.as_deref())?;
@@ -489,6 +491,24 @@ fn live_command(args: &LiveArgs, shutdown: Arc<AtomicBool>) -> Result<()> {
     print_links(&run);
     run.ended?;
     finished
+}
+
+/// `--companion` and its settings, checked.
+fn companion_options(args: &crate::cli::CompanionArgs) -> Result<Option<live::CompanionOptions>> {
+    let Some(command) = args.companion.as_deref().filter(|c| !c.trim().is_empty()) else {
+        return Ok(None);
+    };
+    let config = CompanionConfig::checked(command, args.companion_hz, args.companion_latency_s)
+        .map_err(|(setting, why)| {
+            Error::Usage(format!("--companion-{}: {why}", setting.replace('_', "-")))
+        })?;
+    Ok(Some(live::CompanionOptions {
+        config,
+        target_system_id: args.companion_sysid,
+        px4: false,
+        dir: PathBuf::from("."),
+        intent: Default::default(),
+    }))
 }
 
 fn sim_command(args: &crate::cli::SimArgs, shutdown: &Arc<AtomicBool>) -> Result<()> {

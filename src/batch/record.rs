@@ -9,7 +9,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use glam::{DMat3, DQuat, DVec3, EulerRot};
+use glam::DVec3;
 
 use crate::batch::encounter::{ownship_sample, Encounter, OWNSHIP};
 use crate::batch::error::RowError;
@@ -147,14 +147,7 @@ fn fly_recorded(
 /// GLOBAL_POSITION_INT (the position makes the tick, with the attitude already known).
 fn reports_at(plane: &LocalTangentPlane, own: &[crate::scene::Waypoint], t_s: f64) -> [Report; 2] {
     let s = ownship_sample(plane, own, t_s);
-    let enu_from_ned = DMat3::from_cols(DVec3::Y, DVec3::X, DVec3::NEG_Z);
-    let plane_from_local = plane.plane_enu_from_local_enu_at(&s.position);
-    let ned_from_frd = DQuat::from_mat3(
-        &(enu_from_ned.transpose()
-            * plane_from_local.transpose()
-            * DMat3::from_quat(s.attitude.enu_from_frd)),
-    );
-    let (yaw_rad, pitch_rad, roll_rad) = ned_from_frd.to_euler(EulerRot::ZYX);
+    let [roll_rad, pitch_rad, yaw_rad] = s.attitude.euler_ned_rad(plane, &s.position);
     let v = s.velocity_enu_mps;
     let forward = s.attitude.forward_enu();
     [

@@ -382,6 +382,30 @@ pub struct LiveArgs {
     /// Record every frame the feed sends to this tlog, as sent (needs --feed).
     #[arg(long)]
     pub feed_out: Option<PathBuf>,
+    /// A planner of your own beside the vehicle.
+    #[command(flatten)]
+    pub companion: CompanionArgs,
+}
+
+/// A planner beside a live vehicle (docs/companion.md): handed the vehicle's state, what its
+/// `--sensors` see and the traffic it was sent, at its instants on the vehicle's clock; its
+/// commands go to the autopilot as a companion computer's.
+#[derive(Debug, Clone, Args)]
+pub struct CompanionArgs {
+    /// The planner's command line, run by `sh -c` with `SAVSIM_COMPANION=127.0.0.1:PORT` set;
+    /// its output goes to `companion.log` in the working folder.
+    #[arg(long)]
+    pub companion: Option<String>,
+    /// Its instants a second of the vehicle's clock.
+    #[arg(long, default_value_t = crate::companion::slot::DEFAULT_HZ)]
+    pub companion_hz: f64,
+    /// Its commands go at least this long after their instant, seconds of the vehicle's clock
+    /// (on top of the planner's own time).
+    #[arg(long, default_value_t = 0.0)]
+    pub companion_latency_s: f64,
+    /// The system id of the vehicle it flies (an ArduCopter).
+    #[arg(long, default_value_t = 1)]
+    pub companion_sysid: u8,
 }
 
 /// `savsim record`.

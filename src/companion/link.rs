@@ -171,6 +171,11 @@ impl Link {
         &self.command
     }
 
+    /// A second handle on its socket: shutting it down wakes whoever waits on the link.
+    pub fn stopper(&self) -> Option<TcpStream> {
+        self.stream.try_clone().ok()
+    }
+
     /// Send a message that asks no answer (`hello`).
     pub fn tell(&mut self, message: &[u8]) -> Result<(), CompanionError> {
         self.stream

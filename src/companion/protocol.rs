@@ -34,6 +34,27 @@ pub struct State {
     pub attitude_deg: [f64; 3],
 }
 
+/// Whose clock a planner runs on, as `hello` says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clock {
+    /// savsim's lockstep clock: each frame waits for the planner; `truth` is savsim's own
+    /// vehicle dynamics.
+    Lockstep,
+    /// The vehicle's own clock, running in wall time (SITL's physics, a live vehicle): frames
+    /// are not waited for; `truth` is what savsim mirrors, the autopilot's own report.
+    Wall,
+}
+
+impl Clock {
+    /// Its name in `hello`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Clock::Lockstep => "lockstep",
+            Clock::Wall => "wall",
+        }
+    }
+}
+
 /// What one frame tells the planner.
 #[derive(Debug, Clone)]
 pub struct FrameOut<'a> {
@@ -108,7 +129,12 @@ pub fn message(header: &Value, payload: &[u8], out: &mut Vec<u8>) {
 }
 
 /// The `hello` savsim sends first: the protocol's version, the vehicle, its devices.
-pub fn hello(system_id: u8, devices: &[String], hz: f64, latency_s: f64) -> Value {
+pub fn hello(
+    system_id: u8,
+    devices: &[String],
+    (hz, latency_s): (f64, f64),
+    clock: Clock,
+) -> Value {
     json!({
         "type": "hello",
         "version": VERSION,
@@ -116,6 +142,7 @@ pub fn hello(system_id: u8, devices: &[String], hz: f64, latency_s: f64) -> Valu
         "devices": devices,
         "hz": hz,
         "latency_s": latency_s,
+        "clock": clock.name(),
         "payload_bytes": 0,
     })
 }

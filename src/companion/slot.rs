@@ -1,7 +1,10 @@
-//! One vehicle's companion in the lockstep loop: at each of its instants (`k / hz` of the
-//! vehicle's clock) the planner is handed a frame and the loop waits for its commands, which
-//! reach the autopilot `latency_s` of the clock later; what the planner costs in wall time
-//! never moves them. Its counts go to the row's results.
+//! One vehicle's companion: at each of its instants (`k / hz` of the vehicle's clock) the
+//! planner is handed a frame, and its commands reach the autopilot `latency_s` of the clock
+//! after the instant. In the lockstep loop ([`Slot::start`]) the loop waits for each answer,
+//! so what the planner costs in wall time never moves them. Beside a vehicle in wall time
+//! ([`Slot::start_beside`]) a worker waits instead: the commands go at the first step after
+//! both the answer and `latency_s` have come, and an instant that finds the planner still busy
+//! is skipped. Its counts go to the row's results.
 
 use std::collections::VecDeque;
 use std::path::Path;
@@ -10,9 +13,10 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 
+use super::beside::{Answered, Beside};
 use super::link::{CompanionError, Link};
 use super::outgoing::{self, OutgoingError};
-use super::protocol::{self, FrameOut, State};
+use super::protocol::{self, Command, FrameOut, State};
 use crate::codec::outbox::Outbox;
 use crate::feed::capture::Capture;
 use crate::feed::AdsbSent;
@@ -32,6 +36,30 @@ pub struct CompanionConfig {
     pub timeout: Duration,
 }
 
+/// A companion's rate when none is given, Hz of the vehicle's clock.
+pub const DEFAULT_HZ: f64 = 10.0;
+/// How long savsim waits for one answer by default, wall time.
+pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(10);
+
+impl CompanionConfig {
+    /// `command` at `hz` (above 0, at most 1000) with `latency_s` (0 to 10 s), waited for at
+    /// most [`DEFAULT_TIMEOUT`]; or the setting that is wrong (`"hz"`, `"latency_s"`) and why.
+    pub fn checked(command: &str, hz: f64, latency_s: f64) -> Result<Self, (&'static str, String)> {
+        if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
+            return Err(("hz", format!("{hz}: give more than 0 and at most 1000")));
+        }
+        if !(latency_s.is_finite() && (0.0..=10.0).contains(&latency_s)) {
+            return Err(("latency_s", format!("{latency_s}: give 0 to 10 seconds")));
+        }
+        Ok(CompanionConfig {
+            command: command.to_string(),
+            hz,
+            latency_s,
+            timeout: DEFAULT_TIMEOUT,
+        })
+    }
+}
+
 /// What a companion did over a row.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct CompanionCounts {
@@ -39,6 +67,8 @@ pub struct CompanionCounts {
     pub calls: u64,
     /// Commands it sent.
     pub commands: u64,
+    /// Instants skipped because the planner was still on the last frame (wall time only).
+    pub skipped: u64,
     /// Wall time of each round trip (frame out, commands back), milliseconds.
     #[serde(skip)]
     pub round_trips_ms: Vec<f64>,
@@ -72,9 +102,22 @@ pub enum SlotError {
     },
 }
 
+/// What the vehicle's companion is handed what the planner should plan with, shared with the
+/// row's pilot: the velocity the plan asks now (ENU m/s; none while taking off or landing).
+pub type Intent = Arc<Mutex<Option<DVec3>>>;
+
+/// How the planner is asked.
+enum Asker {
+    /// In the lockstep loop: each answer awaited.
+    Waits(Link),
+    /// Beside a vehicle in wall time: by a worker.
+    Beside(Beside),
+}
+
 /// One vehicle's companion.
 pub struct Slot {
-    link: Link,
+    asker: Asker,
+    command: String,
     period_us: u64,
     latency_us: u64,
     next_us: u64,
@@ -86,7 +129,7 @@ pub struct Slot {
     pending: VecDeque<(u64, Vec<u8>)>,
     captures: Vec<Arc<Capture>>,
     traffic: Vec<AdsbSent>,
-    intent: Arc<Mutex<Option<DVec3>>>,
+    intent: Intent,
     /// What it did.
     pub counts: CompanionCounts,
     payload: Vec<u8>,
@@ -95,13 +138,15 @@ pub struct Slot {
 
 impl std::fmt::Debug for Slot {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Slot").field("link", &self.link).finish()
+        f.debug_struct("Slot")
+            .field("command", &self.command)
+            .finish()
     }
 }
 
 impl Slot {
     /// Start `config`'s planner for vehicle `target` (its output in `dir`) and greet it with
-    /// the vehicle's `devices`.
+    /// the vehicle's `devices`; the lockstep loop asks it and waits.
     pub fn start(
         config: &CompanionConfig,
         target: SenderId,
@@ -109,13 +154,41 @@ impl Slot {
         dir: &Path,
         devices: &[String],
     ) -> Result<Slot, CompanionError> {
-        let mut link = Link::start(&config.command, dir, config.timeout)?;
-        let mut message = Vec::new();
-        let hello = protocol::hello(target.system_id, devices, config.hz, config.latency_s);
-        protocol::message(&hello, &[], &mut message);
-        link.tell(&message)?;
-        Ok(Slot {
-            link,
+        let link = greeted(config, target, devices, protocol::Clock::Lockstep, dir)?;
+        let intent = Intent::default();
+        Ok(Slot::new(Asker::Waits(link), config, target, px4, intent))
+    }
+
+    /// [`Slot::start`] for a vehicle flying in wall time: asked by a worker, never waited for;
+    /// the pilot hands the plan's velocity to `intent`.
+    pub fn start_beside(
+        config: &CompanionConfig,
+        (target, px4): (SenderId, bool),
+        dir: &Path,
+        devices: &[String],
+        intent: Intent,
+    ) -> Result<Slot, CompanionError> {
+        let link = greeted(config, target, devices, protocol::Clock::Wall, dir)?;
+        let beside = Beside::start(link)?;
+        Ok(Slot::new(
+            Asker::Beside(beside),
+            config,
+            target,
+            px4,
+            intent,
+        ))
+    }
+
+    fn new(
+        asker: Asker,
+        config: &CompanionConfig,
+        target: SenderId,
+        px4: bool,
+        intent: Intent,
+    ) -> Slot {
+        Slot {
+            asker,
+            command: config.command.clone(),
             period_us: (1e6 / config.hz).round().max(1.0) as u64,
             latency_us: (config.latency_s * 1e6).round() as u64,
             next_us: 0,
@@ -126,15 +199,15 @@ impl Slot {
             pending: VecDeque::new(),
             captures: Vec::new(),
             traffic: Vec::new(),
-            intent: Arc::new(Mutex::new(None)),
+            intent,
             counts: CompanionCounts::default(),
             payload: Vec::new(),
-            message,
-        })
+            message: Vec::new(),
+        }
     }
 
     /// Where the row's pilot puts what its plan asks now (the frames' `intent_enu_mps`).
-    pub fn intent(&self) -> Arc<Mutex<Option<DVec3>>> {
+    pub fn intent(&self) -> Intent {
         self.intent.clone()
     }
 
@@ -149,18 +222,24 @@ impl Slot {
         self.traffic.extend_from_slice(traffic);
     }
 
-    /// At `time_us` of the clock: when an instant came, hand the planner its frame, wait for
-    /// its commands, and queue them to go `latency_s` later.
+    /// At `time_us` of the clock: when an instant came, hand the planner its frame (and, in
+    /// the lockstep loop, wait for its commands); commands answered are queued to go
+    /// `latency_s` after their instant.
     pub fn at(
         &mut self,
         time_us: u64,
         truth: State,
         estimate: Option<(DVec3, f64)>,
     ) -> Result<(), SlotError> {
+        self.take_answer()?;
         if time_us < self.next_us {
             return Ok(());
         }
         self.next_us = (time_us / self.period_us + 1) * self.period_us;
+        if matches!(&self.asker, Asker::Beside(b) if b.busy()) {
+            self.counts.skipped += 1;
+            return Ok(());
+        }
         let intent = self.intent.lock().map(|i| *i).unwrap_or(None);
         let frame = FrameOut {
             seq: self.seq,
@@ -172,28 +251,67 @@ impl Slot {
             traffic: &self.traffic,
         };
         protocol::frame(&frame, &mut self.payload, &mut self.message);
-        let began = Instant::now();
-        let commands = self.link.ask(self.seq, &self.message)?;
-        self.counts
-            .round_trips_ms
-            .push(began.elapsed().as_secs_f64() * 1e3);
+        self.traffic.clear();
+        let seq = self.seq;
+        self.seq += 1;
+        match &mut self.asker {
+            Asker::Waits(link) => {
+                let began = Instant::now();
+                let commands = link.ask(seq, &self.message)?;
+                let round_trip_ms = began.elapsed().as_secs_f64() * 1e3;
+                self.answered(seq, time_us, round_trip_ms, &commands)
+            }
+            Asker::Beside(beside) => {
+                let message = std::mem::take(&mut self.message);
+                Ok(beside.offer(seq, time_us, message)?)
+            }
+        }
+    }
+
+    /// The worker's answer, if one came: its commands queued.
+    fn take_answer(&mut self) -> Result<(), SlotError> {
+        let Asker::Beside(beside) = &mut self.asker else {
+            return Ok(());
+        };
+        let Some(Answered {
+            seq,
+            instant_us,
+            message,
+            round_trip_ms,
+            result,
+        }) = beside.answer()?
+        else {
+            return Ok(());
+        };
+        self.message = message;
+        self.answered(seq, instant_us, round_trip_ms, &result?)
+    }
+
+    /// Frame `seq` of `instant_us` answered with `commands`: counted, and its commands queued
+    /// to go `latency_s` after the instant.
+    fn answered(
+        &mut self,
+        seq: u64,
+        instant_us: u64,
+        round_trip_ms: f64,
+        commands: &[Command],
+    ) -> Result<(), SlotError> {
+        self.counts.round_trips_ms.push(round_trip_ms);
         self.counts.calls += 1;
         self.counts.commands += commands.len() as u64;
-        self.traffic.clear();
         let mut frames = Vec::new();
-        for c in &commands {
+        for c in commands {
             outgoing::encode(c, self.target, self.px4, &mut self.outbox, &mut frames).map_err(
                 |why| SlotError::Outgoing {
-                    command: self.link.command().to_string(),
-                    seq: self.seq,
+                    command: self.command.clone(),
+                    seq,
                     why,
                 },
             )?;
         }
-        let release = time_us + self.latency_us;
+        let release = instant_us + self.latency_us;
         self.pending
             .extend(frames.into_iter().map(|bytes| (release, bytes)));
-        self.seq += 1;
         Ok(())
     }
 
@@ -207,4 +325,25 @@ impl Slot {
         }
         out
     }
+}
+
+/// `config`'s planner started, connected and greeted.
+fn greeted(
+    config: &CompanionConfig,
+    target: SenderId,
+    devices: &[String],
+    clock: protocol::Clock,
+    dir: &Path,
+) -> Result<Link, CompanionError> {
+    let mut link = Link::start(&config.command, dir, config.timeout)?;
+    let hello = protocol::hello(
+        target.system_id,
+        devices,
+        (config.hz, config.latency_s),
+        clock,
+    );
+    let mut message = Vec::new();
+    protocol::message(&hello, &[], &mut message);
+    link.tell(&message)?;
+    Ok(link)
 }

@@ -32,11 +32,13 @@ use crate::logs::tlog::TlogWriter;
 use crate::session::Session;
 use crate::world::SenderId;
 
+mod companion;
 mod feed;
 mod forwarding;
 mod link_summary;
 mod session;
 
+pub use companion::CompanionOptions;
 use feed::FeedSender;
 use link_summary::{latency, link_report, new_histogram, Ending};
 pub use link_summary::{FeedLinkReport, ForwardReport, Latency, LinkReport};
@@ -75,6 +77,8 @@ pub struct LiveOptions {
     pub signing_key: Option<SigningKey>,
     /// Drop unsigned frames (`--signing require`); without it they are taken. Needs a key.
     pub signing_require: bool,
+    /// A planner beside the vehicle (`--companion`, docs/companion.md). Default none.
+    pub companion: Option<CompanionOptions>,
 }
 
 /// A flag shared between threads; two are equal when they are the same flag.
@@ -109,6 +113,7 @@ impl Default for LiveOptions {
             forward_own: false,
             signing_key: None,
             signing_require: false,
+            companion: None,
         }
     }
 }
@@ -140,6 +145,8 @@ pub struct LiveRun {
     pub report: LinkReport,
     /// Ok, or why the run ended early.
     pub ended: Result<()>,
+    /// What its companion did, when it had one.
+    pub companion: Option<crate::companion::slot::CompanionCounts>,
 }
 
 /// Open every link `options` names on a runtime of its own and run until the end.
@@ -194,6 +201,12 @@ pub fn run_links(
         .map(|key| Arc::new(Signing::new(key, options.signing_require)));
     let mut outbox = Outbox::new(options.gcs).signed_with(signing.clone());
     let mut thread = session_thread(session, supervisor, recorder, options, signing)?;
+    if let Some(companion) = &options.companion {
+        thread.companion = Some(companion::LiveCompanion::start(
+            companion,
+            &mut thread.session,
+        )?);
+    }
     let (network, chunks) = Network::start(runtime, links, options.queue_len);
     if !options.forward.is_empty() {
         let router = Forwarder::new(
@@ -243,10 +256,12 @@ pub fn run_links(
         feeding,
     };
     let report = link_report(&thread, &counters, ending);
+    let companion = thread.companion.take().map(|c| c.counts().clone());
     Ok(LiveRun {
         session: thread.session,
         report,
         ended: stopped.and(thread.result),
+        companion,
     })
 }
 

@@ -37,6 +37,8 @@ pub struct LiveSession {
     pub(super) kept: Kept,
     /// `--signing-key`: the judge, and what it judged.
     pub(super) signing: Option<(Arc<Signing>, SigningCounts)>,
+    /// `--companion`: the planner beside the vehicle.
+    pub(super) companion: Option<super::companion::LiveCompanion>,
 }
 
 impl LiveSession {
@@ -57,6 +59,7 @@ impl LiveSession {
             forward: None,
             signing: None,
             kept: Kept::default(),
+            companion: None,
         }
     }
 
@@ -177,6 +180,12 @@ impl LiveSession {
         self.process(chunk);
         if feeding {
             self.send_feed(network, chunk.t_s);
+        }
+        if let Some(companion) = self.companion.as_mut() {
+            let asked = companion.step(&mut self.session, self.supervisor.routes(), network);
+            if let (Err(e), Ok(())) = (asked, &self.result) {
+                self.result = Err(e);
+            }
         }
         if let Some(flag) = collided {
             let hit = self

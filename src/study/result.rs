@@ -218,9 +218,19 @@ pub struct StudyResult {
     /// The 99th percentile of the companion's round trips (frame out, commands back), wall
     /// milliseconds.
     pub companion_p99_ms: Option<f64>,
+    /// Instants its companion was not handed a frame because it was still on the last (rows
+    /// on SITL's own physics; none in lockstep, where every instant waits).
+    pub companion_skipped: Option<u64>,
 }
 
 impl StudyResult {
+    /// What the row's companion did.
+    pub fn record_companion(&mut self, c: &crate::companion::slot::CompanionCounts) {
+        self.companion_calls = Some(c.calls);
+        self.companion_commands = Some(c.commands);
+        self.companion_p99_ms = c.p99_ms();
+    }
+
     /// A result with `row`'s inputs and nothing flown yet.
     pub fn of_inputs(index: usize, row: &StudyRow) -> Self {
         StudyResult {
@@ -259,6 +269,7 @@ impl StudyResult {
             companion_calls: None,
             companion_commands: None,
             companion_p99_ms: None,
+            companion_skipped: None,
         }
     }
 

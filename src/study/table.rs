@@ -253,6 +253,7 @@ fn estimate_columns(rows: Rows<'_>) -> Vec<(&'static str, ArrayRef)> {
         ("companion_calls", counts(rows, |r| r.companion_calls)),
         ("companion_commands", counts(rows, |r| r.companion_commands)),
         ("companion_p99_ms", floats(rows, |r| r.companion_p99_ms)),
+        ("companion_skipped", counts(rows, |r| r.companion_skipped)),
     ]
 }
 

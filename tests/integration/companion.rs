@@ -86,7 +86,7 @@ fn started(behaviour: &str, timeout: Duration) -> (Link, tempfile::TempDir) {
     let mut link = Link::start(&planner(behaviour), dir.path(), timeout).unwrap();
     let mut hello = Vec::new();
     protocol::message(
-        &protocol::hello(1, &["cam".into()], 10.0, 0.0),
+        &protocol::hello(1, &["cam".into()], (10.0, 0.0), protocol::Clock::Lockstep),
         &[],
         &mut hello,
     );
@@ -224,7 +224,11 @@ fn a_hanging_planner_is_ended_with_its_link() {
     let command = format!("echo $$ > {}; exec {}", pid_file.display(), planner("hang"));
     let mut link = Link::start(&command, dir.path(), Duration::from_millis(300)).unwrap();
     let mut hello = Vec::new();
-    protocol::message(&protocol::hello(1, &[], 10.0, 0.0), &[], &mut hello);
+    protocol::message(
+        &protocol::hello(1, &[], (10.0, 0.0), protocol::Clock::Lockstep),
+        &[],
+        &mut hello,
+    );
     link.tell(&hello).unwrap();
     assert!(link.ask(0, &frame_bytes(0, &[])).is_err());
     let pid = std::fs::read_to_string(&pid_file)
@@ -238,6 +242,11 @@ fn a_hanging_planner_is_ended_with_its_link() {
             .contains(") Z ");
     assert!(!alive, "the planner {pid} outlived its link");
 }
+
+/// A wall 41 m north of home, 16 m wide and 40 m high, at ArduPilot SITL's home.
+const WALL: &str = "[origin]\nlat_deg = -35.363261\nlon_deg = 149.16523\nalt_m = 584\n\n\
+    [[obstacle]]\nid = \"wall\"\nkind = \"building\"\n\
+    shape = { box = [16.0, 2.0, 40.0] }\nposition_enu_m = [0.0, 41.0, 0.0]\n";
 
 /// ArduCopter in lockstep flies north at 4 m/s towards a wall 40 m ahead: without avoidance
 /// it hits it; flown by examples/companion_vfh.py from the `depth-160x120` camera, with its
@@ -254,13 +263,7 @@ fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed()
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(
-        dir.path().join("wall.toml"),
-        "[origin]\nlat_deg = -35.363261\nlon_deg = 149.16523\nalt_m = 584\n\n\
-         [[obstacle]]\nid = \"wall\"\nkind = \"building\"\n\
-         shape = { box = [16.0, 2.0, 40.0] }\nposition_enu_m = [0.0, 41.0, 0.0]\n",
-    )
-    .unwrap();
+    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
     let planner = |sleep: &str| {
         format!(
             "VFH_SLEEP_S={sleep} python3 {}",
@@ -319,6 +322,63 @@ fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed()
     assert!(differ.is_empty(), "{differ:#?}");
 }
 
+/// ArduCopter on its own physics, in wall time at 3x, flown by the VFH planner beside it (the
+/// camera at 10 Hz, so that the debug build keeps up), misses the wall the nominal row hits:
+/// the planner asked at about every instant of its rate (none skipped here), its setpoints
+/// flying the vehicle. Held 20 of 20 here (see docs/companion.md).
+#[test]
+fn arducopter_on_its_own_physics_flown_by_a_companion_misses_the_wall() {
+    use crate::sitl::{sitl_test, Autopilot, Netns};
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        format!(
+            "id,scene,speedup,plan,duration_s,params,feed,sensors,sensor_seed,companion,companion_hz\n\
+             nominal,wall.toml,3,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,,,,,\n\
+             vfh,wall.toml,3,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,proximity,depth-160x120:rate_hz=10,5,python3 {},10\n",
+            root().join("examples/companion_vfh.py").display()
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = crate::cli::savsim()
+        .args(["study", "--jobs", "2", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    crate::common::assert_ran(&run);
+    let rows = crate::lockstep::results(&out);
+    let value = |name: &str, row: usize| crate::lockstep::cell(&rows, name, row);
+    let number = |name: &str| -> u64 {
+        let cell = value(name, 1);
+        let digits: String = cell.chars().filter(char::is_ascii_digit).collect();
+        digits.parse().unwrap_or_else(|_| panic!("{name}: {cell}"))
+    };
+    assert!(
+        value("outcome", 0).contains("\"collision\""),
+        "{}",
+        value("error", 0)
+    );
+    assert!(
+        value("outcome", 1).contains("\"pass\""),
+        "{}",
+        value("error", 1)
+    );
+    // About 630 instants from its first position to the row's end (72 s of its clock).
+    let (calls, skipped) = (number("companion_calls"), number("companion_skipped"));
+    assert!(
+        calls + skipped >= 550 && skipped * 10 <= calls,
+        "{calls} {skipped}"
+    );
+    assert!(number("companion_commands") >= 100);
+}
+
 /// Rows whose companion cannot fly are error rows naming the column, and the study goes on
 /// (no autopilot is needed to find out).
 #[test]
@@ -328,7 +388,7 @@ fn rows_with_a_companion_they_cannot_fly_are_error_rows_naming_it() {
     std::fs::write(
         &manifest,
         "id,autopilot,physics,plan,duration_s,companion,companion_hz,companion_latency_s\n\
-         sitl,arducopter,,takeoff 10,30,python3 planner.py,,\n\
+         sitl-px4,px4,,takeoff 10,30,python3 planner.py,,\n\
          px4,px4,savsim,takeoff 10,30,python3 planner.py,,\n\
          zero-hz,arducopter,savsim,takeoff 10,30,python3 planner.py,0,\n\
          late,arducopter,savsim,takeoff 10,30,python3 planner.py,,11\n\
@@ -349,7 +409,7 @@ fn rows_with_a_companion_they_cannot_fly_are_error_rows_naming_it() {
     let rows = crate::lockstep::results(&out);
     let error = |row: usize| crate::lockstep::cell(&rows, "error", row);
     for (row, says) in [
-        (0, "companion: a companion flies in lockstep rows only"),
+        (0, "companion: a companion flies ArduCopter rows only"),
         (1, "companion: a companion flies ArduCopter rows only"),
         (2, "companion_hz: 0"),
         (3, "companion_latency_s: 11"),
@@ -358,4 +418,168 @@ fn rows_with_a_companion_they_cannot_fly_are_error_rows_naming_it() {
     ] {
         assert!(error(row).contains(says), "row {row}: {}", error(row));
     }
+}
+
+/// A vehicle played on 127.0.0.1 for `play`: a heartbeat a second and its pose at 50 Hz at
+/// `at` (scene ENU), its clock the wall's; what reached it from the companion (component 191):
+/// its velocity setpoints (NED m/s) and its mode changes (custom modes).
+fn played_vehicle(
+    savsim: std::net::SocketAddr,
+    origin: savsim::geo::Geodetic,
+    at: DVec3,
+    play: Duration,
+) -> (Vec<[f32; 3]>, Vec<f32>, usize) {
+    use crate::common::{frame_v2, heartbeat, pose_messages};
+    use mavlink::dialects::ardupilotmega::{MavAutopilot, MavType};
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket
+        .set_read_timeout(Some(Duration::from_millis(2)))
+        .unwrap();
+    let plane = savsim::geo::LocalTangentPlane::new(origin);
+    let began = Instant::now();
+    let (mut seq, mut sent, mut next_heartbeat) = (0u8, 0usize, Duration::ZERO);
+    let (mut velocities, mut modes) = (Vec::new(), Vec::new());
+    let mut buffer = [0u8; 2048];
+    while began.elapsed() < play {
+        let mut out = Vec::new();
+        if began.elapsed() >= next_heartbeat {
+            next_heartbeat += Duration::from_secs(1);
+            let hb = heartbeat(
+                MavType::MAV_TYPE_QUADROTOR,
+                MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            );
+            out.extend(frame_v2(1, 1, seq, &hb));
+            seq = seq.wrapping_add(1);
+        }
+        let ms = began.elapsed().as_millis() as u32;
+        for m in pose_messages(&plane, ms, at, DVec3::ZERO, [0.0; 3]) {
+            out.extend(frame_v2(1, 1, seq, &m));
+            seq = seq.wrapping_add(1);
+        }
+        sent += 1;
+        socket.send_to(&out, savsim).unwrap();
+        let until = Instant::now() + Duration::from_millis(20);
+        while Instant::now() < until {
+            let Ok(n) = socket.recv(&mut buffer) else {
+                continue;
+            };
+            let mut reader = mavlink::MavlinkReader::new(&buffer[..n]);
+            while let Ok((header, message)) = reader.read_any_message::<MavMessage>() {
+                if header.component_id != outgoing::COMPANION_COMPONENT {
+                    continue;
+                }
+                match message {
+                    MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) => {
+                        velocities.push([m.vx, m.vy, m.vz]);
+                    }
+                    MavMessage::COMMAND_LONG(m) => modes.push(m.param2),
+                    _ => {}
+                }
+            }
+        }
+    }
+    (velocities, modes, sent)
+}
+
+/// `planner` beside a vehicle played in wall time (`savsim live --companion`): what the
+/// vehicle heard from it, what savsim counted, and the positions it sent and savsim took.
+type Beside = (
+    Vec<[f32; 3]>,
+    Vec<f32>,
+    savsim::companion::slot::CompanionCounts,
+    (usize, u64),
+);
+
+/// [`beside_a_played_vehicle`], or how the run ended when it failed.
+fn beside_a_played_vehicle(behaviour: &str) -> Result<Beside, String> {
+    use savsim::live::{CompanionOptions, LiveOptions};
+    let origin = savsim::geo::Geodetic::new(-35.363261, 149.16523, 584.0);
+    let scene = crate::common::scene_at(origin, "");
+    let session = savsim::session::Session::new(
+        Some(Arc::new(scene)),
+        savsim::pipeline::CollisionConfig::default(),
+        None,
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let runtime = crate::common::runtime();
+    let (link, address) = crate::common::udp_link(&runtime);
+    let options = LiveOptions {
+        duration: Some(Duration::from_millis(3500)),
+        companion: Some(CompanionOptions {
+            config: CompanionConfig::checked(&planner(behaviour), 10.0, 0.0).unwrap(),
+            target_system_id: 1,
+            px4: false,
+            dir: dir.path().to_path_buf(),
+            intent: Default::default(),
+        }),
+        ..LiveOptions::default()
+    };
+    let at = DVec3::new(3.0, 4.0, 10.0);
+    let vehicle = std::thread::spawn(move || {
+        played_vehicle(address, origin, at, Duration::from_millis(2500))
+    });
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let run = savsim::live::run_links(runtime.handle(), vec![link], &options, session, None, stop)
+        .unwrap();
+    let (velocities, modes, sent) = vehicle.join().unwrap();
+    run.ended.map_err(|e| e.to_string())?;
+    let taken = run
+        .session
+        .world()
+        .vehicle_of_system(1)
+        .map_or(0, |v| v.positions);
+    Ok((velocities, modes, run.companion.unwrap(), (sent, taken)))
+}
+
+/// Beside a vehicle flying in wall time, the planner is asked at its instants on the vehicle's
+/// clock, told the state savsim mirrors and that the clock is the wall's; its commands reach
+/// the vehicle as the companion's.
+#[test]
+fn beside_a_vehicle_in_wall_time_the_planner_is_asked_and_its_commands_reach_it() {
+    let (velocities, modes, counts, (sent, taken)) = beside_a_played_vehicle("where").unwrap();
+    // About 25 instants in the vehicle's 2.5 s; a fast planner misses only those that came in
+    // the backlog of positions queued while it started (taken in a burst, its answer to the
+    // first not back yet).
+    let instants = counts.calls + counts.skipped;
+    assert!((22..=26).contains(&instants), "{counts:?}");
+    assert!(counts.skipped <= 4, "{counts:?}");
+    assert_eq!(velocities.len() as u64, counts.calls, "{counts:?}");
+    // ENU (3, 4, 10) as NED: north 4, east 3, down -10.
+    for v in &velocities {
+        assert!(
+            (v[0] - 4.0).abs() < 0.05 && (v[1] - 3.0).abs() < 0.05,
+            "{v:?}"
+        );
+        assert!((v[2] + 10.0).abs() < 0.05, "{v:?}");
+    }
+    assert_eq!(
+        modes,
+        [4.0],
+        "GUIDED once, the hello having said the clock is the wall's"
+    );
+    assert_eq!(taken as usize, sent);
+}
+
+/// A planner slower than the vehicle's instants never holds the vehicle up: the instants
+/// that find it busy are skipped and counted, and every position is taken.
+#[test]
+fn beside_a_vehicle_in_wall_time_a_slow_planner_skips_instants_and_holds_nothing_up() {
+    let (velocities, _, counts, (sent, taken)) = beside_a_played_vehicle("slow-where").unwrap();
+    // 300 ms a frame: at most one instant in three is asked.
+    assert!((4..=10).contains(&counts.calls), "{counts:?}");
+    assert!(counts.skipped >= 2 * counts.calls - 2, "{counts:?}");
+    assert!(velocities.len() as u64 >= counts.calls - 1, "{counts:?}");
+    assert_eq!(taken as usize, sent);
+}
+
+/// A planner that fails beside a vehicle in wall time ends the run with an error naming it
+/// and what it said; nothing hangs.
+#[test]
+fn beside_a_vehicle_in_wall_time_a_failing_planner_ends_the_run_naming_it() {
+    let began = Instant::now();
+    let error = beside_a_played_vehicle("crash").err().unwrap_or_default();
+    assert!(error.contains("companion_planner.py crash"), "{error}");
+    assert!(error.contains("giving up on frame 0"), "{error}");
+    assert!(began.elapsed() < Duration::from_secs(10));
 }

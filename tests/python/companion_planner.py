@@ -10,7 +10,11 @@
 - ``many``: answers with 1000 commands;
 - ``nan``: answers with a velocity of NaN;
 - ``noop``: answers each frame with one velocity at once, touching its image (the round-trip
-  bench).
+  bench);
+- ``where``: answers each frame with a velocity of the vehicle's position as told (east,
+  north, up, metres as m/s) and, with the first frame, a change to GUIDED when its hello
+  named the ``wall`` clock;
+- ``slow-where``: ``where``, after 300 ms of wall time on each frame.
 
 The client is loaded from the source tree (python/savsim/companion.py), not an installed
 package.
@@ -53,5 +57,12 @@ for frame in link.frames():
     elif behaviour == "noop":
         depth = frame.images()["cam"]["depth_m"]
         link.reply(frame, [companion.velocity([float(depth[0, 0]), 0, 0])])
+    elif behaviour in ("where", "slow-where"):
+        if behaviour == "slow-where":
+            time.sleep(0.3)
+        commands = [companion.velocity(frame.truth["position_enu_m"])]
+        if frame.seq == 0 and link.hello.get("clock") == "wall":
+            commands.append(companion.mode("GUIDED"))
+        link.reply(frame, commands)
     elif behaviour == "nan":
         link.reply(frame, [{"velocity_enu_mps": [math.nan, 0, 0]}])

@@ -4,6 +4,7 @@
 
 use super::ids::{arducopter_sysid, MAX_VEHICLES};
 use super::{input, RowError, DEFAULT_DURATION_S, SPEEDUP_RANGE};
+use crate::companion::slot::CompanionConfig;
 use crate::feed::FeedKinds;
 use crate::scene::{Kind, Waypoint};
 use crate::study::manifest::StudyRow;
@@ -230,4 +231,45 @@ pub(super) fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, Row
         speedup,
         stop_on_collision: row.stop_on_collision.unwrap_or(true),
     })
+}
+
+/// The row's companion columns, checked (none when it names no companion): ArduCopter only.
+pub(super) fn check_companion(
+    row: &StudyRow,
+    checked: &Checked,
+) -> Result<Option<CompanionConfig>, RowError> {
+    let Some(command) = row
+        .companion
+        .as_deref()
+        .map(str::trim)
+        .filter(|c| !c.is_empty())
+    else {
+        for (column, set) in [
+            ("companion_hz", row.companion_hz.is_some()),
+            ("companion_latency_s", row.companion_latency_s.is_some()),
+        ] {
+            if set {
+                return Err(input(column, "give a companion to go with it"));
+            }
+        }
+        return Ok(None);
+    };
+    if checked.own.px4 {
+        // PX4's pilot flies by sticks in position mode; a companion's setpoints would need
+        // OFFBOARD and the pilot to hand over: not built.
+        return Err(input(
+            "companion",
+            "a companion flies ArduCopter rows only (a PX4 row's pilot flies it by sticks)",
+        ));
+    }
+    let hz = row
+        .companion_hz
+        .unwrap_or(crate::companion::slot::DEFAULT_HZ);
+    let latency_s = row.companion_latency_s.unwrap_or(0.0);
+    CompanionConfig::checked(command, hz, latency_s)
+        .map(Some)
+        .map_err(|(setting, why)| match setting {
+            "hz" => input("companion_hz", why),
+            _ => input("companion_latency_s", why),
+        })
 }

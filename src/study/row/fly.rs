@@ -1,7 +1,7 @@
 //! A row flown: every vehicle's pilot flies its plan on its own thread, each ArduCopter paced
 //! to the row's clock, until the row's time is up, a collision ends it, or the caller stops.
 
-use super::check::{check, Checked, Flier};
+use super::check::{check, check_companion, Checked, Flier};
 use super::ids::autopilot_id;
 use super::record::{record, record_clocks, record_live, record_other, FlownBy};
 use super::session::{row_folder, scene_for, session_for, SessionThread};
@@ -10,8 +10,9 @@ use super::{RowError, Setup, FEED_HZ, MAX_CLOCK_SKEW_S};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use crate::companion::slot::Intent;
 use crate::geo::LocalTangentPlane;
-use crate::live::{Flag, LiveOptions};
+use crate::live::{CompanionOptions, Flag, LiveOptions};
 use crate::study::manifest::StudyRow;
 use crate::study::pilot::fly::{fly, fly_px4, Flown};
 use crate::study::pilot::heard::RowClock;
@@ -27,6 +28,7 @@ pub(super) fn fly_row(
     result: &mut StudyResult,
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
+    let companion = check_companion(row, &checked)?;
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
     let own_id = autopilot_id(checked.own.px4, instance, 0);
@@ -42,7 +44,16 @@ pub(super) fn fly_row(
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
     let collided = Flag::default();
+    let intent = Intent::default();
+    let flown_by_companion = companion.is_some();
     let options = LiveOptions {
+        companion: companion.map(|config| CompanionOptions {
+            config,
+            target_system_id: own_id.system_id,
+            px4: checked.own.px4,
+            dir: dir.clone(),
+            intent: intent.clone(),
+        }),
         duration: Some(wall_limit),
         rate_hz: FEED_HZ,
         collided: Some(collided.clone()),
@@ -66,6 +77,9 @@ pub(super) fn fly_row(
     for v in &mut vehicles {
         pilots.push(connect_pilot(v, plane, &setup.stop)?);
     }
+    if let (true, Some(Ok(own))) = (flown_by_companion, pilots.first_mut()) {
+        own.companion_intent = Some(intent);
+    }
     let flights = fly_all(
         pilots,
         &vehicles,
@@ -87,6 +101,10 @@ pub(super) fn fly_row(
         return Err(wall_limit_error(&flown, started, wall_limit, &checked));
     }
     let mut run = run;
+    if let Some(c) = &run.companion {
+        result.record_companion(c);
+        result.companion_skipped = Some(c.skipped);
+    }
     for ((by, flier), id) in flown_all.zip(&checked.others).zip(&ids[1..]) {
         record_other(result, &run.session, *id, &by, flier);
     }

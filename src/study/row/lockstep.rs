@@ -2,7 +2,7 @@
 //! autopilot (ArduCopter through its JSON backend) waits for savsim's clock, the pilots fly
 //! their plans on that clock, and the world gets the truth with no network between.
 
-use super::check::{check, Checked, Flier};
+use super::check::{check, check_companion, Checked, Flier};
 use super::fly::{fly_vehicle, wall_limit_error};
 use super::ids::INSTANCE_OFFSET;
 use super::record::{record, record_other, FlownBy};
@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use savsim_core::dynamics::Frame;
 
-use crate::companion::slot::{CompanionConfig, Slot};
+use crate::companion::slot::Slot;
 use crate::geo::LocalTangentPlane;
 use crate::lockstep::driver::{run_timed, Lockstepped, LoopConfig, LoopTimes};
 use crate::lockstep::physics::{frame_named, step_us, wind_ned_mps};
@@ -97,49 +97,6 @@ fn check_physics(row: &StudyRow, checked: &Checked) -> Result<Physics, RowError>
         wind_ned_mps,
     })
 }
-
-/// The row's companion columns, checked (none when it names no companion).
-fn check_companion(row: &StudyRow) -> Result<Option<CompanionConfig>, RowError> {
-    let Some(command) = row
-        .companion
-        .as_deref()
-        .map(str::trim)
-        .filter(|c| !c.is_empty())
-    else {
-        for (column, set) in [
-            ("companion_hz", row.companion_hz.is_some()),
-            ("companion_latency_s", row.companion_latency_s.is_some()),
-        ] {
-            if set {
-                return Err(input(column, "give a companion to go with it"));
-            }
-        }
-        return Ok(None);
-    };
-    let hz = row.companion_hz.unwrap_or(10.0);
-    if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
-        return Err(input(
-            "companion_hz",
-            format!("{hz}: give more than 0 and at most 1000"),
-        ));
-    }
-    let latency_s = row.companion_latency_s.unwrap_or(0.0);
-    if !(latency_s.is_finite() && (0.0..=10.0).contains(&latency_s)) {
-        return Err(input(
-            "companion_latency_s",
-            format!("{latency_s}: give 0 to 10 seconds"),
-        ));
-    }
-    Ok(Some(CompanionConfig {
-        command: command.to_string(),
-        hz,
-        latency_s,
-        timeout: COMPANION_TIMEOUT,
-    }))
-}
-
-/// How long a row waits for its companion's answer to one frame, wall time.
-pub const COMPANION_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The system id of a lockstep row's vehicle `k` (from 0): `k + 1`.
 fn lockstep_id(k: usize) -> SenderId {
@@ -227,15 +184,7 @@ pub(super) fn fly_lockstep_row(
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
     let physics = check_physics(row, &checked)?;
-    let companion = check_companion(row)?;
-    if companion.is_some() && checked.own.px4 {
-        // PX4's pilot flies by sticks in position mode; a companion's setpoints would need
-        // OFFBOARD and the pilot to hand over: not built.
-        return Err(input(
-            "companion",
-            "a companion flies ArduCopter rows only (a PX4 row's pilot flies it by sticks)",
-        ));
-    }
+    let companion = check_companion(row, &checked)?;
     result.frame = Some(physics.frame_for(checked.own.px4).0);
     result.step_ms = Some(physics.step_us as f64 / 1000.0);
     result.speedup = row.speedup.unwrap_or(0.0);
@@ -321,9 +270,7 @@ pub(super) fn fly_lockstep_row(
     result.estimate = flown.estimates.first().copied();
     result.lockstep_times = Some(flown.times);
     if let Some(c) = &flown.companion {
-        result.companion_calls = Some(c.calls);
-        result.companion_commands = Some(c.commands);
-        result.companion_p99_ms = c.p99_ms();
+        result.record_companion(c);
     }
     result.clock_skew_s = (!result.others.is_empty()).then_some(0.0);
     record(

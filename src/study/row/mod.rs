@@ -142,6 +142,9 @@ pub enum RowError {
     /// The row's companion.
     #[error("{0}")]
     Companion(#[from] crate::companion::link::CompanionError),
+    /// The row's companion, beside SITL's own physics.
+    #[error("{0}")]
+    Planner(crate::companion::slot::SlotError),
     /// A lockstep row's ports or SITL.
     #[error("savsim: lockstep: {0}")]
     Lockstep(#[from] crate::study::sitl_lockstep::LockstepStartError),
@@ -174,13 +177,6 @@ pub enum RowError {
         /// The speedup asked.
         speedup: f64,
     },
-}
-
-/// Whether the row names a companion.
-fn has_companion(row: &StudyRow) -> bool {
-    row.companion
-        .as_deref()
-        .is_some_and(|c| !c.trim().is_empty())
 }
 
 fn input(column: &'static str, why: impl Into<String>) -> RowError {
@@ -242,10 +238,6 @@ pub fn run_row(index: usize, row: &StudyRow, instance: u16, setup: &Setup) -> St
     let mut result = StudyResult::of_inputs(index, row);
     let flown = std::panic::catch_unwind(AssertUnwindSafe(|| {
         match row.physics.as_deref().map(str::trim) {
-            None | Some("" | "autopilot") if has_companion(row) => Err(input(
-                "companion",
-                "a companion flies in lockstep rows only: give physics = savsim",
-            )),
             None | Some("" | "autopilot") => fly_row(row, instance, setup, &mut result),
             Some("savsim") => lockstep::fly_lockstep_row(row, instance, setup, &mut result),
             Some(other) => Err(input(

@@ -63,7 +63,10 @@ pub(super) fn record_clocks(result: &mut StudyResult, session: &Session) {
 
 /// What a live run adds to a row: its ending and the feed's latency.
 pub(super) fn record_live(result: &mut StudyResult, run: &mut LiveRun) -> Result<(), RowError> {
-    std::mem::replace(&mut run.ended, Ok(()))?;
+    match std::mem::replace(&mut run.ended, Ok(())) {
+        Err(crate::error::Error::Companion(e)) => return Err(RowError::Planner(e)),
+        ended => ended?,
+    }
     let feed_latency = run.report.feed.as_ref().and_then(|f| f.latency);
     result.feed_latency_p99_us = feed_latency.map(|l| l.p99_us);
     result.feed_latency_max_us = feed_latency.map(|l| l.max_us);

@@ -54,6 +54,30 @@ impl Attitude {
         }
     }
 
+    /// Its roll, pitch and yaw (radians, relative to the local NED frame at `position`, as
+    /// MAVLink's ATTITUDE gives them): the inverse of [`Attitude::from_euler_ned`].
+    ///
+    /// ```
+    /// use savsim_core::{geo::{Geodetic, LocalTangentPlane}, world::Attitude};
+    /// let origin = Geodetic::new(47.0, 8.0, 500.0);
+    /// let away = Geodetic::new(47.05, 8.07, 620.0);
+    /// let plane = LocalTangentPlane::new(origin);
+    /// let a = Attitude::from_euler_ned(&plane, &away, 0.1, -0.2, 2.5, 0);
+    /// let [roll, pitch, yaw] = a.euler_ned_rad(&plane, &away);
+    /// assert!((roll - 0.1).abs() < 1e-9 && (pitch + 0.2).abs() < 1e-9 && (yaw - 2.5).abs() < 1e-9);
+    /// ```
+    pub fn euler_ned_rad(&self, plane: &LocalTangentPlane, position: &Geodetic) -> [f64; 3] {
+        let enu_from_ned = DMat3::from_cols(DVec3::Y, DVec3::X, DVec3::NEG_Z);
+        let plane_from_local = plane.plane_enu_from_local_enu_at(position);
+        let ned_from_frd = DQuat::from_mat3(
+            &(enu_from_ned.transpose()
+                * plane_from_local.transpose()
+                * DMat3::from_quat(self.enu_from_frd)),
+        );
+        let (yaw_rad, pitch_rad, roll_rad) = ned_from_frd.to_euler(EulerRot::ZYX);
+        [roll_rad, pitch_rad, yaw_rad]
+    }
+
     /// The body's forward (x) axis in ENU.
     pub fn forward_enu(&self) -> DVec3 {
         self.enu_from_frd * DVec3::X
