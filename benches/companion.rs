@@ -27,7 +27,14 @@ fn main() {
     let mut link = Link::start(&command, dir.path(), Duration::from_secs(20)).expect("it starts");
     let mut hello = Vec::new();
     protocol::message(
-        &protocol::hello(1, &["cam".into()], (30.0, 0.0), protocol::Clock::Lockstep),
+        &protocol::hello(&protocol::Hello {
+            system_id: 1,
+            px4: false,
+            devices: &["cam".into()],
+            hz: 30.0,
+            latency_s: 0.0,
+            clock: protocol::Clock::Lockstep,
+        }),
         &[],
         &mut hello,
     );

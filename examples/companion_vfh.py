@@ -10,6 +10,10 @@ speed, slower when the way is narrow; with no free column within the image, it s
 towards the wanted direction; when the wanted direction is outside the image, it turns to see
 it before going.
 
+On ArduCopter it flies in GUIDED, where the row's pilot put it for the takeoff. On PX4 (the
+``hello`` names the autopilot) it asks for OFFBOARD with its first setpoints and again once a
+second while it flies (PX4 takes OFFBOARD only while setpoints come).
+
 Run by savsim (a study row's ``companion`` column)::
 
     companion = python3 examples/companion_vfh.py
@@ -27,7 +31,7 @@ import time
 import numpy as np
 
 try:
-    from savsim.companion import Companion, velocity
+    from savsim.companion import Companion, mode, velocity
 except ImportError:  # a checkout without the package installed
     import importlib.util
 
@@ -36,7 +40,7 @@ except ImportError:  # a checkout without the package installed
         "companion", os.path.join(here, "..", "python", "savsim", "companion.py"))
     _m = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(_m)
-    Companion, velocity = _m.Companion, _m.velocity
+    Companion, mode, velocity = _m.Companion, _m.mode, _m.velocity
 
 CAMERA = os.environ.get("VFH_CAMERA", "depth-160x120")
 RADIUS_M = 0.6          # the vehicle's radius and a little more
@@ -126,7 +130,25 @@ class Vfh:
 
 def main():
     vfh = Vfh()
-    Companion().run(vfh.plan)
+    link = Companion()
+    if link.hello.get("autopilot") != "px4":
+        link.run(vfh.plan)
+        return
+    every = max(1, round(link.hello.get("hz", 10.0)))
+    flying = 0
+
+    def plan_offboard(frame):
+        nonlocal flying
+        commands = vfh.plan(frame)
+        if not commands:
+            flying = 0
+            return commands
+        flying += 1
+        if flying % every == 1 or every == 1:
+            commands.append(mode("OFFBOARD"))
+        return commands
+
+    link.run(plan_offboard)
 
 
 if __name__ == "__main__":

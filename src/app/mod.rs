@@ -78,6 +78,10 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
     session_over(args, load_scene(args.scene.as_deref())?)
 }
 
+/// The largest `--separation-m`, metres: within the reach every tick judges approaches in
+/// (NMAC's 152 m is always in it; the contact layer's and the feed's reaches often more).
+const MAX_SEPARATION_M: f64 = 1000.0;
+
 /// [`session_for`] over `scene` (loaded, or made).
 fn session_over(args: &CollisionArgs, scene: Option<Arc<Scene>>) -> Result<Session> {
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
@@ -88,7 +92,14 @@ fn session_over(args: &CollisionArgs, scene: Option<Arc<Scene>>) -> Result<Sessi
             crate::daa::well_clear::SETTING_HELP
         ))
     })?;
-    session.set_approaches(crate::daa::approach::Approaches::with_volume(volume));
+    let separation = args
+        .separation_m
+        .map(|m| savsim_core::bounds::positive("--separation-m", m, MAX_SEPARATION_M))
+        .transpose()?
+        .map(|minimum_m| crate::daa::separation::Separation { minimum_m });
+    session.set_approaches(
+        crate::daa::approach::Approaches::with_volume(volume).with_separation(separation),
+    );
     if let Some(target) = &args.rerun {
         start_viz(&mut session, target, args.rerun_octree)?;
     }
@@ -399,6 +410,15 @@ pub fn print_report(session: &Session) {
                 e.vehicle,
                 lost_t - t0
             ),
+            EventKind::SeparationLost {
+                track,
+                lost_t,
+                minimum_m,
+            } => println!(
+                "  lost separation  vehicle {} within {minimum_m} m of {track} at +{:.2} s",
+                e.vehicle,
+                lost_t - t0
+            ),
             _ => {}
         }
     }
@@ -505,7 +525,7 @@ fn companion_options(args: &crate::cli::CompanionArgs) -> Result<Option<live::Co
     Ok(Some(live::CompanionOptions {
         config,
         target_system_id: args.companion_sysid,
-        px4: false,
+        px4: args.companion_autopilot == "px4",
         dir: PathBuf::from("."),
         intent: Default::default(),
     }))

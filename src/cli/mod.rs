@@ -238,6 +238,11 @@ pub struct CollisionArgs {
     /// `none` (not judged).
     #[arg(long, default_value = "small-uas")]
     pub well_clear: String,
+    /// A separation minimum, metres: every pair of vehicles (and moving bodies) nearer than
+    /// this (3D, between their reference points) is an event and in the summary, as a drone
+    /// show or a swarm keeps its own spacing (at most 1000 m). Default: not judged.
+    #[arg(long, allow_negative_numbers = true)]
+    pub separation_m: Option<f64>,
     /// Telemetry gaps longer than this are reported and not swept, seconds.
     #[arg(long, default_value_t = 1.0)]
     pub max_gap_s: f64,
@@ -403,9 +408,13 @@ pub struct CompanionArgs {
     /// (on top of the planner's own time).
     #[arg(long, default_value_t = 0.0)]
     pub companion_latency_s: f64,
-    /// The system id of the vehicle it flies (an ArduCopter).
+    /// The system id of the vehicle it flies.
     #[arg(long, default_value_t = 1)]
     pub companion_sysid: u8,
+    /// That vehicle's autopilot, whose mode names the planner's mode changes use: ardupilot
+    /// or px4.
+    #[arg(long, default_value = "ardupilot", value_parser = ["ardupilot", "px4"])]
+    pub companion_autopilot: String,
 }
 
 /// `savsim record`.

@@ -128,21 +128,35 @@ pub fn message(header: &Value, payload: &[u8], out: &mut Vec<u8>) {
     out.extend_from_slice(payload);
 }
 
-/// The `hello` savsim sends first: the protocol's version, the vehicle, its devices.
-pub fn hello(
-    system_id: u8,
-    devices: &[String],
-    (hz, latency_s): (f64, f64),
-    clock: Clock,
-) -> Value {
+/// What `hello` tells the planner.
+#[derive(Debug, Clone, Copy)]
+pub struct Hello<'a> {
+    /// The vehicle's system id.
+    pub system_id: u8,
+    /// Whether it is PX4 (else ArduPilot): whose mode names its `mode` commands use.
+    pub px4: bool,
+    /// Its devices' names.
+    pub devices: &'a [String],
+    /// The planner's instants a second of the vehicle's clock.
+    pub hz: f64,
+    /// Its modelled latency, seconds of the clock.
+    pub latency_s: f64,
+    /// Whose clock it runs on.
+    pub clock: Clock,
+}
+
+/// The `hello` savsim sends first: the protocol's version, the vehicle and its autopilot, its
+/// devices, the planner's rate, latency and clock.
+pub fn hello(h: &Hello<'_>) -> Value {
     json!({
         "type": "hello",
         "version": VERSION,
-        "system_id": system_id,
-        "devices": devices,
-        "hz": hz,
-        "latency_s": latency_s,
-        "clock": clock.name(),
+        "system_id": h.system_id,
+        "autopilot": if h.px4 { "px4" } else { "ardupilot" },
+        "devices": h.devices,
+        "hz": h.hz,
+        "latency_s": h.latency_s,
+        "clock": h.clock.name(),
         "payload_bytes": 0,
     })
 }

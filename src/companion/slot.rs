@@ -154,7 +154,13 @@ impl Slot {
         dir: &Path,
         devices: &[String],
     ) -> Result<Slot, CompanionError> {
-        let link = greeted(config, target, devices, protocol::Clock::Lockstep, dir)?;
+        let link = greeted(
+            config,
+            (target, px4),
+            devices,
+            protocol::Clock::Lockstep,
+            dir,
+        )?;
         let intent = Intent::default();
         Ok(Slot::new(Asker::Waits(link), config, target, px4, intent))
     }
@@ -168,7 +174,7 @@ impl Slot {
         devices: &[String],
         intent: Intent,
     ) -> Result<Slot, CompanionError> {
-        let link = greeted(config, target, devices, protocol::Clock::Wall, dir)?;
+        let link = greeted(config, (target, px4), devices, protocol::Clock::Wall, dir)?;
         let beside = Beside::start(link)?;
         Ok(Slot::new(
             Asker::Beside(beside),
@@ -330,18 +336,20 @@ impl Slot {
 /// `config`'s planner started, connected and greeted.
 fn greeted(
     config: &CompanionConfig,
-    target: SenderId,
+    (target, px4): (SenderId, bool),
     devices: &[String],
     clock: protocol::Clock,
     dir: &Path,
 ) -> Result<Link, CompanionError> {
     let mut link = Link::start(&config.command, dir, config.timeout)?;
-    let hello = protocol::hello(
-        target.system_id,
+    let hello = protocol::hello(&protocol::Hello {
+        system_id: target.system_id,
+        px4,
         devices,
-        (config.hz, config.latency_s),
+        hz: config.hz,
+        latency_s: config.latency_s,
         clock,
-    );
+    });
     let mut message = Vec::new();
     protocol::message(&hello, &[], &mut message);
     link.tell(&message)?;

@@ -505,6 +505,7 @@ impl Session {
                 EventKind::Collision { .. }
                     | EventKind::NearMiss { .. }
                     | EventKind::WellClearLost { .. }
+                    | EventKind::SeparationLost { .. }
             ) {
                 if self.notable.len() < NOTABLE_KEPT {
                     self.notable.push(e.clone());

@@ -142,6 +142,7 @@ impl Session {
                         EventKind::Collision { .. }
                             | EventKind::NearMiss { .. }
                             | EventKind::WellClearLost { .. }
+                            | EventKind::SeparationLost { .. }
                     )
                 })
                 .cloned()

@@ -25,6 +25,7 @@ impl Session {
             "traffic_pressure_altitude": self.world.traffic().filter(|(_, t)| t.pressure_altitude).count(),
             "approaches": self.approaches_summary(&pairs),
             "well_clear": self.well_clear_summary(&pairs),
+            "separation": self.separation_summary(&pairs),
             "tracks_expired": self.world.expired,
             "collision": self.pipeline.as_ref().map(|p| self.collision_summary(p)),
             "feed": self.feed_summary(),
@@ -102,6 +103,37 @@ impl Session {
                     })
                 })
                 .collect::<Vec<_>>(),
+        })
+    }
+
+    /// The separation minimum (`--separation-m`), and each pair that came nearer: when first,
+    /// how long in all, how many times, and their closest approach (3D, with the moment).
+    fn separation_summary(&self, pairs: &[(SenderId, &Pair)]) -> Value {
+        let Some(separation) = self.approaches.separation() else {
+            return Value::Null;
+        };
+        let under: Vec<Value> = pairs
+            .iter()
+            .filter(|(_, pair)| !pair.separation.episodes.is_empty())
+            .map(|(vehicle, pair)| {
+                let log = &pair.separation;
+                json!({
+                    "vehicle": vehicle.system_id,
+                    "component": vehicle.component_id,
+                    "track": &*pair.id,
+                    "first_t_s": log.episodes.first().map(|e| self.elapsed_s(e.start_t_s)),
+                    "duration_s": log.duration_s(),
+                    "episodes": log.episodes.len(),
+                    "closest_m": pair.approach.distance_m,
+                    "closest_t_s": self.elapsed_s(pair.approach.t_s),
+                })
+            })
+            .collect();
+        json!({
+            "minimum_m": separation.minimum_m,
+            "losses": self.digest.separation_lost(),
+            "pairs_under": under.len(),
+            "pairs": under,
         })
     }
 

@@ -82,6 +82,7 @@ impl Session {
         let watch = traffic::Watch {
             collision: *pipeline.config(),
             volume: self.approaches.volume(),
+            separation_m: self.approaches.separation().map(|s| s.minimum_m),
             feed: self
                 .feed
                 .as_ref()
@@ -178,21 +179,32 @@ impl Session {
 /// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
 /// regain with its length.
 fn well_clear_event(approaches: &Approaches, own: SenderId, c: &WellClearChange) -> EventKind {
-    match c.change {
-        Change::Lost { t_s } => {
+    let track = c.body.to_string();
+    match (c.change, c.separation) {
+        (Change::Lost { t_s }, false) => {
             let episode = approaches.pair(own, c.source).and_then(|pair| {
                 let episodes = pair.well_clear.episodes.iter();
                 episodes.rev().find(|e| e.start_t_s == t_s)
             });
             EventKind::WellClearLost {
-                track: c.body.to_string(),
+                track,
                 lost_t: t_s,
                 horizontal_m: episode.map_or(f64::NAN, |e| e.lost_horizontal_m),
                 vertical_m: episode.map_or(f64::NAN, |e| e.lost_vertical_m),
             }
         }
-        Change::Regained { t_s, duration_s } => EventKind::WellClearRegained {
-            track: c.body.to_string(),
+        (Change::Regained { t_s, duration_s }, false) => EventKind::WellClearRegained {
+            track,
+            regained_t: t_s,
+            duration_s,
+        },
+        (Change::Lost { t_s }, true) => EventKind::SeparationLost {
+            track,
+            lost_t: t_s,
+            minimum_m: approaches.separation().map_or(f64::NAN, |s| s.minimum_m),
+        },
+        (Change::Regained { t_s, duration_s }, true) => EventKind::SeparationRegained {
+            track,
             regained_t: t_s,
             duration_s,
         },

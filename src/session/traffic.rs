@@ -5,7 +5,7 @@
 //! The range a body is taken within (its *watch range*, from the vehicle's interval to the
 //! body's, both as boxes) is the largest of what any stage of the tick can use. Two reaches
 //! make it up. The *approach reach*: the contact layer's near-miss band, NMAC, the well-clear
-//! volume's DTHR + TTHR x closing speed, and the feed's ADS-B radius, COLLISION horizon and
+//! volume's DTHR + TTHR x closing speed, the separation minimum, and the feed's ADS-B radius, COLLISION horizon and
 //! sensor range; closest approaches and well clear are judged within it. The *sensing reach*,
 //! only at ticks with a sensing frame: its region and look-ahead, and the collider swaps'
 //! `box_beyond_m` (a mesh far away turns back into a box). Both grow by the models' radii. A
@@ -33,6 +33,8 @@ pub(crate) struct Watch {
     pub collision: CollisionConfig,
     /// The well-clear volume judged, if any.
     pub volume: Option<Volume>,
+    /// The separation minimum judged, if any, metres.
+    pub separation_m: Option<f64>,
     /// The feed's ADS-B radius, COLLISION reach and horizon, and sensor range, when on.
     pub feed: Option<(f64, f64, f64, f64)>,
     /// The largest radius of any model a moving body or vehicle can have, metres.
@@ -76,7 +78,15 @@ impl Watch {
         let feed = self.feed.map_or(0.0, |(adsb, h, horizon, sensor)| {
             adsb.max(h + horizon * closing_mps).max(sensor)
         });
-        contact.max(well_clear).max(feed).max(NMAC_M) + 1.0
+        // The boxes cover the interval's motion: within the minimum of them is all that can
+        // come under it.
+        let separation = self.separation_m.unwrap_or(0.0);
+        contact
+            .max(well_clear)
+            .max(feed)
+            .max(separation)
+            .max(NMAC_M)
+            + 1.0
     }
 
     /// As [`Self::approach_range_m`], at a tick with a sensing frame: also its region and

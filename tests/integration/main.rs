@@ -133,6 +133,7 @@ mod scenes;
 mod sensed_daa;
 mod sensor_feed;
 mod sensor_models;
+mod separation;
 mod shared_fixtures;
 mod signing;
 mod sitl;

@@ -176,6 +176,16 @@ impl Steer {
                     *asked_ms = fix.time_boot_ms;
                     start_leg_px4(pilot, leg)?;
                 }
+                if let Some(intent) = pilot.companion_intent.as_ref() {
+                    // A companion flies (in OFFBOARD, which it asks for): it is told what the
+                    // plan asks; the sticks stay centred, so PX4 never loses its manual
+                    // control (nor follows it: OFFBOARD ignores the sticks).
+                    if let Ok(mut intent) = intent.lock() {
+                        *intent = command;
+                    }
+                    pilot.sticks(0.0, 0.0, 0.0)?;
+                    return Ok(command.unwrap_or(DVec3::ZERO));
+                }
                 let in_position_mode = mode_now.is_some_and(|m| (m >> 16) & 0xff == PX4_POSCTL);
                 // Position mode once, at the first leg after the takeoff (asked until PX4
                 // takes it); a mode PX4 chose later (its traffic avoidance's) is left to it.

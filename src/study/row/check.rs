@@ -233,11 +233,8 @@ pub(super) fn check(row: &StudyRow, default_speedup: f64) -> Result<Checked, Row
     })
 }
 
-/// The row's companion columns, checked (none when it names no companion): ArduCopter only.
-pub(super) fn check_companion(
-    row: &StudyRow,
-    checked: &Checked,
-) -> Result<Option<CompanionConfig>, RowError> {
+/// The row's companion columns, checked (none when it names no companion).
+pub(super) fn check_companion(row: &StudyRow) -> Result<Option<CompanionConfig>, RowError> {
     let Some(command) = row
         .companion
         .as_deref()
@@ -254,14 +251,6 @@ pub(super) fn check_companion(
         }
         return Ok(None);
     };
-    if checked.own.px4 {
-        // PX4's pilot flies by sticks in position mode; a companion's setpoints would need
-        // OFFBOARD and the pilot to hand over: not built.
-        return Err(input(
-            "companion",
-            "a companion flies ArduCopter rows only (a PX4 row's pilot flies it by sticks)",
-        ));
-    }
     let hz = row
         .companion_hz
         .unwrap_or(crate::companion::slot::DEFAULT_HZ);

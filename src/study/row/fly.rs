@@ -28,7 +28,7 @@ pub(super) fn fly_row(
     result: &mut StudyResult,
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
-    let companion = check_companion(row, &checked)?;
+    let companion = check_companion(row)?;
     result.speedup = checked.speedup;
     let scene = scene_for(row, &checked, setup)?;
     let own_id = autopilot_id(checked.own.px4, instance, 0);

@@ -184,7 +184,7 @@ pub(super) fn fly_lockstep_row(
 ) -> Result<(), RowError> {
     let checked = check(row, setup.speedup)?;
     let physics = check_physics(row, &checked)?;
-    let companion = check_companion(row, &checked)?;
+    let companion = check_companion(row)?;
     result.frame = Some(physics.frame_for(checked.own.px4).0);
     result.step_ms = Some(physics.step_us as f64 / 1000.0);
     result.speedup = row.speedup.unwrap_or(0.0);

@@ -35,6 +35,7 @@ pub struct EventDigest {
     collisions: u64,
     near_misses: u64,
     well_clear_lost: u64,
+    separation_lost: u64,
 }
 
 impl EventDigest {
@@ -65,6 +66,7 @@ impl EventDigest {
                 self.closer(obstacle, *closest_m);
             }
             EventKind::WellClearLost { .. } => self.well_clear_lost += 1,
+            EventKind::SeparationLost { .. } => self.separation_lost += 1,
             _ => {}
         }
     }
@@ -112,5 +114,10 @@ impl EventDigest {
     /// Losses of well clear taken.
     pub fn well_clear_lost(&self) -> u64 {
         self.well_clear_lost
+    }
+
+    /// Losses of the separation minimum.
+    pub fn separation_lost(&self) -> u64 {
+        self.separation_lost
     }
 }

@@ -86,6 +86,25 @@ pub enum EventKind {
         /// How long well clear was lost, seconds.
         duration_s: f64,
     },
+    /// The vehicle came nearer a moving body than the separation minimum (`--separation-m`,
+    /// 3D between their reference points).
+    SeparationLost {
+        /// The moving body's id.
+        track: String,
+        /// When it was lost, seconds on the same clock as `t` (within the tick's interval).
+        lost_t: f64,
+        /// The separation minimum, metres.
+        minimum_m: f64,
+    },
+    /// The vehicle was again at least the separation minimum from a moving body.
+    SeparationRegained {
+        /// The moving body's id.
+        track: String,
+        /// When it was regained, seconds on the same clock as `t`.
+        regained_t: f64,
+        /// How long separation was lost, seconds.
+        duration_s: f64,
+    },
     /// Telemetry stopped for longer than the gap limit: no sweep across the gap.
     TelemetryGap {
         /// Length of the gap, seconds.

@@ -19,6 +19,7 @@ use glam::DVec3;
 
 use crate::collision::bodies::{BodySource, DynamicBody};
 use crate::daa::episodes::{Change, PairLog};
+use crate::daa::separation::Separation;
 use crate::daa::well_clear::Volume;
 use crate::world::{SenderId, TrackSample};
 
@@ -91,6 +92,8 @@ pub struct Approaches {
     by_vehicle: BTreeMap<SenderId, VehiclePairs>,
     /// The well-clear volume judged (`None`: well clear is not judged).
     volume: Option<Volume>,
+    /// The separation minimum judged (`None`: not judged).
+    separation: Option<Separation>,
 }
 
 /// One vehicle's pairs: the bodies' sources, sorted, and beside them (same index) what is
@@ -110,6 +113,8 @@ pub struct Pair {
     pub approach: Approach,
     /// Their losses of well clear (empty when well clear is not judged).
     pub well_clear: PairLog,
+    /// Their losses of the separation minimum (empty when none is judged).
+    pub separation: PairLog,
 }
 
 impl Default for Approaches {
@@ -118,7 +123,8 @@ impl Default for Approaches {
     }
 }
 
-/// A loss or a regain of well clear between a vehicle and a moving body.
+/// A loss or a regain of well clear (or of the separation minimum) between a vehicle and a
+/// moving body.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WellClearChange {
     /// The moving body's id.
@@ -127,6 +133,8 @@ pub struct WellClearChange {
     pub source: BodySource,
     /// What changed, and when.
     pub change: Change,
+    /// Whether it is the separation minimum's (else well clear's).
+    pub separation: bool,
 }
 
 impl Approaches {
@@ -135,7 +143,18 @@ impl Approaches {
         Self {
             by_vehicle: BTreeMap::new(),
             volume,
+            separation: None,
         }
+    }
+
+    /// Also judge `separation` (`None`: not judged).
+    pub fn with_separation(self, separation: Option<Separation>) -> Self {
+        Self { separation, ..self }
+    }
+
+    /// The separation minimum judged.
+    pub fn separation(&self) -> Option<Separation> {
+        self.separation
     }
 
     /// The well-clear volume judged (`None`: well clear is not judged).
@@ -201,6 +220,7 @@ impl Approaches {
                         id: body.id.clone(),
                         approach: a,
                         well_clear: PairLog::default(),
+                        separation: PairLog::default(),
                     };
                     sources.insert(at, source);
                     pairs.insert(at, pair);
@@ -209,18 +229,24 @@ impl Approaches {
             };
             hint = at + 1;
             let pair = &mut pairs[at];
-            let Some(volume) = &self.volume else {
-                continue;
-            };
-            for change in pair
-                .well_clear
-                .observe(volume, before.t_s, current.t_s, rel0, rel1)
-            {
+            let (t0, t1) = (before.t_s, current.t_s);
+            let mut note = |change, separation| {
                 changes.push(WellClearChange {
                     body: body.id.clone(),
                     source: body.key.source,
                     change,
+                    separation,
                 });
+            };
+            if let Some(volume) = &self.volume {
+                for change in pair.well_clear.observe(volume, t0, t1, rel0, rel1) {
+                    note(change, false);
+                }
+            }
+            if let Some(separation) = &self.separation {
+                for change in pair.separation.observe(separation, t0, t1, rel0, rel1) {
+                    note(change, true);
+                }
             }
         }
     }

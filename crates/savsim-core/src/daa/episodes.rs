@@ -1,11 +1,37 @@
-//! Losses of well clear over a flight: for each pair of tracks, the episodes in which the
-//! well-clear volume is violated, exact for motion that is linear between samples (each
-//! interval's relative velocity is its displacement over its length).
+//! Losses of well clear (or of a separation minimum) over a flight: for each pair of tracks,
+//! the episodes in which the region (the well-clear volume, a [`Region`]) is violated, exact
+//! for motion that is linear between samples (each interval's relative velocity is its
+//! displacement over its length).
 
 use glam::DVec3;
 use smallvec::SmallVec;
 
 use crate::daa::well_clear::{Relative, Volume};
+
+/// What a pair must stay out of: the well-clear volume ([`Volume`]), a separation minimum
+/// ([`crate::daa::separation::Separation`]).
+pub trait Region {
+    /// The times within `[from_s, to_s]` at which `rel` (moving linearly) is inside, if any.
+    fn interval(&self, rel: &Relative, from_s: f64, to_s: f64) -> Option<(f64, f64)>;
+    /// True when `rel` surely stays outside throughout `[0, dt_s]` (false says nothing).
+    fn surely_clear(&self, rel: &Relative, dt_s: f64) -> bool;
+    /// The distance modified tau is measured with (the volume's DTHR), if the region has one.
+    fn tau_dthr_m(&self) -> Option<f64>;
+}
+
+impl Region for Volume {
+    fn interval(&self, rel: &Relative, from_s: f64, to_s: f64) -> Option<(f64, f64)> {
+        Volume::interval(self, rel, from_s, to_s)
+    }
+
+    fn surely_clear(&self, rel: &Relative, dt_s: f64) -> bool {
+        Volume::surely_clear(self, rel, dt_s)
+    }
+
+    fn tau_dthr_m(&self) -> Option<f64> {
+        Some(self.dthr_m)
+    }
+}
 
 /// One loss of well clear.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,7 +119,7 @@ impl PairLog {
     /// ```
     pub fn observe(
         &mut self,
-        volume: &Volume,
+        volume: &impl Region,
         t0_s: f64,
         t1_s: f64,
         rel0_enu_m: DVec3,
@@ -112,7 +138,10 @@ impl PairLog {
             s_m: rel1_enu_m,
             ..rel
         };
-        if let Some(tau) = at_end.tau_mod_s(volume.dthr_m) {
+        if let Some(tau) = volume
+            .tau_dthr_m()
+            .and_then(|dthr_m| at_end.tau_mod_s(dthr_m))
+        {
             self.min_tau_mod_s = Some(self.min_tau_mod_s.map_or(tau, |m| m.min(tau)));
         }
         self.last_t_s = t1_s;

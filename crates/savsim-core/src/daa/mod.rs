@@ -5,6 +5,7 @@
 //! - [`approach`]: each vehicle's closest approach, NMAC and losses of well clear with each
 //!   moving body over a run.
 //! - [`well_clear`]: the well-clear predicate and its interval for linear relative motion.
+//! - [`separation`]: a separation minimum (a sphere), judged as well clear is.
 //! - [`alerting`]: alert levels, and their filtering (M of N, hysteresis, persistence).
 //! - [`conf`], [`scenario`], [`units`]: DAIDALUS's configuration and state files.
 //! - [`projection`]: geodetic states made Euclidean as DAIDALUS does.
@@ -27,6 +28,7 @@ pub mod pairing_ini;
 pub mod projection;
 pub mod ratios;
 pub mod scenario;
+pub mod separation;
 pub mod sum;
 pub mod units;
 pub mod well_clear;

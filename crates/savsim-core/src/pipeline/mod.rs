@@ -360,8 +360,11 @@ impl Pipeline {
                 EventKind::ColliderSwap { .. } => t.swaps += 1,
                 EventKind::NearMiss { .. } => t.near_misses += 1,
                 EventKind::TelemetryGap { .. } => t.telemetry_gaps += 1,
-                // Well clear is judged by the session (daa::episodes), not by the pipeline.
-                EventKind::WellClearLost { .. } | EventKind::WellClearRegained { .. } => {}
+                // Well clear and separation are judged by the session (daa::episodes), not here.
+                EventKind::WellClearLost { .. }
+                | EventKind::WellClearRegained { .. }
+                | EventKind::SeparationLost { .. }
+                | EventKind::SeparationRegained { .. } => {}
             }
         }
         t.active_box_sum += report.active_box as u64;

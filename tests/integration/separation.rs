@@ -1,0 +1,111 @@
+//! The separation minimum (`--separation-m`): a pair nearer than it is lost at the instant an
+//! independent calculation gives (a straight pass by a vehicle standing still: the chord of a
+//! sphere), regained at the other end, and in the summary with its closest approach.
+
+use std::sync::Arc;
+
+use glam::DVec3;
+use savsim::daa::approach::Approaches;
+use savsim::daa::separation::Separation;
+use savsim::geo::{Geodetic, LocalTangentPlane};
+use savsim::pipeline::CollisionConfig;
+use savsim::session::Session;
+
+use crate::common::{feed, position_frames, scene_at};
+
+/// Vehicle 1 flies east at 5 m/s along y = 0, 10 m up; vehicle 2 stands at (50, 2, 10):
+/// nearer than 3 m for sqrt(3^2 - 2^2) = sqrt(5) m either side of x = 50.
+#[test]
+fn a_pass_nearer_than_the_minimum_is_lost_and_regained_where_the_sphere_says() {
+    let origin = Geodetic::new(47.0, 8.0, 500.0);
+    let plane = LocalTangentPlane::new(origin);
+    let dir = tempfile::tempdir().unwrap();
+    let events = dir.path().join("events.jsonl");
+    let scene = Arc::new(scene_at(origin, ""));
+    let mut session = Session::new(Some(scene), CollisionConfig::default(), Some(&events)).unwrap();
+    session.set_approaches(
+        Approaches::with_volume(None).with_separation(Some(Separation { minimum_m: 3.0 })),
+    );
+    let (mut seq1, mut seq2) = (0u8, 0u8);
+    let t0 = 1_700_000_000.0;
+    for k in 0..=200u32 {
+        let t = f64::from(k) * 0.1;
+        let ms = k * 100;
+        let one = position_frames(
+            &plane,
+            1,
+            &mut seq1,
+            ms,
+            DVec3::new(5.0 * t, 0.0, 10.0),
+            DVec3::new(5.0, 0.0, 0.0),
+        );
+        feed(&mut session, t0 + t, &one);
+        let two = position_frames(
+            &plane,
+            2,
+            &mut seq2,
+            ms,
+            DVec3::new(50.0, 2.0, 10.0),
+            DVec3::ZERO,
+        );
+        feed(&mut session, t0 + t, &two);
+    }
+    session.finish().unwrap();
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let of = |kind: &str, vehicle: u64| -> Vec<&serde_json::Value> {
+        lines
+            .iter()
+            .filter(|e| e["kind"] == kind && e["vehicle"] == vehicle)
+            .collect()
+    };
+    let half = 5f64.sqrt() / 5.0;
+    // Each vehicle sees the other: one loss and one regain each.
+    for vehicle in [1, 2] {
+        let lost = of("separation_lost", vehicle);
+        let regained = of("separation_regained", vehicle);
+        assert_eq!((lost.len(), regained.len()), (1, 1), "{lines:#?}");
+        let lost_t = lost[0]["lost_t"].as_f64().unwrap() - t0;
+        let regained_t = regained[0]["regained_t"].as_f64().unwrap() - t0;
+        // Positions are sent to 1e-7 degrees (about 1 cm): 5 ms at 5 m/s.
+        assert!((lost_t - (10.0 - half)).abs() < 5e-3, "{lost_t}");
+        assert!((regained_t - (10.0 + half)).abs() < 5e-3, "{regained_t}");
+        assert_eq!(lost[0]["minimum_m"], 3.0);
+        let duration_s = regained[0]["duration_s"].as_f64().unwrap();
+        assert!((duration_s - 2.0 * half).abs() < 1e-2, "{duration_s}");
+    }
+    let summary = session.summary("test", "pass");
+    let separation = &summary["separation"];
+    assert_eq!(separation["minimum_m"], 3.0);
+    assert_eq!(separation["losses"], 2);
+    assert_eq!(separation["pairs_under"], 2);
+    for pair in separation["pairs"].as_array().unwrap() {
+        let closest_m = pair["closest_m"].as_f64().unwrap();
+        assert!((closest_m - 2.0).abs() < 0.02, "{pair}");
+        assert_eq!(pair["episodes"], 1);
+    }
+}
+
+/// Without `--separation-m` nothing is judged, and the summary says so (null).
+#[test]
+fn without_a_minimum_nothing_is_judged() {
+    let session = Session::new(None, CollisionConfig::default(), None).unwrap();
+    assert!(session.summary("test", "none")["separation"].is_null());
+}
+
+/// A minimum that is not a positive distance of at most 1000 m is a usage error naming it.
+#[test]
+fn a_bad_minimum_is_a_usage_error_naming_it() {
+    for bad in ["0", "-3", "nan", "inf", "1e9", "three"] {
+        let out = crate::cli::savsim()
+            .args(["replay", "--separation-m", bad, "nothing.tlog"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("--separation-m"), "{bad}: {stderr}");
+    }
+}
