@@ -12,6 +12,16 @@ own phase in the period), so the sender's cost does not limit the rate.
     # a drone-show block: 25 m apart at 360 m, small circles
     python3 scripts/fleet.py 14550 --vehicles 1000 --spacing-m 25 --altitude-m 360 --radius-m 5
 
+With --show the fleet flies a drone show's pattern instead: a grid --spacing-m apart (3 m by
+default) on the ground around the origin, every vehicle taking off together to --altitude-m
+(30 m), the block spreading to twice its spacing with a wave running through it, holding, then
+drawing together and landing in its slots; vehicles 1 and 2 (neighbours in the grid) are made
+to touch in the middle of the hold (vehicle 2 drifts onto vehicle 1 and back), as a show's
+fault would. No other pair ever comes nearer than the grid's spacing.
+
+    python3 scripts/fleet.py 0 --show --vehicles 100 --seconds 60 --tlog show.tlog
+    savsim replay show.tlog --scene scenes/empty.toml --separation-m 2 --events ev.jsonl
+
 It prints the frames and datagrams it sent and how late its sends ran; savsim's summary says
 what it took in (`ingest`), and its link report the receive -> processed latency.
 With --tlog PATH the datagrams are written to a tlog instead, for `savsim replay` at full speed
@@ -70,34 +80,98 @@ def place(n, count, spacing_m=None, altitude_m=None):
     return east, north, up
 
 
+def circling(n, count, args):
+    """Vehicle n's circle: where it is at t (east, north, up, metres) and its yaw rate."""
+    east0, north0, up = place(n, count, args.spacing_m, args.altitude_m)
+    omega = args.speed_mps / args.radius_m
+
+    speed = args.speed_mps
+
+    def at(t):
+        a = omega * t + n
+        where = east0 + args.radius_m * math.cos(a), north0 + args.radius_m * math.sin(a), up
+        return where, (-speed * math.sin(a), speed * math.cos(a), 0.0)
+
+    return at, omega
+
+
+# A show's phases, seconds: on the ground, climbing, spreading, holding (the rest), drawing
+# together, descending, and on the ground again at the end.
+SHOW_GROUND_S, SHOW_CLIMB_MPS, SHOW_SPREAD_S = 2.0, 2.0, 8.0
+SHOW_WAVE_M, SHOW_WAVE_S = 2.0, 6.0
+
+
+def smooth(u):
+    """0 to 1 with zero slope at both ends (a vehicle's move starting and stopping)."""
+    u = min(max(u, 0.0), 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def show(n, count, args):
+    """Vehicle n's flight in the show (see the module's doc): where it is at t."""
+    spacing = args.spacing_m
+    east0, north0, _ = place(n, count, spacing, 0.0)
+    altitude = args.altitude_m
+    climb_s = altitude / SHOW_CLIMB_MPS
+    up_at = SHOW_GROUND_S + climb_s
+    spread_at = up_at
+    spread_end = spread_at + SHOW_SPREAD_S
+    down_at = args.seconds - SHOW_GROUND_S - climb_s
+    gather_at = down_at - SHOW_SPREAD_S
+    hold_mid = 0.5 * (spread_end + gather_at)
+    # The wave: each vehicle's height offset by its column's phase, grown in and out with the
+    # spread (neighbours' heights differ, which only adds to their distance).
+    side = max(1, math.ceil(math.sqrt(count)))
+    column = n % side
+
+    def where(t):
+        climbing = smooth((t - SHOW_GROUND_S) / climb_s) - smooth((t - down_at) / climb_s)
+        spread = 1.0 + smooth((t - spread_at) / SHOW_SPREAD_S) - smooth((t - gather_at) / SHOW_SPREAD_S)
+        east, north = east0 * spread, north0 * spread
+        wave = (spread - 1.0) * SHOW_WAVE_M * math.sin(2 * math.pi * (t / SHOW_WAVE_S + column / side))
+        up = altitude * climbing + wave
+        if n == 1:
+            # Vehicle 2 drifts onto vehicle 1 (its western neighbour) and back in the hold,
+            # touching it at its middle (within 0.1 m), keeping its height.
+            e1, n1, _ = place(0, count, spacing, 0.0)
+            touch = smooth(1.0 - abs(t - hold_mid) / 4.0)
+            other_up = altitude * climbing + (spread - 1.0) * SHOW_WAVE_M * math.sin(
+                2 * math.pi * (t / SHOW_WAVE_S))
+            east += touch * (e1 * spread + 0.1 - east)
+            north += touch * (n1 * spread - north)
+            up += touch * (other_up - up)
+        return east, north, up
+
+    def at(t):
+        ahead, behind = where(t + 0.01), where(t - 0.01)
+        return where(t), tuple((a - b) / 0.02 for a, b in zip(ahead, behind))
+
+    return at, 0.0
+
+
 def frames_of(n, count, args):
     """Vehicle n's datagrams: (t_s, bytes, frames) in time order."""
-    hz, seconds, radius_m, speed_mps = args.hz, args.seconds, args.radius_m, args.speed_mps
+    hz, seconds = args.hz, args.seconds
     system_id, component_id = vehicle_id(n)
     enc = Encoder(system_id, component_id)
-    east0, north0, up = place(n, count, args.spacing_m, args.altitude_m)
+    position, omega = (show if args.show else circling)(n, count, args)
     phase_s = (n / count) / hz
-    omega = speed_mps / radius_m
-    lat0 = ORIGIN_LAT + north0 / M_PER_DEG_LAT
     m_per_deg_lon = M_PER_DEG_LAT * math.cos(math.radians(ORIGIN_LAT))
     out = []
     for k in range(int(seconds * hz)):
         t = phase_s + k / hz
-        a = omega * t + n
-        east = east0 + radius_m * math.cos(a)
-        north = north0 + radius_m * math.sin(a)
-        v_east, v_north = -speed_mps * math.sin(a), speed_mps * math.cos(a)
-        yaw = math.atan2(v_east, v_north)
+        (east, north, up), (v_east, v_north, v_up) = position(t)
+        yaw = 0.0 if args.show else math.atan2(v_east, v_north)
         ms = int(t * 1000) + 1000
         gpi = mavlink.MAVLink_global_position_int_message(
             ms,
-            int((lat0 + (north - north0) / M_PER_DEG_LAT) * 1e7),
+            int((ORIGIN_LAT + north / M_PER_DEG_LAT) * 1e7),
             int((ORIGIN_LON + east / m_per_deg_lon) * 1e7),
             int((ORIGIN_ALT_M + up) * 1000),
             int(up * 1000),
             int(v_north * 100),
             int(v_east * 100),
-            0,
+            int(-v_up * 100),
             int((math.degrees(yaw) % 360) * 100),
         )
         att = mavlink.MAVLink_attitude_message(ms, 0.0, 0.0, yaw, 0.0, 0.0, omega)
@@ -161,9 +235,22 @@ def main():
         "--altitude-m",
         type=float,
         default=None,
-        help="every vehicle this high (default 60-100 m, by vehicle)",
+        help="every vehicle this high (default 60-100 m, by vehicle; a show's 30 m)",
+    )
+    p.add_argument(
+        "--show",
+        action="store_true",
+        help="fly a drone show's pattern from a grid on the ground (see the module's doc)",
     )
     args = p.parse_args()
+    if args.show:
+        args.spacing_m = 3.0 if args.spacing_m is None else args.spacing_m
+        args.altitude_m = 30.0 if args.altitude_m is None else args.altitude_m
+        least_s = 2 * (SHOW_GROUND_S + args.altitude_m / SHOW_CLIMB_MPS + SHOW_SPREAD_S) + 8.0
+        if args.seconds < least_s:
+            p.error(f"--show at {args.altitude_m} m needs --seconds of at least {least_s:.0f}")
+        if args.vehicles < 2:
+            p.error("--show needs at least 2 vehicles")
     if not 1 <= args.vehicles <= 250 * 255:
         p.error("--vehicles must be in 1..63750")
     if not (0 < args.hz <= 100 and 0 < args.seconds <= 3600):

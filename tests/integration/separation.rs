@@ -109,3 +109,107 @@ fn a_bad_minimum_is_a_usage_error_naming_it() {
         assert!(stderr.contains("--separation-m"), "{bad}: {stderr}");
     }
 }
+
+/// A drone show as `scripts/fleet.py --show` flies it (25 vehicles 3 m apart taking off
+/// together, spreading with a wave, gathering and landing, vehicles 1 and 2 made to touch),
+/// replayed: the touch is a collision between them, theirs is the only pair under the 2 m
+/// minimum (closest 0.1 m), and every other pair keeps at least the grid's 3 m.
+#[test]
+fn a_show_with_one_faulty_pair_has_that_pair_alone_under_the_minimum() {
+    if !crate::common::have_pymavlink() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tlog = dir.path().join("show.tlog");
+    let tlog_arg = tlog.to_str().unwrap();
+    crate::common::python(
+        &crate::common::root().join("scripts/fleet.py"),
+        &[
+            "0",
+            "--show",
+            "--vehicles",
+            "25",
+            "--seconds",
+            "40",
+            "--altitude-m",
+            "10",
+            "--tlog",
+            tlog_arg,
+        ],
+    );
+    let scene = dir.path().join("empty.toml");
+    std::fs::write(
+        &scene,
+        "[origin]\nlat_deg = -35.363261\nlon_deg = 149.16523\nalt_m = 584\n",
+    )
+    .unwrap();
+    let summary = dir.path().join("summary.json");
+    let events = dir.path().join("events.jsonl");
+    let out = crate::cli::savsim()
+        .args([
+            "replay",
+            "--well-clear",
+            "none",
+            "--near-miss-m",
+            "0.5",
+            "--separation-m",
+            "2",
+        ])
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--events")
+        .arg(&events)
+        .arg("--summary-json")
+        .arg(&summary)
+        .arg(&tlog)
+        .output()
+        .unwrap();
+    crate::common::assert_ran(&out);
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    let separation = &summary["separation"];
+    assert_eq!(separation["pairs_under"], 2, "{separation:#}");
+    let mut under: Vec<(u64, String)> = separation["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            assert!(p["closest_m"].as_f64().unwrap() < 0.15, "{p}");
+            (
+                p["vehicle"].as_u64().unwrap(),
+                p["track"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    under.sort();
+    assert_eq!(
+        under,
+        [(1, "vehicle:2".to_string()), (2, "vehicle:1".to_string())]
+    );
+    for pair in summary["approaches"].as_array().unwrap() {
+        let faulty = matches!(
+            (pair["vehicle"].as_u64(), pair["track"].as_str()),
+            (Some(1), Some("vehicle:2")) | (Some(2), Some("vehicle:1"))
+        );
+        if !faulty {
+            assert!(pair["distance_m"].as_f64().unwrap() > 2.95, "{pair}");
+        }
+    }
+    let collisions: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|e| e["kind"] == "collision")
+        .collect();
+    assert!(!collisions.is_empty());
+    for c in &collisions {
+        let pair = (c["vehicle"].as_u64(), c["obstacle"].as_str());
+        assert!(
+            matches!(
+                pair,
+                (Some(1), Some("vehicle:2")) | (Some(2), Some("vehicle:1"))
+            ),
+            "{c}"
+        );
+    }
+}
