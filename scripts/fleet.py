@@ -19,8 +19,9 @@ drawing together and landing in its slots; vehicles 1 and 2 (neighbours in the g
 to touch in the middle of the hold (vehicle 2 drifts onto vehicle 1 and back), as a show's
 fault would. No other pair ever comes nearer than the grid's spacing.
 
-    python3 scripts/fleet.py 0 --show --vehicles 100 --seconds 60 --tlog show.tlog
-    savsim replay show.tlog --scene scenes/empty.toml --separation-m 2 --events ev.jsonl
+    python3 scripts/fleet.py 0 --show --vehicles 100 --seconds 60 --tlog show.tlog \\
+        --slots-out slots.csv
+    savsim replay show.tlog --scene empty.toml --separation-m 2 --slots slots.csv
 
 It prints the frames and datagrams it sent and how late its sends ran; savsim's summary says
 what it took in (`ingest`), and its link report the receive -> processed latency.
@@ -107,8 +108,9 @@ def smooth(u):
     return u * u * (3.0 - 2.0 * u)
 
 
-def show(n, count, args):
-    """Vehicle n's flight in the show (see the module's doc): where it is at t."""
+def show(n, count, args, faulty=True):
+    """Vehicle n's flight in the show (see the module's doc): where it is at t (its slot's
+    place, with `faulty` false)."""
     spacing = args.spacing_m
     east0, north0, _ = place(n, count, spacing, 0.0)
     altitude = args.altitude_m
@@ -130,7 +132,7 @@ def show(n, count, args):
         east, north = east0 * spread, north0 * spread
         wave = (spread - 1.0) * SHOW_WAVE_M * math.sin(2 * math.pi * (t / SHOW_WAVE_S + column / side))
         up = altitude * climbing + wave
-        if n == 1:
+        if n == 1 and faulty:
             # Vehicle 2 drifts onto vehicle 1 (its western neighbour) and back in the hold,
             # touching it at its middle (within 0.1 m), keeping its height.
             e1, n1, _ = place(0, count, spacing, 0.0)
@@ -147,6 +149,20 @@ def show(n, count, args):
         return where(t), tuple((a - b) / 0.02 for a, b in zip(ahead, behind))
 
     return at, 0.0
+
+
+def write_slots(path, count, args):
+    """Every vehicle's slot over the show, as savsim's --slots reads them: a keyframe every
+    0.1 s, seconds after the first vehicle's first position (the show's time)."""
+    with open(path, "w") as out:
+        out.write("vehicle,t_s,east_m,north_m,up_m,component\n")
+        for n in range(count):
+            system_id, component_id = vehicle_id(n)
+            position, _ = show(n, count, args, faulty=False)
+            for k in range(int(args.seconds * 10) + 1):
+                t = k / 10
+                (east, north, up), _ = position(t)
+                out.write(f"{system_id},{t:.1f},{east:.3f},{north:.3f},{up:.3f},{component_id}\n")
 
 
 def frames_of(n, count, args):
@@ -242,6 +258,12 @@ def main():
         action="store_true",
         help="fly a drone show's pattern from a grid on the ground (see the module's doc)",
     )
+    p.add_argument(
+        "--slots-out",
+        default=None,
+        help="with --show: write every vehicle's slot (the show as planned, no vehicle "
+        "touching) to this CSV, for savsim's --slots",
+    )
     args = p.parse_args()
     if args.show:
         args.spacing_m = 3.0 if args.spacing_m is None else args.spacing_m
@@ -251,6 +273,8 @@ def main():
             p.error(f"--show at {args.altitude_m} m needs --seconds of at least {least_s:.0f}")
         if args.vehicles < 2:
             p.error("--show needs at least 2 vehicles")
+    elif args.slots_out is not None:
+        p.error("--slots-out needs --show")
     if not 1 <= args.vehicles <= 250 * 255:
         p.error("--vehicles must be in 1..63750")
     if not (0 < args.hz <= 100 and 0 < args.seconds <= 3600):
@@ -267,6 +291,11 @@ def main():
         schedule.extend(frames_of(n, args.vehicles, args))
     schedule.sort(key=lambda x: x[0])
     frames = sum(f for _, _, f in schedule)
+    if args.slots_out is not None:
+        try:
+            write_slots(args.slots_out, args.vehicles, args)
+        except OSError as e:
+            p.error(f"--slots-out {args.slots_out}: {e.strerror}")
     print(f"encoded {len(schedule)} datagrams in {time.perf_counter() - built:.1f} s")
     if args.tlog is not None:
         try:

@@ -76,9 +76,9 @@ pub enum Error {
         endpoint: String,
     },
     /// The companion (`--companion`, a row's `companion`) failed: its process, its link, or
-    /// what it answered.
-    #[error(transparent)]
-    Companion(#[from] crate::companion::slot::SlotError),
+    /// what it answered (the companion's own error, said).
+    #[error("{0}")]
+    Companion(String),
 }
 
 impl Error {

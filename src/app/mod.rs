@@ -82,6 +82,24 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
 /// (NMAC's 152 m is always in it; the contact layer's and the feed's reaches often more).
 const MAX_SEPARATION_M: f64 = 1000.0;
 
+/// The largest slots file read, bytes.
+const SLOTS_MAX_BYTES: u64 = 1 << 30;
+
+/// `--slots` read, with `--slot-tolerance-m` (which needs it).
+fn slots_of(args: &CollisionArgs) -> Result<Option<crate::daa::slots::Slots>> {
+    let Some(path) = &args.slots else {
+        return match args.slot_tolerance_m {
+            Some(_) => Err(Error::Usage("--slot-tolerance-m needs --slots".into())),
+            None => Ok(None),
+        };
+    };
+    let text = crate::files::read_text(path, SLOTS_MAX_BYTES).map_err(|e| Error::file(path, e))?;
+    let tolerance_m = args.slot_tolerance_m.unwrap_or(1.0);
+    crate::daa::slots::Slots::parse(&text, tolerance_m)
+        .map(Some)
+        .map_err(|e| Error::Usage(format!("--slots {}: {e}", path.display())))
+}
+
 /// [`session_for`] over `scene` (loaded, or made).
 fn session_over(args: &CollisionArgs, scene: Option<Arc<Scene>>) -> Result<Session> {
     let mut session = Session::new(scene, collision_config(args)?, args.events.as_deref())?;
@@ -100,6 +118,9 @@ fn session_over(args: &CollisionArgs, scene: Option<Arc<Scene>>) -> Result<Sessi
     session.set_approaches(
         crate::daa::approach::Approaches::with_volume(volume).with_separation(separation),
     );
+    if let Some(slots) = slots_of(args)? {
+        session.set_slots(slots);
+    }
     if let Some(target) = &args.rerun {
         start_viz(&mut session, target, args.rerun_octree)?;
     }
@@ -409,6 +430,15 @@ pub fn print_report(session: &Session) {
                  horizontally, {vertical_m:.0} m vertically)",
                 e.vehicle,
                 lost_t - t0
+            ),
+            EventKind::LeftSlot {
+                left_t,
+                deviation_m,
+                ..
+            } => println!(
+                "  left its slot  vehicle {} {deviation_m:.2} m from it at +{:.2} s",
+                e.vehicle,
+                left_t - t0
             ),
             EventKind::SeparationLost {
                 track,

@@ -243,6 +243,14 @@ pub struct CollisionArgs {
     /// show or a swarm keeps its own spacing (at most 1000 m). Default: not judged.
     #[arg(long, allow_negative_numbers = true)]
     pub separation_m: Option<f64>,
+    /// A show's slots (CSV: vehicle,t_s,east_m,north_m,up_m keyframes, seconds after the run's
+    /// first vehicle position, scene ENU metres; docs/daa.md): a vehicle seen farther than
+    /// --slot-tolerance-m from its slot has left it (an event, and in the summary).
+    #[arg(long)]
+    pub slots: Option<PathBuf>,
+    /// How far from its slot a vehicle may be, metres (above 0, at most 1000; default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub slot_tolerance_m: Option<f64>,
     /// Telemetry gaps longer than this are reported and not swept, seconds.
     #[arg(long, default_value_t = 1.0)]
     pub max_gap_s: f64,

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use crate::companion::protocol::State;
 use crate::companion::slot::{CompanionConfig, CompanionCounts, Intent, Slot};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::links::sockets::{Network, Outgoing};
 use crate::session::Session;
 use crate::world::SenderId;
@@ -60,7 +60,7 @@ impl LiveCompanion {
             &session.sensor_names(),
             options.intent.clone(),
         )
-        .map_err(crate::companion::slot::SlotError::from)?;
+        .map_err(|e| Error::Companion(e.to_string()))?;
         Ok(Self {
             slot,
             target: options.target_system_id,
@@ -117,7 +117,8 @@ impl LiveCompanion {
         // Beside a vehicle in wall time savsim knows what the autopilot reports: it is both
         // the truth it mirrors and the estimate (hello's `clock` says so).
         self.slot
-            .at(time_us, reported, Some((latest.position_enu_m, 0.0)))?;
+            .at(time_us, reported, Some((latest.position_enu_m, 0.0)))
+            .map_err(|e| Error::Companion(e.to_string()))?;
         // Without a route yet, its commands wait for one.
         let mut routes = routes;
         let Some((_, to)) = routes.find(|(v, _)| v.system_id == id) else {

@@ -75,6 +75,8 @@ pub struct Session {
     tick_costs: crate::costs::TickCosts,
     /// Closest approach of each vehicle to each moving body, on the receive clock.
     approaches: Approaches,
+    /// A show's slots, when given (`--slots`).
+    slots: Option<crate::daa::slots::Slots>,
     dynamic: MovingBodies,
     /// Whether each of `dynamic`'s bodies is within the approach reach (session::traffic).
     approached: Vec<bool>,
@@ -172,6 +174,7 @@ impl Session {
             digest: EventDigest::default(),
             tick_costs: Default::default(),
             approaches: Approaches::default(),
+            slots: None,
             well_clear_changes: Vec::new(),
             dynamic: MovingBodies::default(),
             approached: Vec::new(),
@@ -275,7 +278,18 @@ impl Session {
         &self.approaches
     }
 
-    /// Judge approaches and well clear with `approaches` (before the first message).
+    /// Judge each vehicle against its slot in `slots` (before the first message).
+    pub fn set_slots(&mut self, slots: crate::daa::slots::Slots) {
+        self.slots = Some(slots);
+    }
+
+    /// A show's slots, if given.
+    pub fn slots(&self) -> Option<&crate::daa::slots::Slots> {
+        self.slots.as_ref()
+    }
+
+    /// Judge closest approaches, well clear and the separation minimum with `approaches`
+    /// (before the first message).
     pub fn set_approaches(&mut self, approaches: Approaches) {
         self.approaches = approaches;
     }
@@ -506,6 +520,7 @@ impl Session {
                     | EventKind::NearMiss { .. }
                     | EventKind::WellClearLost { .. }
                     | EventKind::SeparationLost { .. }
+                    | EventKind::LeftSlot { .. }
             ) {
                 if self.notable.len() < NOTABLE_KEPT {
                     self.notable.push(e.clone());

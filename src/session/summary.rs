@@ -26,6 +26,7 @@ impl Session {
             "approaches": self.approaches_summary(&pairs),
             "well_clear": self.well_clear_summary(&pairs),
             "separation": self.separation_summary(&pairs),
+            "slots": self.slots_summary(),
             "tracks_expired": self.world.expired,
             "collision": self.pipeline.as_ref().map(|p| self.collision_summary(p)),
             "feed": self.feed_summary(),
@@ -134,6 +135,40 @@ impl Session {
             "losses": self.digest.separation_lost(),
             "pairs_under": under.len(),
             "pairs": under,
+        })
+    }
+
+    /// A show's slots (`--slots`): the tolerance, how many vehicles the show names, and each
+    /// vehicle that left its slot: when first, how long in all, how many times, how far.
+    fn slots_summary(&self) -> Value {
+        let Some(slots) = &self.slots else {
+            return Value::Null;
+        };
+        let left: Vec<Value> = slots
+            .departures()
+            .map(|(vehicle, departures)| {
+                // An open departure lasts to the run's last message.
+                let last_t_s = self.ingestor.stats.time_span_s.map(|(_, last)| {
+                    last - self.flight_start_t_s.unwrap_or(last)
+                });
+                json!({
+                    "vehicle": vehicle.system_id,
+                    "component": vehicle.component_id,
+                    "first_t_s": departures.first().map(|d| d.start_t_s),
+                    "duration_s": departures
+                        .iter()
+                        .map(|d| d.end_t_s.or(last_t_s).unwrap_or(d.start_t_s) - d.start_t_s)
+                        .sum::<f64>(),
+                    "departures": departures.len(),
+                    "max_deviation_m": departures.iter().map(|d| d.max_deviation_m).fold(0.0, f64::max),
+                })
+            })
+            .collect();
+        json!({
+            "tolerance_m": slots.tolerance_m(),
+            "vehicles": slots.vehicles(),
+            "vehicles_left": left.len(),
+            "left": left,
         })
     }
 

@@ -9,6 +9,7 @@ use super::{traffic, Session};
 use crate::collision::events::{Event, EventKind};
 use crate::daa::approach::{Approaches, WellClearChange};
 use crate::daa::episodes::Change;
+use crate::daa::slots::SlotChange;
 use crate::error::Result;
 use crate::feed::FrameInput;
 use crate::pipeline::{TickReport, VehicleKey};
@@ -38,6 +39,7 @@ impl Session {
         self.fill_traffic(&scene, &tick);
         let first_event = self.events.len();
         self.judge_well_clear(&tick);
+        self.judge_slot(&tick);
         let (report, cost_ns) = self.step_pipeline(&scene, &tick);
         self.feed_sample(&scene, &tick);
         self.ticks += 1;
@@ -131,6 +133,47 @@ impl Session {
                 kind,
             });
         }
+    }
+
+    /// The vehicle against its slot (`--slots`), at its sample: leaving it or coming back is
+    /// an event.
+    fn judge_slot(&mut self, tick: &TickInput) {
+        let Some(slots) = self.slots.as_mut() else {
+            return;
+        };
+        let current = &tick.current;
+        let start = tick.flight_start_t_s;
+        let show_t_s = current.t_s - start;
+        let Some(change) = slots.observe(tick.sender, show_t_s, current.position_enu_m) else {
+            return;
+        };
+        let kind = match change {
+            SlotChange::Left {
+                t_s,
+                deviation_m,
+                slot_enu_m,
+            } => EventKind::LeftSlot {
+                left_t: t_s + start,
+                deviation_m,
+                slot_enu_m: slot_enu_m.to_array(),
+            },
+            SlotChange::Back {
+                t_s,
+                duration_s,
+                max_deviation_m,
+            } => EventKind::BackInSlot {
+                back_t: t_s + start,
+                duration_s,
+                max_deviation_m,
+            },
+        };
+        self.events.push(Event {
+            t: current.t_s,
+            time_boot_ms: current.time_boot_ms,
+            vehicle: u16::from(tick.sender.system_id),
+            compid: tick.sender.component_id,
+            kind,
+        });
     }
 
     /// The pipeline's step for the vehicle, its events into `events`; its report and what it

@@ -112,16 +112,16 @@ fn a_bad_minimum_is_a_usage_error_naming_it() {
 
 /// A drone show as `scripts/fleet.py --show` flies it (25 vehicles 3 m apart taking off
 /// together, spreading with a wave, gathering and landing, vehicles 1 and 2 made to touch),
-/// replayed: the touch is a collision between them, theirs is the only pair under the 2 m
-/// minimum (closest 0.1 m), and every other pair keeps at least the grid's 3 m.
+/// replayed with the show's slots as planned: the touch is a collision between them, theirs is
+/// the only pair under the 2 m minimum (closest 0.1 m), every other pair keeps at least the
+/// grid's 3 m, and vehicle 2 alone left its slot (by about the grid's spacing).
 #[test]
 fn a_show_with_one_faulty_pair_has_that_pair_alone_under_the_minimum() {
     if !crate::common::have_pymavlink() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let tlog = dir.path().join("show.tlog");
-    let tlog_arg = tlog.to_str().unwrap();
+    let (tlog, slots) = (dir.path().join("show.tlog"), dir.path().join("slots.csv"));
     crate::common::python(
         &crate::common::root().join("scripts/fleet.py"),
         &[
@@ -134,7 +134,9 @@ fn a_show_with_one_faulty_pair_has_that_pair_alone_under_the_minimum() {
             "--altitude-m",
             "10",
             "--tlog",
-            tlog_arg,
+            tlog.to_str().unwrap(),
+            "--slots-out",
+            slots.to_str().unwrap(),
         ],
     );
     let scene = dir.path().join("empty.toml");
@@ -155,6 +157,8 @@ fn a_show_with_one_faulty_pair_has_that_pair_alone_under_the_minimum() {
             "--separation-m",
             "2",
         ])
+        .args(["--slot-tolerance-m", "0.5", "--slots"])
+        .arg(&slots)
         .arg("--scene")
         .arg(&scene)
         .arg("--events")
@@ -195,12 +199,25 @@ fn a_show_with_one_faulty_pair_has_that_pair_alone_under_the_minimum() {
             assert!(pair["distance_m"].as_f64().unwrap() > 2.95, "{pair}");
         }
     }
-    let collisions: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+    let slots = &summary["slots"];
+    assert_eq!(
+        (slots["vehicles"].as_u64(), slots["vehicles_left"].as_u64()),
+        (Some(25), Some(1)),
+        "{slots:#}"
+    );
+    let left = &slots["left"][0];
+    assert_eq!(left["vehicle"], 2, "{slots:#}");
+    // It drifts onto vehicle 1 (to 0.1 m east of it: 2 x 3 m - 0.1 m west of its spread slot,
+    // and to its height, the wave up to 2.35 m apart), and back.
+    let max_m = left["max_deviation_m"].as_f64().unwrap();
+    assert!((5.85..6.4).contains(&max_m), "{slots:#}");
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&events)
         .unwrap()
         .lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
-        .filter(|e| e["kind"] == "collision")
         .collect();
+    let collisions: Vec<&serde_json::Value> =
+        lines.iter().filter(|e| e["kind"] == "collision").collect();
     assert!(!collisions.is_empty());
     for c in &collisions {
         let pair = (c["vehicle"].as_u64(), c["obstacle"].as_str());
@@ -212,4 +229,42 @@ fn a_show_with_one_faulty_pair_has_that_pair_alone_under_the_minimum() {
             "{c}"
         );
     }
+    let departures: Vec<&serde_json::Value> =
+        lines.iter().filter(|e| e["kind"] == "left_slot").collect();
+    assert_eq!(departures.len(), 1, "{departures:#?}");
+    assert_eq!(departures[0]["vehicle"], 2);
+    assert_eq!(
+        lines.iter().filter(|e| e["kind"] == "back_in_slot").count(),
+        1
+    );
+}
+
+/// Slots that cannot be used are usage errors naming the file and the line.
+#[test]
+fn bad_slots_are_usage_errors_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let slots = dir.path().join("slots.csv");
+    std::fs::write(
+        &slots,
+        "vehicle,t_s,east_m,north_m,up_m\n1,0,0,0,0\n1,0,1,0,0\n",
+    )
+    .unwrap();
+    let out = crate::cli::savsim()
+        .args(["replay", "--slots"])
+        .arg(&slots)
+        .arg("nothing.tlog")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("slots.csv: line 3: t_s 0: not after"),
+        "{stderr}"
+    );
+    let out = crate::cli::savsim()
+        .args(["replay", "--slot-tolerance-m", "2", "nothing.tlog"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--slot-tolerance-m needs --slots"));
 }

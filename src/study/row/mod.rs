@@ -142,9 +142,9 @@ pub enum RowError {
     /// The row's companion.
     #[error("{0}")]
     Companion(#[from] crate::companion::link::CompanionError),
-    /// The row's companion, beside SITL's own physics.
+    /// The row's companion, beside SITL's own physics (its error, said).
     #[error("{0}")]
-    Planner(crate::companion::slot::SlotError),
+    Planner(String),
     /// A lockstep row's ports or SITL.
     #[error("savsim: lockstep: {0}")]
     Lockstep(#[from] crate::study::sitl_lockstep::LockstepStartError),

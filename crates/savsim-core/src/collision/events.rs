@@ -105,6 +105,24 @@ pub enum EventKind {
         /// How long separation was lost, seconds.
         duration_s: f64,
     },
+    /// The vehicle was seen farther from its slot than the tolerance (`--slots`).
+    LeftSlot {
+        /// When, seconds on the same clock as `t` (the sample's).
+        left_t: f64,
+        /// How far from its slot, metres.
+        deviation_m: f64,
+        /// Where its slot was, scene ENU metres.
+        slot_enu_m: [f64; 3],
+    },
+    /// The vehicle was seen within the tolerance of its slot again.
+    BackInSlot {
+        /// When, seconds on the same clock as `t`.
+        back_t: f64,
+        /// How long it was out, seconds.
+        duration_s: f64,
+        /// The farthest it was seen from its slot, metres.
+        max_deviation_m: f64,
+    },
     /// Telemetry stopped for longer than the gap limit: no sweep across the gap.
     TelemetryGap {
         /// Length of the gap, seconds.

@@ -6,6 +6,7 @@
 //!   moving body over a run.
 //! - [`well_clear`]: the well-clear predicate and its interval for linear relative motion.
 //! - [`separation`]: a separation minimum (a sphere), judged as well clear is.
+//! - [`slots`]: a show's slots, and each vehicle's departures from its own.
 //! - [`alerting`]: alert levels, and their filtering (M of N, hysteresis, persistence).
 //! - [`conf`], [`scenario`], [`units`]: DAIDALUS's configuration and state files.
 //! - [`projection`]: geodetic states made Euclidean as DAIDALUS does.
@@ -29,6 +30,7 @@ pub mod projection;
 pub mod ratios;
 pub mod scenario;
 pub mod separation;
+pub mod slots;
 pub mod sum;
 pub mod units;
 pub mod well_clear;

@@ -360,11 +360,13 @@ impl Pipeline {
                 EventKind::ColliderSwap { .. } => t.swaps += 1,
                 EventKind::NearMiss { .. } => t.near_misses += 1,
                 EventKind::TelemetryGap { .. } => t.telemetry_gaps += 1,
-                // Well clear and separation are judged by the session (daa::episodes), not here.
+                // Well clear, separation and slots are judged by the session (daa), not here.
                 EventKind::WellClearLost { .. }
                 | EventKind::WellClearRegained { .. }
                 | EventKind::SeparationLost { .. }
-                | EventKind::SeparationRegained { .. } => {}
+                | EventKind::SeparationRegained { .. }
+                | EventKind::LeftSlot { .. }
+                | EventKind::BackInSlot { .. } => {}
             }
         }
         t.active_box_sum += report.active_box as u64;
