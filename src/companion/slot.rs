@@ -102,8 +102,8 @@ pub enum SlotError {
     },
 }
 
-/// What the vehicle's companion is handed what the planner should plan with, shared with the
-/// row's pilot: the velocity the plan asks now (ENU m/s; none while taking off or landing).
+/// The velocity the row's plan asks now (ENU m/s; none while taking off or landing): written
+/// by the row's pilot, carried to the planner in each frame as `intent_enu_mps`.
 pub type Intent = Arc<Mutex<Option<DVec3>>>;
 
 /// How the planner is asked.

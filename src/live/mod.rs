@@ -79,6 +79,9 @@ pub struct LiveOptions {
     pub signing_require: bool,
     /// A planner beside the vehicle (`--companion`, docs/companion.md). Default none.
     pub companion: Option<CompanionOptions>,
+    /// Raised when the run ends early on an error (a link, a recording, the companion): a
+    /// study row's pilots stop with it. Default none.
+    pub failed: Option<Flag>,
 }
 
 /// A flag shared between threads; two are equal when they are the same flag.
@@ -114,6 +117,7 @@ impl Default for LiveOptions {
             signing_key: None,
             signing_require: false,
             companion: None,
+            failed: None,
         }
     }
 }
@@ -241,6 +245,9 @@ pub fn run_links(
             &endpoints,
             options.forward_own,
         );
+    }
+    if let (Some(flag), Err(_)) = (&options.failed, &thread.result) {
+        flag.0.store(true, Ordering::Relaxed);
     }
     let counters = network.counters.clone();
     network.stop_receiving();

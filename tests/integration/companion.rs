@@ -398,6 +398,51 @@ fn arducopter_on_its_own_physics_flown_by_a_companion_misses_the_wall() {
     assert!(number("companion_commands") >= 100);
 }
 
+/// A planner that crashes beside ArduCopter on its own physics makes the row an error row
+/// naming it and what it said, and ends the row then, not at its 120 s of clock (40 s of wall
+/// time at 3x). Held 20 of 20 here (10 runs beside two busy processes, 10 quiet).
+#[test]
+fn a_planner_that_crashes_beside_sitl_ends_its_row_as_an_error_naming_it() {
+    use crate::sitl::{sitl_test, Autopilot, Netns};
+    let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
+    let manifest = dir.path().join("m.csv");
+    std::fs::write(
+        &manifest,
+        format!(
+            "id,scene,speedup,plan,duration_s,companion\n\
+             crash,wall.toml,3,takeoff 15;velocity 0 4 0 20,120,{}\n",
+            planner("crash")
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let began = Instant::now();
+    let run = crate::cli::savsim()
+        .args(["study", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    let took = began.elapsed();
+    crate::common::assert_ran(&run);
+    let rows = crate::lockstep::results(&out);
+    let value = |name: &str| crate::lockstep::cell(&rows, name, 0);
+    assert!(
+        value("outcome").contains("\"error\""),
+        "{}",
+        value("outcome")
+    );
+    let error = value("error");
+    assert!(error.contains("companion_planner.py crash"), "{error}");
+    assert!(error.contains("giving up on frame 0"), "{error}");
+    // 3.3 s here, SITL's boot included.
+    assert!(took < Duration::from_secs(30), "the study took {took:?}");
+}
+
 /// PX4 in lockstep flown by the VFH planner, which asks for OFFBOARD (its `hello` names the
 /// autopilot) while the pilot keeps the sticks centred: it misses the wall the nominal row
 /// hits, and PX4 flew in OFFBOARD. Held 20 of 20 here (see docs/companion.md).

@@ -44,6 +44,7 @@ pub(super) fn fly_row(
     // The wall limit: the row's time at its speedup, twice over, and a minute for boot.
     let wall_limit = Duration::from_secs_f64(2.0 * checked.duration_s / checked.speedup + 60.0);
     let collided = Flag::default();
+    let failed = Flag::default();
     let intent = Intent::default();
     let flown_by_companion = companion.is_some();
     let options = LiveOptions {
@@ -57,6 +58,7 @@ pub(super) fn fly_row(
         duration: Some(wall_limit),
         rate_hz: FEED_HZ,
         collided: Some(collided.clone()),
+        failed: Some(failed.clone()),
         feed_out: (setup.record_feed && checked.feed.is_some()).then(|| dir.join("feed.tlog")),
         ..LiveOptions::default()
     };
@@ -65,8 +67,11 @@ pub(super) fn fly_row(
     let plane = LocalTangentPlane::new(scene.origin);
     let started = Instant::now();
     let own_done = AtomicBool::new(false);
+    // A session that ended on an error (its companion failed) ends the row: what it says is
+    // the row's error.
     let stop = || {
         setup.stop.load(Ordering::Relaxed)
+            || failed.is_raised()
             || (checked.stop_on_collision && collided.is_raised())
             || started.elapsed() > wall_limit
     };
