@@ -262,6 +262,34 @@ const WALL: &str = "[origin]\nlat_deg = -35.363261\nlon_deg = 149.16523\nalt_m =
     [[obstacle]]\nid = \"wall\"\nkind = \"building\"\n\
     shape = { box = [16.0, 2.0, 40.0] }\nposition_enu_m = [0.0, 41.0, 0.0]\n";
 
+/// `manifest` (a study's CSV, its rows over `wall.toml`: [`WALL`]) flown by `savsim study
+/// --jobs JOBS`: its results (`crate::lockstep::results`) and how long the study took.
+fn fly_study(manifest: &str, jobs: &str) -> (Vec<String>, Duration) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
+    let path = dir.path().join("m.csv");
+    std::fs::write(&path, manifest).unwrap();
+    let out = dir.path().join("out");
+    let began = Instant::now();
+    let run = crate::cli::savsim()
+        .args(["study", "--jobs", jobs, "--out"])
+        .arg(&out)
+        .arg(&path)
+        .output()
+        .unwrap();
+    let took = began.elapsed();
+    crate::common::assert_ran(&run);
+    (crate::lockstep::results(&out), took)
+}
+
+/// The VFH example's command line.
+fn vfh() -> String {
+    format!(
+        "python3 {}",
+        root().join("examples/companion_vfh.py").display()
+    )
+}
+
 /// ArduCopter in lockstep flies north at 4 m/s towards a wall 40 m ahead: without avoidance
 /// it hits it; flown by examples/companion_vfh.py from the `depth-160x120` camera, with its
 /// own avoidance off, it does not, and a planner that spends 60 ms of wall time on each frame
@@ -276,18 +304,9 @@ fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed()
     let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
-    let planner = |sleep: &str| {
-        format!(
-            "VFH_SLEEP_S={sleep} python3 {}",
-            root().join("examples/companion_vfh.py").display()
-        )
-    };
-    let manifest = dir.path().join("m.csv");
-    std::fs::write(
-        &manifest,
-        format!(
+    let planner = |sleep: &str| format!("VFH_SLEEP_S={sleep} {}", vfh());
+    let (rows, _) = fly_study(
+        &format!(
             "id,scene,physics,plan,duration_s,params,feed,sensors,sensor_seed,companion,companion_hz,companion_latency_s\n\
              nominal,wall.toml,savsim,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,,,,,,\n\
              fast,wall.toml,savsim,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,proximity,depth-160x120,5,{},10,0.05\n\
@@ -295,17 +314,8 @@ fn arducopter_flown_by_a_companion_misses_the_wall_whatever_the_planners_speed()
             planner("0"),
             planner("0.06"),
         ),
-    )
-    .unwrap();
-    let out = dir.path().join("out");
-    let run = crate::cli::savsim()
-        .args(["study", "--jobs", "2", "--out"])
-        .arg(&out)
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    crate::common::assert_ran(&run);
-    let rows = crate::lockstep::results(&out);
+        "2",
+    );
     let value = |name: &str, row: usize| crate::lockstep::cell(&rows, name, row);
     assert!(
         value("outcome", 0).contains("\"collision\""),
@@ -348,28 +358,15 @@ fn arducopter_on_its_own_physics_flown_by_a_companion_misses_the_wall() {
     let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
-    let manifest = dir.path().join("m.csv");
-    std::fs::write(
-        &manifest,
-        format!(
+    let (rows, _) = fly_study(
+        &format!(
             "id,scene,speedup,plan,duration_s,params,feed,sensors,sensor_seed,companion,companion_hz\n\
              nominal,wall.toml,3,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,,,,,\n\
-             vfh,wall.toml,3,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,proximity,\"depth-160x120:rate_hz=10:image_px=[80,60]\",5,python3 {},10\n",
-            root().join("examples/companion_vfh.py").display()
+             vfh,wall.toml,3,takeoff 15;velocity 0 4 0 20,80,AVOID_ENABLE=0,proximity,\"depth-160x120:rate_hz=10:image_px=[80,60]\",5,{},10\n",
+            vfh()
         ),
-    )
-    .unwrap();
-    let out = dir.path().join("out");
-    let run = crate::cli::savsim()
-        .args(["study", "--jobs", "2", "--out"])
-        .arg(&out)
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    crate::common::assert_ran(&run);
-    let rows = crate::lockstep::results(&out);
+        "2",
+    );
     let value = |name: &str, row: usize| crate::lockstep::cell(&rows, name, row);
     let number = |name: &str| -> u64 {
         let cell = value(name, 1);
@@ -407,29 +404,14 @@ fn a_planner_that_crashes_beside_sitl_ends_its_row_as_an_error_naming_it() {
     let Some(_turn) = sitl_test(Autopilot::ArduCopter, Netns::Study, &[]) else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
-    let manifest = dir.path().join("m.csv");
-    std::fs::write(
-        &manifest,
-        format!(
+    let (rows, took) = fly_study(
+        &format!(
             "id,scene,speedup,plan,duration_s,companion\n\
              crash,wall.toml,3,takeoff 15;velocity 0 4 0 20,120,{}\n",
             planner("crash")
         ),
-    )
-    .unwrap();
-    let out = dir.path().join("out");
-    let began = Instant::now();
-    let run = crate::cli::savsim()
-        .args(["study", "--out"])
-        .arg(&out)
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    let took = began.elapsed();
-    crate::common::assert_ran(&run);
-    let rows = crate::lockstep::results(&out);
+        "1",
+    );
     let value = |name: &str| crate::lockstep::cell(&rows, name, 0);
     assert!(
         value("outcome").contains("\"error\""),
@@ -452,28 +434,15 @@ fn px4_flown_by_a_companion_in_offboard_misses_the_wall() {
     let Some(_turn) = sitl_test(Autopilot::Px4, Netns::Study, &[]) else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("wall.toml"), WALL).unwrap();
-    let manifest = dir.path().join("m.csv");
-    std::fs::write(
-        &manifest,
-        format!(
+    let (rows, _) = fly_study(
+        &format!(
             "id,autopilot,physics,scene,plan,duration_s,feed,sensors,sensor_seed,companion\n\
              nominal,px4,savsim,wall.toml,takeoff 15;velocity 0 4 0 20,80,,,,\n\
-             vfh,px4,savsim,wall.toml,takeoff 15;velocity 0 4 0 20,80,proximity,depth-160x120,5,python3 {}\n",
-            root().join("examples/companion_vfh.py").display()
+             vfh,px4,savsim,wall.toml,takeoff 15;velocity 0 4 0 20,80,proximity,depth-160x120,5,{}\n",
+            vfh()
         ),
-    )
-    .unwrap();
-    let out = dir.path().join("out");
-    let run = crate::cli::savsim()
-        .args(["study", "--out"])
-        .arg(&out)
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    crate::common::assert_ran(&run);
-    let rows = crate::lockstep::results(&out);
+        "1",
+    );
     let value = |name: &str, row: usize| crate::lockstep::cell(&rows, name, row);
     assert!(
         value("outcome", 0).contains("\"collision\""),
