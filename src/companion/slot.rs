@@ -36,6 +36,9 @@ pub struct CompanionConfig {
     pub timeout: Duration,
 }
 
+/// A vehicle's clock that goes back by more than this (us) rebooted.
+const CLOCK_BACK_US: u64 = 1_000_000;
+
 /// A companion's rate when none is given, Hz of the vehicle's clock.
 pub const DEFAULT_HZ: f64 = 10.0;
 /// How long savsim waits for one answer by default, wall time.
@@ -121,6 +124,10 @@ pub struct Slot {
     period_us: u64,
     latency_us: u64,
     next_us: u64,
+    /// The newest time seen, us of the clock.
+    last_us: u64,
+    /// The first frame of the vehicle's present life (answers to older frames are not sent).
+    life_first_seq: u64,
     seq: u64,
     target: SenderId,
     px4: bool,
@@ -198,6 +205,8 @@ impl Slot {
             period_us: (1e6 / config.hz).round().max(1.0) as u64,
             latency_us: (config.latency_s * 1e6).round() as u64,
             next_us: 0,
+            last_us: 0,
+            life_first_seq: 0,
             seq: 0,
             target,
             px4,
@@ -238,6 +247,14 @@ impl Slot {
         estimate: Option<(DVec3, f64)>,
     ) -> Result<(), SlotError> {
         self.take_answer()?;
+        if time_us.saturating_add(CLOCK_BACK_US) < self.last_us {
+            // The vehicle rebooted (its clock went back): its instants start again on the new
+            // clock, and nothing asked in its last life is sent to this one.
+            self.next_us = 0;
+            self.pending.clear();
+            self.life_first_seq = self.seq;
+        }
+        self.last_us = time_us;
         if time_us < self.next_us {
             return Ok(());
         }
@@ -290,7 +307,14 @@ impl Slot {
             return Ok(());
         };
         self.message = message;
-        self.answered(seq, instant_us, round_trip_ms, &result?)
+        let commands = result?;
+        // An answer to a frame of the vehicle's last life is counted, not sent.
+        let live = if seq < self.life_first_seq {
+            &[][..]
+        } else {
+            &commands[..]
+        };
+        self.answered(seq, instant_us, round_trip_ms, live)
     }
 
     /// Frame `seq` of `instant_us` answered with `commands`: counted, and its commands queued

@@ -510,7 +510,7 @@ fn played_vehicle(
     savsim: std::net::SocketAddr,
     origin: savsim::geo::Geodetic,
     at: DVec3,
-    play: Duration,
+    (play, reboot_at): (Duration, Option<Duration>),
 ) -> (Vec<[f32; 3]>, Vec<f32>, usize) {
     use crate::common::{frame_v2, heartbeat, pose_messages};
     use mavlink::dialects::ardupilotmega::{MavAutopilot, MavType};
@@ -534,7 +534,11 @@ fn played_vehicle(
             out.extend(frame_v2(1, 1, seq, &hb));
             seq = seq.wrapping_add(1);
         }
-        let ms = began.elapsed().as_millis() as u32;
+        // After a reboot its clock starts again from 0.
+        let since = reboot_at
+            .filter(|r| began.elapsed() >= *r)
+            .unwrap_or_default();
+        let ms = (began.elapsed() - since).as_millis() as u32;
         for m in pose_messages(&plane, ms, at, DVec3::ZERO, [0.0; 3]) {
             out.extend(frame_v2(1, 1, seq, &m));
             seq = seq.wrapping_add(1);
@@ -574,7 +578,7 @@ type Beside = (
 );
 
 /// [`beside_a_played_vehicle`], or how the run ended when it failed.
-fn beside_a_played_vehicle(behaviour: &str) -> Result<Beside, String> {
+fn beside_a_played_vehicle(behaviour: &str, reboot_at: Option<Duration>) -> Result<Beside, String> {
     use savsim::live::{CompanionOptions, LiveOptions};
     let origin = savsim::geo::Geodetic::new(-35.363261, 149.16523, 584.0);
     let scene = crate::common::scene_at(origin, "");
@@ -599,9 +603,8 @@ fn beside_a_played_vehicle(behaviour: &str) -> Result<Beside, String> {
         ..LiveOptions::default()
     };
     let at = DVec3::new(3.0, 4.0, 10.0);
-    let vehicle = std::thread::spawn(move || {
-        played_vehicle(address, origin, at, Duration::from_millis(2500))
-    });
+    let play = (Duration::from_millis(2500), reboot_at);
+    let vehicle = std::thread::spawn(move || played_vehicle(address, origin, at, play));
     let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let run = savsim::live::run_links(runtime.handle(), vec![link], &options, session, None, stop)
         .unwrap();
@@ -620,7 +623,8 @@ fn beside_a_played_vehicle(behaviour: &str) -> Result<Beside, String> {
 /// the vehicle as the companion's.
 #[test]
 fn beside_a_vehicle_in_wall_time_the_planner_is_asked_and_its_commands_reach_it() {
-    let (velocities, modes, counts, (sent, taken)) = beside_a_played_vehicle("where").unwrap();
+    let (velocities, modes, counts, (sent, taken)) =
+        beside_a_played_vehicle("where", None).unwrap();
     // About 25 instants in the vehicle's 2.5 s; a fast planner misses only those that came in
     // the backlog of positions queued while it started (taken in a burst, its answer to the
     // first not back yet).
@@ -648,7 +652,8 @@ fn beside_a_vehicle_in_wall_time_the_planner_is_asked_and_its_commands_reach_it(
 /// that find it busy are skipped and counted, and every position is taken.
 #[test]
 fn beside_a_vehicle_in_wall_time_a_slow_planner_skips_instants_and_holds_nothing_up() {
-    let (velocities, _, counts, (sent, taken)) = beside_a_played_vehicle("slow-where").unwrap();
+    let (velocities, _, counts, (sent, taken)) =
+        beside_a_played_vehicle("slow-where", None).unwrap();
     // 300 ms a frame: at most one instant in three is asked.
     assert!((4..=10).contains(&counts.calls), "{counts:?}");
     assert!(counts.skipped >= 2 * counts.calls - 2, "{counts:?}");
@@ -661,8 +666,23 @@ fn beside_a_vehicle_in_wall_time_a_slow_planner_skips_instants_and_holds_nothing
 #[test]
 fn beside_a_vehicle_in_wall_time_a_failing_planner_ends_the_run_naming_it() {
     let began = Instant::now();
-    let error = beside_a_played_vehicle("crash").err().unwrap_or_default();
+    let error = beside_a_played_vehicle("crash", None)
+        .err()
+        .unwrap_or_default();
     assert!(error.contains("companion_planner.py crash"), "{error}");
     assert!(error.contains("giving up on frame 0"), "{error}");
     assert!(began.elapsed() < Duration::from_secs(10));
+}
+
+/// A vehicle that reboots (its clock starts again from 0) is asked again on its new clock:
+/// about as many instants in all as without the reboot, and its commands keep coming.
+#[test]
+fn beside_a_vehicle_that_reboots_the_planner_is_asked_on_its_new_clock() {
+    let (velocities, _, counts, (sent, taken)) =
+        beside_a_played_vehicle("where", Some(Duration::from_millis(1500))).unwrap();
+    // 1.5 s and then 1 s of its clocks: about 25 instants, as many as without the reboot.
+    let instants = counts.calls + counts.skipped;
+    assert!((21..=27).contains(&instants), "{counts:?}");
+    assert!(velocities.len() >= 18, "{} of {counts:?}", velocities.len());
+    assert_eq!(taken as usize, sent);
 }
