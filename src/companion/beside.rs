@@ -152,7 +152,6 @@ impl Drop for Beside {
             let _ = stream.shutdown(Shutdown::Both);
         }
         self.frames.take();
-        while self.answers.try_recv().is_ok() {}
         if let Some(worker) = self.worker.take() {
             let _ = worker.join();
         }

@@ -36,9 +36,6 @@ pub struct CompanionConfig {
     pub timeout: Duration,
 }
 
-/// A vehicle's clock that goes back by more than this (us) rebooted.
-const CLOCK_BACK_US: u64 = 1_000_000;
-
 /// A companion's rate when none is given, Hz of the vehicle's clock.
 pub const DEFAULT_HZ: f64 = 10.0;
 /// How long savsim waits for one answer by default, wall time.
@@ -124,8 +121,6 @@ pub struct Slot {
     period_us: u64,
     latency_us: u64,
     next_us: u64,
-    /// The newest time seen, us of the clock.
-    last_us: u64,
     /// The first frame of the vehicle's present life (answers to older frames are not sent).
     life_first_seq: u64,
     seq: u64,
@@ -205,7 +200,6 @@ impl Slot {
             period_us: (1e6 / config.hz).round().max(1.0) as u64,
             latency_us: (config.latency_s * 1e6).round() as u64,
             next_us: 0,
-            last_us: 0,
             life_first_seq: 0,
             seq: 0,
             target,
@@ -226,15 +220,26 @@ impl Slot {
         self.intent.clone()
     }
 
-    /// What the vehicle's devices made and the traffic it was sent: each device's newest
-    /// reading is kept (every frame carries it, its `instant_s` saying how old it is), and
-    /// every report until the next frame.
-    pub fn collect(&mut self, captures: &[Arc<Capture>], traffic: &[AdsbSent]) {
-        for c in captures {
+    /// Of what the run's devices made and the traffic the run sent (each with its vehicle's
+    /// system id), what is this vehicle's: each device's newest reading is kept (every frame
+    /// carries it, its `instant_s` saying how old it is), and every report until the next
+    /// frame.
+    pub fn collect(&mut self, captures: &[Arc<Capture>], traffic: &[(u8, AdsbSent)]) {
+        let id = self.target.system_id;
+        for c in captures.iter().filter(|c| c.system_id == id) {
             self.captures.retain(|old| old.device != c.device);
             self.captures.push(c.clone());
         }
-        self.traffic.extend_from_slice(traffic);
+        let told = traffic.iter().filter(|(to, _)| *to == id);
+        self.traffic.extend(told.map(|(_, a)| a.clone()));
+    }
+
+    /// The vehicle rebooted: its instants start again on its new clock, and nothing asked in
+    /// its last life is sent to this one (answers to its frames are counted, not sent).
+    pub fn restart(&mut self) {
+        self.next_us = 0;
+        self.pending.clear();
+        self.life_first_seq = self.seq;
     }
 
     /// At `time_us` of the clock: when an instant came, hand the planner its frame (and, in
@@ -247,14 +252,6 @@ impl Slot {
         estimate: Option<(DVec3, f64)>,
     ) -> Result<(), SlotError> {
         self.take_answer()?;
-        if time_us.saturating_add(CLOCK_BACK_US) < self.last_us {
-            // The vehicle rebooted (its clock went back): its instants start again on the new
-            // clock, and nothing asked in its last life is sent to this one.
-            self.next_us = 0;
-            self.pending.clear();
-            self.life_first_seq = self.seq;
-        }
-        self.last_us = time_us;
         if time_us < self.next_us {
             return Ok(());
         }

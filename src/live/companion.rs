@@ -42,6 +42,8 @@ impl PartialEq for CompanionOptions {
 pub(super) struct LiveCompanion {
     slot: Slot,
     target: u8,
+    /// The generation of the vehicle's track last seen (a new one at each reboot).
+    generation: Option<u32>,
 }
 
 impl LiveCompanion {
@@ -64,6 +66,7 @@ impl LiveCompanion {
         Ok(Self {
             slot,
             target: options.target_system_id,
+            generation: None,
         })
     }
 
@@ -81,24 +84,22 @@ impl LiveCompanion {
         network: &Network,
     ) -> Result<()> {
         let inputs = session.drain_companion_inputs();
+        self.slot.collect(&inputs.captures, &inputs.traffic);
         let id = self.target;
-        let captures: Vec<_> = inputs
-            .captures
-            .into_iter()
-            .filter(|c| c.system_id == id)
-            .collect();
-        let traffic: Vec<_> = inputs
-            .traffic
-            .into_iter()
-            .filter(|(to, _)| *to == id)
-            .map(|(_, a)| a)
-            .collect();
-        self.slot.collect(&captures, &traffic);
         let world = session.world();
-        let Some(latest) = world
-            .vehicle_of_system(id)
-            .and_then(|track| track.history.latest())
-        else {
+        let Some(track) = world.vehicle_of_system(id) else {
+            return Ok(());
+        };
+        // The world's track starts a new generation when the vehicle reboots (its one rule,
+        // `world::clock::step`): the companion's instants start again on the new clock.
+        if self
+            .generation
+            .replace(track.generation)
+            .is_some_and(|g| g != track.generation)
+        {
+            self.slot.restart();
+        }
+        let Some(latest) = track.history.latest() else {
             return Ok(());
         };
         let time_us = u64::from(latest.time_boot_ms) * 1000;

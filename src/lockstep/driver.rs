@@ -319,20 +319,7 @@ fn companions(
         let Some(slot) = v.companion.as_mut() else {
             continue;
         };
-        let id = vehicle.system_id;
-        let captures: Vec<_> = inputs
-            .captures
-            .iter()
-            .filter(|c| c.system_id == id)
-            .cloned()
-            .collect();
-        let traffic: Vec<_> = inputs
-            .traffic
-            .iter()
-            .filter(|(to, _)| *to == id)
-            .map(|(_, a)| a.clone())
-            .collect();
-        slot.collect(&captures, &traffic);
+        slot.collect(&inputs.captures, &inputs.traffic);
         let body = &v.vehicle.body;
         let [roll, pitch, yaw] = body.euler_rad();
         let velocity = body.velocity_ned_mps;

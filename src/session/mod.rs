@@ -283,11 +283,6 @@ impl Session {
         self.slots = Some(slots);
     }
 
-    /// A show's slots, if given.
-    pub fn slots(&self) -> Option<&crate::daa::slots::Slots> {
-        self.slots.as_ref()
-    }
-
     /// Judge closest approaches, well clear and the separation minimum with `approaches`
     /// (before the first message).
     pub fn set_approaches(&mut self, approaches: Approaches) {

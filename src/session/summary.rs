@@ -144,13 +144,15 @@ impl Session {
         let Some(slots) = &self.slots else {
             return Value::Null;
         };
+        // An open departure lasts to the run's last message.
+        let last_t_s = self
+            .ingestor
+            .stats
+            .time_span_s
+            .map(|(_, last)| last - self.flight_start_t_s.unwrap_or(last));
         let left: Vec<Value> = slots
             .departures()
             .map(|(vehicle, departures)| {
-                // An open departure lasts to the run's last message.
-                let last_t_s = self.ingestor.stats.time_span_s.map(|(_, last)| {
-                    last - self.flight_start_t_s.unwrap_or(last)
-                });
                 json!({
                     "vehicle": vehicle.system_id,
                     "component": vehicle.component_id,

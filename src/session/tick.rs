@@ -219,8 +219,8 @@ impl Session {
     }
 }
 
-/// The event of a well-clear change of vehicle `own`: a loss with the separations then, or a
-/// regain with its length.
+/// The event of a change of well clear (or of the separation minimum) of vehicle `own`: a
+/// loss (of well clear, with the separations then), or a regain with its length.
 fn well_clear_event(approaches: &Approaches, own: SenderId, c: &WellClearChange) -> EventKind {
     let track = c.body.to_string();
     match (c.change, c.separation) {

@@ -5,8 +5,9 @@
 //! The range a body is taken within (its *watch range*, from the vehicle's interval to the
 //! body's, both as boxes) is the largest of what any stage of the tick can use. Two reaches
 //! make it up. The *approach reach*: the contact layer's near-miss band, NMAC, the well-clear
-//! volume's DTHR + TTHR x closing speed, the separation minimum, and the feed's ADS-B radius, COLLISION horizon and
-//! sensor range; closest approaches and well clear are judged within it. The *sensing reach*,
+//! volume's DTHR + TTHR x closing speed, the separation minimum, and the feed's ADS-B radius,
+//! COLLISION horizon and sensor range; closest approaches, well clear and separation are
+//! judged within it. The *sensing reach*,
 //! only at ticks with a sensing frame: its region and look-ahead, and the collider swaps'
 //! `box_beyond_m` (a mesh far away turns back into a box). Both grow by the models' radii. A
 //! body beyond a tick's range can change nothing the tick computes, so leaving it out changes

@@ -243,7 +243,11 @@ impl Approaches {
                     note(change, false);
                 }
             }
-            if let Some(separation) = &self.separation {
+            // The interval's least distance is `a`'s: a pair that stays at least the minimum
+            // apart and is not inside it has nothing to fold (its log reads the time only of
+            // an open episode).
+            let near = |s: &Separation| a.distance_m < s.minimum_m || pair.separation.open();
+            if let Some(separation) = self.separation.as_ref().filter(|s| near(s)) {
                 for change in pair.separation.observe(separation, t0, t1, rel0, rel1) {
                     note(change, true);
                 }
