@@ -410,11 +410,11 @@ pub struct CompanionArgs {
     #[arg(long)]
     pub companion: Option<String>,
     /// Its instants a second of the vehicle's clock.
-    #[arg(long, default_value_t = crate::companion::slot::DEFAULT_HZ)]
+    #[arg(long, default_value_t = crate::companion::slot::DEFAULT_HZ, allow_negative_numbers = true)]
     pub companion_hz: f64,
     /// Its commands go at least this long after their instant, seconds of the vehicle's clock
     /// (on top of the planner's own time).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub companion_latency_s: f64,
     /// The system id of the vehicle it flies.
     #[arg(long, default_value_t = 1)]

@@ -686,3 +686,34 @@ fn beside_a_vehicle_that_reboots_the_planner_is_asked_on_its_new_clock() {
     assert!(velocities.len() >= 18, "{} of {counts:?}", velocities.len());
     assert_eq!(taken as usize, sent);
 }
+
+/// `savsim live`'s companion settings out of range are usage errors naming the flag, before
+/// any planner starts or link opens.
+#[test]
+fn live_companion_settings_out_of_range_are_usage_errors_naming_them() {
+    for (flag, value) in [
+        ("--companion-hz", "-1"),
+        ("--companion-hz", "nan"),
+        ("--companion-hz", "1e9"),
+        ("--companion-latency-s", "-0.5"),
+        ("--companion-latency-s", "inf"),
+    ] {
+        let out = crate::cli::savsim()
+            .args([
+                "live",
+                "--connect",
+                "udpin:127.0.0.1:0",
+                "--duration-s",
+                "1",
+            ])
+            .args(["--companion", "true", flag, value])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(&format!("{flag}: ")),
+            "{flag} {value}: {stderr}"
+        );
+    }
+}
