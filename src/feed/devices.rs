@@ -37,8 +37,9 @@ use super::capture::{Capture, CaptureData};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
 use super::tracks::{in_range, send_report, Told};
+use super::turn::{self, Turn, TurnScratch};
 use super::wire::Range;
-use super::Frame;
+use super::{Frame, FrameInput};
 use crate::pipeline::{Pipeline, Rays};
 use crate::scene::Kind;
 
@@ -83,6 +84,8 @@ pub(super) struct VehicleDevices {
 pub(super) struct Devices {
     devices: Vec<Device>,
     beams: Vec<Arc<Vec<Beam>>>,
+    /// Each device's columns when it spins (its beams read over its turn: `feed::turn`).
+    turns: Vec<Option<usize>>,
     draws: Draws,
     seed: u64,
     /// Whether reports of other aircraft are sent (`--feed adsb`).
@@ -95,6 +98,7 @@ pub(super) struct Devices {
     truths: Vec<BeamTruth>,
     readings: Vec<BeamReading>,
     segments: Vec<Segment>,
+    turn: TurnScratch,
     /// Whether readings are kept whole for the viewer ([`Devices::captures`]).
     pub(super) keep_captures: bool,
     /// The readings kept whole at this sample.
@@ -116,6 +120,14 @@ impl Devices {
                 Model::Range(m) => Arc::new(m.beams()),
                 _ => Arc::new(Vec::new()),
             })
+            .collect::<Vec<Arc<Vec<Beam>>>>();
+        let turns = devices
+            .iter()
+            .zip(&beams)
+            .map(|(d, b)| match &d.model {
+                Model::Range(m) => m.turn_columns().filter(|&n| turn::fits(b, n)),
+                _ => None,
+            })
             .collect();
         let ranges: Vec<[f64; 2]> = devices
             .iter()
@@ -135,6 +147,7 @@ impl Devices {
         Self {
             devices,
             beams,
+            turns,
             draws: Draws::new(seed),
             seed,
             send_adsb,
@@ -151,6 +164,7 @@ impl Devices {
             truths: Vec::new(),
             readings: Vec::new(),
             segments: Vec::new(),
+            turn: TurnScratch::default(),
             keep_captures: false,
             captures: Vec::new(),
         }
@@ -238,6 +252,10 @@ impl Devices {
         pipeline: &mut Pipeline,
         f: &Frame<'_, '_>,
     ) -> Picture {
+        let beams = self.beams[i].clone();
+        self.hits.clear();
+        self.hits.resize(beams.iter().map(|b| b.len()).sum(), None);
+        self.cast_beams(i, k, &beams, pipeline, f.input);
         let device = &self.devices[i];
         let Model::Range(model) = &device.model else {
             return Picture::default();
@@ -247,22 +265,6 @@ impl Devices {
         let mount = mount_rotation(device.mount.yaw_deg, device.mount.pitch_deg);
         let origin =
             current.position_enu_m + enu_from_frd * DVec3::from_array(device.mount.position_frd_m);
-        let beams = self.beams[i].clone();
-        self.dirs.clear();
-        self.dirs.extend(
-            beams
-                .iter()
-                .flat_map(|b| b.iter().map(|d| enu_from_frd * (mount * *d))),
-        );
-        self.hits.clear();
-        self.hits.resize(self.dirs.len(), None);
-        let rays = Rays {
-            origin_enu_m: origin,
-            dirs_enu: &self.dirs,
-            max_m: model.range_m[1],
-        };
-        let own = f.input.key.source();
-        pipeline.cast_exact_hits(f.input.scene, own, f.input.dynamic, rays, &mut self.hits);
         self.truths.clear();
         self.segments.clear();
         let scene = f.input.scene;
@@ -312,10 +314,10 @@ impl Devices {
         else {
             return picture;
         };
-        let mut at = 0;
         for (b, reading) in beams.iter().zip(&self.readings) {
-            let dir = self.dirs[at];
-            at += b.len();
+            let Some(dir) = b.first().map(|d| enu_from_frd * (mount * *d)) else {
+                continue;
+            };
             let up = dir.dot(f.up_enu).clamp(-1.0, 1.0).asin().to_degrees();
             let cell = if up > 60.0 {
                 &mut picture.up
@@ -333,6 +335,52 @@ impl Devices {
             *cell = nearer(*cell, *reading);
         }
         picture
+    }
+
+    /// Device `i`'s rays at instant `k`, into `hits`: a spinning device's over its turn
+    /// (`feed::turn`), any other's at once from the sample's pose.
+    fn cast_beams(
+        &mut self,
+        i: usize,
+        k: u64,
+        beams: &[Beam],
+        pipeline: &mut Pipeline,
+        input: &FrameInput<'_>,
+    ) {
+        let device = &self.devices[i];
+        let Model::Range(model) = &device.model else {
+            return;
+        };
+        let current = input.current;
+        let mount = mount_rotation(device.mount.yaw_deg, device.mount.pitch_deg);
+        let mount_frd_m = DVec3::from_array(device.mount.position_frd_m);
+        if let Some(columns) = self.turns[i] {
+            let sample_s = f64::from(current.time_boot_ms) / 1000.0;
+            let spun = Turn {
+                beams,
+                columns,
+                mount: (mount, mount_frd_m),
+                turn_s: 1.0 / device.rate_hz,
+                end_before_sample_s: (sample_s - k as f64 / device.rate_hz).max(0.0),
+                max_m: model.range_m[1],
+            };
+            turn::cast(pipeline, input, &spun, &mut self.turn, &mut self.hits);
+            return;
+        }
+        let enu_from_frd = current.attitude.enu_from_frd;
+        self.dirs.clear();
+        self.dirs.extend(
+            beams
+                .iter()
+                .flat_map(|b| b.iter().map(|d| enu_from_frd * (mount * *d))),
+        );
+        let rays = Rays {
+            origin_enu_m: current.position_enu_m + enu_from_frd * mount_frd_m,
+            dirs_enu: &self.dirs,
+            max_m: model.range_m[1],
+        };
+        let own = input.key.source();
+        pipeline.cast_exact_hits(input.scene, own, input.dynamic, rays, &mut self.hits);
     }
 
     /// The last reading whole: a depth image for an image device, else a point cloud.

@@ -28,6 +28,7 @@ mod picture;
 pub mod sectors;
 pub mod threats;
 mod tracks;
+mod turn;
 pub mod wire;
 
 use std::collections::BTreeMap;

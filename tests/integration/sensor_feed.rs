@@ -64,6 +64,22 @@ fn wall() -> savsim::scene::Scene {
 /// OBSTACLE_DISTANCE frames (the 72 distances, cm) of a vehicle hovering at 10 m over the
 /// origin, nose east, sampled every `step_ms` for `ms`, with `sensors` seeded `seed`.
 fn hover(sensors: &str, seed: u64, step_ms: u32, ms: u32) -> Vec<(u32, [u16; 72])> {
+    fly(
+        sensors,
+        seed,
+        (step_ms, ms),
+        (DVec3::new(0.0, 0.0, 10.0), DVec3::ZERO),
+    )
+}
+
+/// As [`hover`], the vehicle at `start` (ENU, m) at 10 s and flying at `velocity` (m/s); each
+/// frame with the sample time it was sent at, ms.
+fn fly(
+    sensors: &str,
+    seed: u64,
+    (step_ms, ms): (u32, u32),
+    (start, velocity): (DVec3, DVec3),
+) -> Vec<(u32, [u16; 72])> {
     let scene = wall();
     let plane = LocalTangentPlane::new(ORIGIN);
     let suite = sensors_for(Some(sensors), Some(&scene)).unwrap();
@@ -90,13 +106,13 @@ fn hover(sensors: &str, seed: u64, step_ms: u32, ms: u32) -> Vec<(u32, [u16; 72]
             1,
             &mut seq,
             t_ms,
-            DVec3::new(0.0, 0.0, 10.0),
-            DVec3::ZERO,
+            start + velocity * f64::from(t_ms - 10_000) / 1000.0,
+            velocity,
         );
         feed(&mut session, f64::from(t_ms) / 1000.0, &frames);
         for m in session.drain_feed() {
             if let MavMessage::OBSTACLE_DISTANCE(d) = m.message {
-                out.push(((d.time_usec / 1000) as u32, d.distances));
+                out.push((t_ms, d.distances));
             }
         }
     }
@@ -150,6 +166,40 @@ fn a_lidar_reads_the_wall_with_its_noise_and_a_front_camera_leaves_the_rest_unkn
         let unknown = d.iter().filter(|&&c| c == u16::MAX).count();
         // 87 of 360 degrees: about 18 of the 72 bins known.
         assert!((52..=56).contains(&unknown), "{unknown} bins unknown");
+    }
+}
+
+#[test]
+fn a_lidar_turn_is_read_as_it_is_swept_so_a_fast_vehicle_sees_the_wall_where_it_was() {
+    // An RPLIDAR without errors or latency, its turn 0.1 s, flying east at 10 m/s towards the
+    // wall (its face at E = 5), sampled every 20 ms for 0.8 s from E = -6 (the feed's frames
+    // every 50 ms). Its nose column (azimuth 0,
+    // column 400 of 800) is read half a turn before the reading's instant: 0.5 m farther back
+    // than the vehicle is at the instant.
+    let sensors = "rplidar-a2:latency_s=0.0:proportional=0.0:quantum_m=0.0";
+    let v_mps = 10.0;
+    let start = DVec3::new(-6.0, 0.0, 10.0);
+    let frames = fly(sensors, 1, (20, 800), (start, DVec3::new(v_mps, 0.0, 0.0)));
+    assert!(frames.len() >= 14, "{}", frames.len());
+    let east_at = |t_s: f64| start.x + v_mps * (t_s - 10.0);
+    for (t_ms, d) in &frames {
+        // The reading taken at the newest instant k / 10 s at or before the frame's sample.
+        let instant_s = (f64::from(*t_ms) / 100.0 + 1e-9).floor() / 10.0;
+        let swept_s = instant_s - 0.1 + 400.5 / 800.0 * 0.1;
+        let expected_cm = (5.0 - east_at(swept_s)) * 100.0;
+        let at_instant_cm = (5.0 - east_at(instant_s)) * 100.0;
+        let nose = f64::from(d[NOSE]);
+        // The bin is the nearest of its rays, which are read within +-0.7 ms of the nose's
+        // and cast from their fan's middle (+-1.6 ms): within 3 cm, truncated to the cm.
+        assert!(
+            (nose - expected_cm).abs() <= 3.0,
+            "{t_ms} ms: nose {nose} cm, swept {expected_cm:.1}, at the instant {at_instant_cm:.1}"
+        );
+        assert!(nose - at_instant_cm >= 45.0, "{t_ms} ms: {nose} cm");
+    }
+    // Hovering, the same lidar reads the wall at its distance: spreading changes nothing.
+    for (_, d) in hover(sensors, 1, 20, 600).iter().skip(1) {
+        assert!((f64::from(d[NOSE]) - 500.0).abs() <= 1.0, "{}", d[NOSE]);
     }
 }
 

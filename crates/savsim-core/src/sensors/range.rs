@@ -121,6 +121,25 @@ impl RangeModel {
         out
     }
 
+    /// A spinning device's turn: the columns (beams across) it sweeps, in [`Self::beams`]
+    /// order within each row (from 180 degrees left of its boresight, turning right, as a
+    /// Velodyne or an RPLIDAR turns seen from above). `None` for an image, or a field across of
+    /// less than a whole turn: that device reads at once.
+    ///
+    /// ```
+    /// use savsim_core::sensors::spec::DeviceSpec;
+    /// use savsim_core::sensors::device::Model;
+    /// let build = |p: &str| DeviceSpec { preset: Some(p.into()), ..DeviceSpec::default() }.build();
+    /// let Model::Range(vlp16) = build("velodyne-vlp16").unwrap().model else { panic!() };
+    /// assert_eq!(vlp16.turn_columns(), Some(1800));
+    /// let Model::Range(d435) = build("realsense-d435").unwrap().model else { panic!() };
+    /// assert_eq!(d435.turn_columns(), None);
+    /// ```
+    pub fn turn_columns(&self) -> Option<usize> {
+        let spins = self.image_px.is_none() && self.fov_deg[0] >= 360.0 && self.step_deg[0] > 0.0;
+        spins.then(|| (360.0 / self.step_deg[0]).round().max(1.0) as usize)
+    }
+
     /// The beam at azimuth `az_deg` (right of the boresight) and elevation `el_deg` (up).
     fn beam(&self, az_deg: f64, el_deg: f64) -> Beam {
         let mut beam = Beam::new();

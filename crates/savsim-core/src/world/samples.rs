@@ -104,6 +104,37 @@ pub struct TrackSample {
 }
 
 impl TrackSample {
+    /// Its position (scene ENU, metres) and attitude (`enu_from_frd`) carried `dt_s` seconds
+    /// along its velocity and its body rates, both held constant (a negative `dt_s` goes back):
+    /// where the body was or will be close to the sample. Body rates are about the FRD axes, so
+    /// the rotation is applied on the body's side.
+    ///
+    /// ```
+    /// use glam::{DMat3, DQuat, DVec3};
+    /// use savsim_core::world::{Attitude, TrackSample};
+    /// use savsim_core::geo::Geodetic;
+    /// // Nose north (FRD x along ENU north), yawing right at 1 rad/s, flying north at 10 m/s.
+    /// let nose_north = DQuat::from_mat3(&DMat3::from_cols(DVec3::Y, DVec3::X, -DVec3::Z));
+    /// let s = TrackSample {
+    ///     t_s: 0.0, time_boot_ms: 0, position: Geodetic::new(0.0, 0.0, 0.0),
+    ///     position_enu_m: DVec3::ZERO, velocity_enu_mps: DVec3::new(0.0, 10.0, 0.0),
+    ///     attitude: Attitude { time_boot_ms: 0, enu_from_frd: nose_north,
+    ///         body_rates_radps: DVec3::new(0.0, 0.0, 1.0) },
+    /// };
+    /// let (p, q) = s.pose_carried(std::f64::consts::FRAC_PI_2);
+    /// assert!((p - DVec3::new(0.0, 15.707963, 0.0)).length() < 1e-6);
+    /// // A quarter turn to the right: the nose points east.
+    /// assert!((q * DVec3::X - DVec3::X).length() < 1e-12);
+    /// ```
+    pub fn pose_carried(&self, dt_s: f64) -> (DVec3, DQuat) {
+        let position_enu_m = self.position_enu_m + self.velocity_enu_mps * dt_s;
+        let turned = DQuat::from_scaled_axis(self.attitude.body_rates_radps * dt_s);
+        (
+            position_enu_m,
+            (self.attitude.enu_from_frd * turned).normalize(),
+        )
+    }
+
     /// Linear interpolation of position and velocity, spherical of attitude; `u` in [0, 1].
     pub fn lerp(&self, next: &TrackSample, u: f64) -> TrackSample {
         let u = u.clamp(0.0, 1.0);
