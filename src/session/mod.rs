@@ -6,7 +6,7 @@
 //! `summary`.
 
 mod observed;
-mod summary;
+pub mod summary;
 mod tick;
 mod traffic;
 

@@ -9,10 +9,38 @@ use crate::daa::approach::Pair;
 use crate::pipeline::Pipeline;
 use crate::world::SenderId;
 
+/// Each of the summary's lists of pairs (`approaches`, `well_clear.pairs`, `separation.pairs`)
+/// holds at most this many: the pairs with the least closest approach, in the list's usual
+/// order; its count beside it is of every pair. A fleet of thousands has millions of pairs:
+/// listing them all made a summary of gigabytes, written after the signal to stop.
+pub const LISTED_PAIRS_MAX: usize = 1000;
+
+/// The pairs of `pairs` that `keep` keeps, at most [`LISTED_PAIRS_MAX`] of them: those with
+/// the least closest approach, in `pairs`' order; and how many `keep` kept in all.
+fn listed<'p>(
+    pairs: &[(SenderId, &'p Pair)],
+    keep: impl Fn(&Pair) -> bool,
+) -> (Vec<(SenderId, &'p Pair)>, usize) {
+    let mut kept: Vec<(SenderId, &Pair)> = pairs.iter().filter(|(_, p)| keep(p)).copied().collect();
+    let all = kept.len();
+    if all > LISTED_PAIRS_MAX {
+        let mut order: Vec<usize> = (0..all).collect();
+        let distance = |i: usize| kept[i].1.approach.distance_m;
+        order.select_nth_unstable_by(LISTED_PAIRS_MAX, |&a, &b| {
+            distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
+        });
+        order.truncate(LISTED_PAIRS_MAX);
+        order.sort_unstable();
+        kept = order.into_iter().map(|i| kept[i]).collect();
+    }
+    (kept, all)
+}
+
 impl Session {
     /// The summary object `--summary-json` writes.
     pub fn summary(&self, command: &str, input: &str) -> Value {
         let pairs = self.approaches.pairs();
+        let (closest, approached) = listed(&pairs, |_| true);
         json!({
             "savsim": env!("CARGO_PKG_VERSION"),
             "command": command,
@@ -23,7 +51,8 @@ impl Session {
             "vehicles": self.vehicles_summary(),
             "traffic_aircraft": self.world.traffic().len(),
             "traffic_pressure_altitude": self.world.traffic().filter(|(_, t)| t.pressure_altitude).count(),
-            "approaches": self.approaches_summary(&pairs),
+            "approaches": self.approaches_summary(&closest),
+            "approach_pairs": approached,
             "well_clear": self.well_clear_summary(&pairs),
             "separation": self.separation_summary(&pairs),
             "slots": self.slots_summary(),
@@ -79,6 +108,7 @@ impl Session {
 
     /// The well-clear volume, and each pair that lost well clear: when, how long, how close.
     fn well_clear_summary(&self, pairs: &[(SenderId, &Pair)]) -> Value {
+        let (lost, pairs_lost) = listed(pairs, |p| !p.well_clear.episodes.is_empty());
         json!({
             "volume": self.approaches.volume().map(|v| json!({
                 "dthr_m": v.dthr_m,
@@ -86,9 +116,9 @@ impl Session {
                 "tthr_s": v.tthr_s,
                 "tcoa_s": v.tcoa_s,
             })),
-            "pairs": pairs
+            "pairs_lost": pairs_lost,
+            "pairs": lost
                 .iter()
-                .filter(|(_, pair)| !pair.well_clear.episodes.is_empty())
                 .map(|(vehicle, pair)| {
                     let log = &pair.well_clear;
                     json!({
@@ -113,9 +143,9 @@ impl Session {
         let Some(separation) = self.approaches.separation() else {
             return Value::Null;
         };
-        let under: Vec<Value> = pairs
+        let (under, pairs_under) = listed(pairs, |p| !p.separation.episodes.is_empty());
+        let under: Vec<Value> = under
             .iter()
-            .filter(|(_, pair)| !pair.separation.episodes.is_empty())
             .map(|(vehicle, pair)| {
                 let log = &pair.separation;
                 json!({
@@ -133,7 +163,7 @@ impl Session {
         json!({
             "minimum_m": separation.minimum_m,
             "losses": self.digest.separation_lost(),
-            "pairs_under": under.len(),
+            "pairs_under": pairs_under,
             "pairs": under,
         })
     }

@@ -391,3 +391,76 @@ impl Drop for Killed {
         let _ = self.0.wait();
     }
 }
+
+/// A summary lists at most `LISTED_PAIRS_MAX` pairs in each list, the closest, and counts
+/// them all: 40 vehicles standing at scattered places (every pair at its own distance, all
+/// within each other's reach, a separation minimum of 1000 m, small-UAS well clear) make
+/// 1,560 pairs (each vehicle's with each other); the 1000 listed in each list are those this
+/// test finds nearest from the positions it sent.
+#[test]
+fn a_summary_lists_the_closest_pairs_and_counts_them_all() {
+    use savsim::session::summary::LISTED_PAIRS_MAX;
+    let origin = Geodetic::new(47.0, 8.0, 500.0);
+    let plane = LocalTangentPlane::new(origin);
+    let mut session = Session::new(
+        Some(Arc::new(scene_at(origin, ""))),
+        CollisionConfig::default(),
+        None,
+    )
+    .unwrap();
+    session.set_approaches(
+        Approaches::with_volume(Some(savsim::daa::well_clear::Volume::SMALL_UAS))
+            .with_separation(Some(Separation { minimum_m: 1000.0 })),
+    );
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut uniform = |span: f64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * span
+    };
+    let places: Vec<DVec3> = (0..40)
+        .map(|_| DVec3::new(uniform(200.0), uniform(200.0), 20.0 + uniform(20.0)))
+        .collect();
+    let mut seq = 0u8;
+    for t_ms in [1000u32, 1100] {
+        for (i, p) in places.iter().enumerate() {
+            let frames = position_frames(&plane, i as u8 + 1, &mut seq, t_ms, *p, DVec3::ZERO);
+            feed(&mut session, f64::from(t_ms) / 1000.0, &frames);
+        }
+    }
+    let summary = session.summary("test", "scattered");
+    // The nearest pairs by the positions sent: each pair listed from both of its vehicles.
+    let mut apart: Vec<(f64, usize, usize)> = Vec::new();
+    for i in 0..places.len() {
+        for j in i + 1..places.len() {
+            apart.push(((places[i] - places[j]).length(), i + 1, j + 1));
+        }
+    }
+    apart.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut nearest: Vec<String> = apart[..LISTED_PAIRS_MAX / 2]
+        .iter()
+        .flat_map(|&(_, a, b)| [format!("{a} vehicle:{b}"), format!("{b} vehicle:{a}")])
+        .collect();
+    nearest.sort();
+    let names = |list: &serde_json::Value| {
+        let mut out: Vec<String> = list
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| format!("{} {}", p["vehicle"], p["track"].as_str().unwrap()))
+            .collect();
+        out.sort();
+        out
+    };
+    assert_eq!(summary["approach_pairs"], 1560);
+    assert_eq!(summary["well_clear"]["pairs_lost"], 1560);
+    assert_eq!(summary["separation"]["pairs_under"], 1560);
+    for list in [
+        &summary["approaches"],
+        &summary["well_clear"]["pairs"],
+        &summary["separation"]["pairs"],
+    ] {
+        assert_eq!(names(list), nearest);
+    }
+}
