@@ -121,6 +121,7 @@ fn session_over(args: &CollisionArgs, scene: Option<Arc<Scene>>) -> Result<Sessi
     if let Some(slots) = slots_of(args)? {
         session.set_slots(slots);
     }
+    session.set_summary_pairs((args.summary_pairs > 0).then_some(args.summary_pairs));
     if let Some(target) = &args.rerun {
         start_viz(&mut session, target, args.rerun_octree)?;
     }

@@ -227,6 +227,9 @@ pub struct CollisionArgs {
     /// Write a JSON summary here at exit (also on Ctrl-C).
     #[arg(long)]
     pub summary_json: Option<PathBuf>,
+    /// Most pairs each of the summary's lists of pairs holds (the closest; 0: every pair).
+    #[arg(long, default_value_t = crate::session::summary::LISTED_PAIRS_MAX)]
+    pub summary_pairs: usize,
     /// Length of the six rays, metres.
     #[arg(long, default_value_t = 300.0)]
     pub ray_length_m: f64,

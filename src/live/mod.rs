@@ -133,8 +133,9 @@ pub const FEED_FROM: SenderId = SenderId {
 };
 
 /// After a signal, what the links had queued is processed for at most this long; the rest is
-/// counted, not processed, so that a run behind its stream still stops promptly.
-pub const STOP_DRAIN: Duration = Duration::from_secs(1);
+/// counted, not processed, so that a run behind its stream still stops promptly (within a
+/// second of the signal with the summary written: docs/performance.md, "A drone show live").
+pub const STOP_DRAIN: Duration = Duration::from_millis(500);
 
 /// A link that brings nothing for this long is logged (once per silence), s.
 const SILENT_LINK_S: f64 = 5.0;

@@ -77,6 +77,8 @@ pub struct Session {
     approaches: Approaches,
     /// A show's slots, when given (`--slots`).
     slots: Option<crate::daa::slots::Slots>,
+    /// The most pairs each of the summary's lists holds (`None`: every pair).
+    summary_pairs: Option<usize>,
     dynamic: MovingBodies,
     /// Whether each of `dynamic`'s bodies is within the approach reach (session::traffic).
     approached: Vec<bool>,
@@ -175,6 +177,7 @@ impl Session {
             tick_costs: Default::default(),
             approaches: Approaches::default(),
             slots: None,
+            summary_pairs: Some(summary::LISTED_PAIRS_MAX),
             well_clear_changes: Vec::new(),
             dynamic: MovingBodies::default(),
             approached: Vec::new(),
@@ -276,6 +279,12 @@ impl Session {
     /// Closest approaches and well clear, so far.
     pub fn approaches(&self) -> &Approaches {
         &self.approaches
+    }
+
+    /// List at most `max` pairs in each of the summary's lists of pairs (the closest), or
+    /// every pair (`None`). Default [`summary::LISTED_PAIRS_MAX`].
+    pub fn set_summary_pairs(&mut self, max: Option<usize>) {
+        self.summary_pairs = max;
     }
 
     /// Judge each vehicle against its slot in `slots` (before the first message).

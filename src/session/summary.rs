@@ -10,26 +10,28 @@ use crate::pipeline::Pipeline;
 use crate::world::SenderId;
 
 /// Each of the summary's lists of pairs (`approaches`, `well_clear.pairs`, `separation.pairs`)
-/// holds at most this many: the pairs with the least closest approach, in the list's usual
-/// order; its count beside it is of every pair. A fleet of thousands has millions of pairs:
+/// holds at most this many by default (`--summary-pairs`, `Session::set_summary_pairs`): the
+/// pairs with the least closest approach, in the list's usual order; its count beside it is of
+/// every pair. A fleet of thousands has millions of pairs:
 /// listing them all made a summary of gigabytes, written after the signal to stop.
 pub const LISTED_PAIRS_MAX: usize = 1000;
 
-/// The pairs of `pairs` that `keep` keeps, at most [`LISTED_PAIRS_MAX`] of them: those with
-/// the least closest approach, in `pairs`' order; and how many `keep` kept in all.
+/// The pairs of `pairs` that `keep` keeps, at most `max` of them (`None`: all): those with the
+/// least closest approach, in `pairs`' order; and how many `keep` kept in all.
 fn listed<'p>(
     pairs: &[(SenderId, &'p Pair)],
+    max: Option<usize>,
     keep: impl Fn(&Pair) -> bool,
 ) -> (Vec<(SenderId, &'p Pair)>, usize) {
     let mut kept: Vec<(SenderId, &Pair)> = pairs.iter().filter(|(_, p)| keep(p)).copied().collect();
     let all = kept.len();
-    if all > LISTED_PAIRS_MAX {
+    if let Some(max) = max.filter(|&m| all > m) {
         let mut order: Vec<usize> = (0..all).collect();
         let distance = |i: usize| kept[i].1.approach.distance_m;
-        order.select_nth_unstable_by(LISTED_PAIRS_MAX, |&a, &b| {
+        order.select_nth_unstable_by(max, |&a, &b| {
             distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
         });
-        order.truncate(LISTED_PAIRS_MAX);
+        order.truncate(max);
         order.sort_unstable();
         kept = order.into_iter().map(|i| kept[i]).collect();
     }
@@ -40,7 +42,7 @@ impl Session {
     /// The summary object `--summary-json` writes.
     pub fn summary(&self, command: &str, input: &str) -> Value {
         let pairs = self.approaches.pairs();
-        let (closest, approached) = listed(&pairs, |_| true);
+        let (closest, approached) = listed(&pairs, self.summary_pairs, |_| true);
         json!({
             "savsim": env!("CARGO_PKG_VERSION"),
             "command": command,
@@ -108,7 +110,9 @@ impl Session {
 
     /// The well-clear volume, and each pair that lost well clear: when, how long, how close.
     fn well_clear_summary(&self, pairs: &[(SenderId, &Pair)]) -> Value {
-        let (lost, pairs_lost) = listed(pairs, |p| !p.well_clear.episodes.is_empty());
+        let (lost, pairs_lost) = listed(pairs, self.summary_pairs, |p| {
+            !p.well_clear.episodes.is_empty()
+        });
         json!({
             "volume": self.approaches.volume().map(|v| json!({
                 "dthr_m": v.dthr_m,
@@ -143,7 +147,9 @@ impl Session {
         let Some(separation) = self.approaches.separation() else {
             return Value::Null;
         };
-        let (under, pairs_under) = listed(pairs, |p| !p.separation.episodes.is_empty());
+        let (under, pairs_under) = listed(pairs, self.summary_pairs, |p| {
+            !p.separation.episodes.is_empty()
+        });
         let under: Vec<Value> = under
             .iter()
             .map(|(vehicle, pair)| {

@@ -97,6 +97,9 @@ impl Session {
             current: &tick.current,
             flight_start_t_s: tick.flight_start_t_s,
             sensing: pipeline.senses_at(tick.key, tick.current.t_s) || self.draws_traffic(),
+            held: pipeline
+                .vehicle(tick.key.vehicle, tick.key.component_id)
+                .map(|v| &v.sensing),
         };
         let into = traffic::Filling {
             out: &mut self.dynamic,

@@ -685,7 +685,7 @@ fn tcpin_interrupted_while_waiting_ends_cleanly() {
     assert!(run.ended.is_ok());
     assert!(run.session.interrupted());
     assert_eq!(run.report.silences, 1);
-    // Promptly: the run polls its flag every 20 ms and drains for at most STOP_DRAIN (1 s).
+    // Promptly: the run polls its flag every 20 ms and drains for at most STOP_DRAIN (0.5 s).
     assert!(
         ended.duration_since(raised) < Duration::from_secs(3),
         "{:?} after the shutdown",

@@ -463,4 +463,12 @@ fn a_summary_lists_the_closest_pairs_and_counts_them_all() {
     ] {
         assert_eq!(names(list), nearest);
     }
+    // Asked for every pair (`--summary-pairs 0`), it lists them all.
+    session.set_summary_pairs(None);
+    let summary = session.summary("test", "scattered");
+    assert_eq!(summary["approaches"].as_array().unwrap().len(), 1560);
+    assert_eq!(
+        summary["separation"]["pairs"].as_array().unwrap().len(),
+        1560
+    );
 }

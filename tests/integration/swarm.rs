@@ -73,8 +73,8 @@ fn block_tlog() -> Vec<u8> {
     out
 }
 
-/// The events and the summary's closest approaches and collision figures of a replay of
-/// `tlog` at `--sensor-hz 2`, recorded or not.
+/// The events and the summary's closest approaches (every pair listed) and collision figures
+/// of a replay of `tlog` at `--sensor-hz 2`, recorded or not.
 fn replay(dir: &std::path::Path, tlog: &std::path::Path, recorded: bool) -> (String, String) {
     let name = if recorded { "recorded" } else { "plain" };
     let (events, summary) = (
@@ -85,7 +85,14 @@ fn replay(dir: &std::path::Path, tlog: &std::path::Path, recorded: bool) -> (Str
     c.arg("replay")
         .arg(tlog)
         .args(["--scene", "scenes/city.toml", "--well-clear", "none"])
-        .args(["--sensor-hz", "2", "--no-progress", "--events"])
+        .args([
+            "--sensor-hz",
+            "2",
+            "--summary-pairs",
+            "0",
+            "--no-progress",
+            "--events",
+        ])
         .arg(&events)
         .arg("--summary-json")
         .arg(&summary);
