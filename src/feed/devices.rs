@@ -34,13 +34,13 @@ use savsim_core::sensors::surveillance::{Look, Own, Target, TargetReport, Target
 
 use super::aircraft::{aircraft, body_velocity, has_transponder};
 use super::capture::{Capture, CaptureData};
+use super::cast::{self, CastScratch};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
 use super::tracks::{in_range, send_report, Told};
-use super::turn::{self, Turn, TurnScratch};
 use super::wire::Range;
-use super::{Frame, FrameInput};
-use crate::pipeline::{Pipeline, Rays};
+use super::Frame;
+use crate::pipeline::Pipeline;
 use crate::scene::Kind;
 
 /// A reading on its way to the autopilot.
@@ -84,7 +84,7 @@ pub(super) struct VehicleDevices {
 pub(super) struct Devices {
     devices: Vec<Device>,
     beams: Vec<Arc<Vec<Beam>>>,
-    /// Each device's columns when it spins (its beams read over its turn: `feed::turn`).
+    /// Each device's columns when it spins (its beams read over its turn: `feed::cast`).
     turns: Vec<Option<usize>>,
     draws: Draws,
     seed: u64,
@@ -92,13 +92,12 @@ pub(super) struct Devices {
     send_adsb: bool,
     /// The combined range of the range devices (the messages' min and max).
     pub(super) range: Range,
-    /// Scratch: ray directions, hits, truths, readings, what each beam met.
-    dirs: Vec<DVec3>,
+    /// Scratch: the cast's, hits, truths, readings, what each beam met.
+    cast: CastScratch,
     hits: Vec<Option<(ObstacleRef, f64)>>,
     truths: Vec<BeamTruth>,
     readings: Vec<BeamReading>,
     segments: Vec<Segment>,
-    turn: TurnScratch,
     /// Whether readings are kept whole for the viewer ([`Devices::captures`]).
     pub(super) keep_captures: bool,
     /// The readings kept whole at this sample.
@@ -125,7 +124,7 @@ impl Devices {
             .iter()
             .zip(&beams)
             .map(|(d, b)| match &d.model {
-                Model::Range(m) => m.turn_columns().filter(|&n| turn::fits(b, n)),
+                Model::Range(m) => m.turn_columns().filter(|&n| cast::fits(b, n)),
                 _ => None,
             })
             .collect();
@@ -159,12 +158,11 @@ impl Devices {
             } else {
                 range
             },
-            dirs: Vec::new(),
+            cast: CastScratch::default(),
             hits: Vec::new(),
             truths: Vec::new(),
             readings: Vec::new(),
             segments: Vec::new(),
-            turn: TurnScratch::default(),
             keep_captures: false,
             captures: Vec::new(),
         }
@@ -255,8 +253,17 @@ impl Devices {
         let beams = self.beams[i].clone();
         self.hits.clear();
         self.hits.resize(beams.iter().map(|b| b.len()).sum(), None);
-        self.cast_beams(i, k, &beams, pipeline, f.input);
         let device = &self.devices[i];
+        let (turn, input) = (self.turns[i], f.input);
+        cast::cast_beams(
+            device,
+            turn,
+            (k, &beams),
+            pipeline,
+            input,
+            &mut self.cast,
+            &mut self.hits,
+        );
         let Model::Range(model) = &device.model else {
             return Picture::default();
         };
@@ -335,52 +342,6 @@ impl Devices {
             *cell = nearer(*cell, *reading);
         }
         picture
-    }
-
-    /// Device `i`'s rays at instant `k`, into `hits`: a spinning device's over its turn
-    /// (`feed::turn`), any other's at once from the sample's pose.
-    fn cast_beams(
-        &mut self,
-        i: usize,
-        k: u64,
-        beams: &[Beam],
-        pipeline: &mut Pipeline,
-        input: &FrameInput<'_>,
-    ) {
-        let device = &self.devices[i];
-        let Model::Range(model) = &device.model else {
-            return;
-        };
-        let current = input.current;
-        let mount = mount_rotation(device.mount.yaw_deg, device.mount.pitch_deg);
-        let mount_frd_m = DVec3::from_array(device.mount.position_frd_m);
-        if let Some(columns) = self.turns[i] {
-            let sample_s = f64::from(current.time_boot_ms) / 1000.0;
-            let spun = Turn {
-                beams,
-                columns,
-                mount: (mount, mount_frd_m),
-                turn_s: 1.0 / device.rate_hz,
-                end_before_sample_s: (sample_s - k as f64 / device.rate_hz).max(0.0),
-                max_m: model.range_m[1],
-            };
-            turn::cast(pipeline, input, &spun, &mut self.turn, &mut self.hits);
-            return;
-        }
-        let enu_from_frd = current.attitude.enu_from_frd;
-        self.dirs.clear();
-        self.dirs.extend(
-            beams
-                .iter()
-                .flat_map(|b| b.iter().map(|d| enu_from_frd * (mount * *d))),
-        );
-        let rays = Rays {
-            origin_enu_m: current.position_enu_m + enu_from_frd * mount_frd_m,
-            dirs_enu: &self.dirs,
-            max_m: model.range_m[1],
-        };
-        let own = input.key.source();
-        pipeline.cast_exact_hits(input.scene, own, input.dynamic, rays, &mut self.hits);
     }
 
     /// The last reading whole: a depth image for an image device, else a point cloud.
@@ -500,7 +461,7 @@ impl Devices {
 
 /// The rotation from a device's frame (x boresight, y right, z down) to the body's FRD for a
 /// mount yawed `yaw_deg` clockwise and pitched `pitch_deg` up.
-fn mount_rotation(yaw_deg: f64, pitch_deg: f64) -> DQuat {
+pub(super) fn mount_rotation(yaw_deg: f64, pitch_deg: f64) -> DQuat {
     // Yaw about the body's down axis (clockwise seen from above), then pitch about the
     // device's right axis: a positive rotation about y turns x towards -z, up in FRD.
     DQuat::from_rotation_z(yaw_deg.to_radians()) * DQuat::from_rotation_y(pitch_deg.to_radians())

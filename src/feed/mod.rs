@@ -21,6 +21,7 @@
 
 mod aircraft;
 pub mod capture;
+mod cast;
 mod config;
 pub mod devices;
 mod ideal;
@@ -28,7 +29,6 @@ mod picture;
 pub mod sectors;
 pub mod threats;
 mod tracks;
-mod turn;
 pub mod wire;
 
 use std::collections::BTreeMap;

@@ -12,8 +12,8 @@ use crate::world::SenderId;
 /// Each of the summary's lists of pairs (`approaches`, `well_clear.pairs`, `separation.pairs`)
 /// holds at most this many by default (`--summary-pairs`, `Session::set_summary_pairs`): the
 /// pairs with the least closest approach, in the list's usual order; its count beside it is of
-/// every pair. A fleet of thousands has millions of pairs:
-/// listing them all made a summary of gigabytes, written after the signal to stop.
+/// every pair. A fleet of thousands has millions of pairs: listing them all made a summary of
+/// gigabytes, written after the signal to stop.
 pub const LISTED_PAIRS_MAX: usize = 1000;
 
 /// The pairs of `pairs` that `keep` keeps, at most `max` of them (`None`: all): those with the
