@@ -63,7 +63,7 @@ pub(super) fn cast_beams(
         return;
     };
     let current = input.current;
-    let mount = super::devices::mount_rotation(device.mount.yaw_deg, device.mount.pitch_deg);
+    let mount = mount_rotation(device.mount.yaw_deg, device.mount.pitch_deg);
     let mount_frd_m = DVec3::from_array(device.mount.position_frd_m);
     if let Some(columns) = turn_columns {
         let sample_s = f64::from(current.time_boot_ms) / 1000.0;
@@ -146,4 +146,12 @@ fn cast_turn(
             }
         }
     }
+}
+
+/// The rotation from a device's frame (x boresight, y right, z down) to the body's FRD for a
+/// mount yawed `yaw_deg` clockwise and pitched `pitch_deg` up.
+pub(super) fn mount_rotation(yaw_deg: f64, pitch_deg: f64) -> DQuat {
+    // Yaw about the body's down axis (clockwise seen from above), then pitch about the
+    // device's right axis: a positive rotation about y turns x towards -z, up in FRD.
+    DQuat::from_rotation_z(yaw_deg.to_radians()) * DQuat::from_rotation_y(pitch_deg.to_radians())
 }

@@ -22,7 +22,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 
 use savsim_core::collision::fan::segment_of;
 use savsim_core::pipeline::ObstacleRef;
@@ -34,7 +34,7 @@ use savsim_core::sensors::surveillance::{Look, Own, Target, TargetReport, Target
 
 use super::aircraft::{aircraft, body_velocity, has_transponder};
 use super::capture::{Capture, CaptureData};
-use super::cast::{self, CastScratch};
+use super::cast::{self, mount_rotation, CastScratch};
 use super::picture::{bin_of, nearer, Picture};
 use super::sectors::Levelled;
 use super::tracks::{in_range, send_report, Told};
@@ -457,14 +457,6 @@ impl Devices {
             }
         }
     }
-}
-
-/// The rotation from a device's frame (x boresight, y right, z down) to the body's FRD for a
-/// mount yawed `yaw_deg` clockwise and pitched `pitch_deg` up.
-pub(super) fn mount_rotation(yaw_deg: f64, pitch_deg: f64) -> DQuat {
-    // Yaw about the body's down axis (clockwise seen from above), then pitch about the
-    // device's right axis: a positive rotation about y turns x towards -z, up in FRD.
-    DQuat::from_rotation_z(yaw_deg.to_radians()) * DQuat::from_rotation_y(pitch_deg.to_radians())
 }
 
 /// Take what arrived by `t_s`: range pictures become the device's latest; reports are sent
