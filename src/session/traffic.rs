@@ -13,9 +13,8 @@
 //! wherever they are: it turns a far mesh back into a box (`box_beyond_m`, 800 m) and drops
 //! what leaves its region, and it does so only for a body it is given (the reach itself held
 //! `box_beyond_m` before: with the defaults and two bodies at 8 m/s, 849 m instead of 509 m).
-//! A body beyond a
-//! tick's range and not held can change nothing the tick computes, so leaving it out changes
-//! no answer: with `--sensor-hz` below the vehicles' position rate, most ticks take only the
+//! A body beyond a tick's range and not held can change nothing the tick computes, so leaving
+//! it out changes no answer: with `--sensor-hz` below the vehicles' position rate, most ticks take only the
 //! bodies within the approach reach (a drone-show block: some 150 of its 1000 vehicles).
 
 use std::sync::Arc;
@@ -300,10 +299,7 @@ fn held_positions<'w>(
     world: &'w WorldStore,
     state: &'w SensingState,
 ) -> impl Iterator<Item = DVec3> + 'w {
-    state.colliders().filter_map(|(o, ..)| {
-        let ObstacleRef::Dynamic(key) = o else {
-            return None;
-        };
+    state.held_bodies().filter_map(|key| {
         let history = match key.source {
             BodySource::Vehicle {
                 vehicle,

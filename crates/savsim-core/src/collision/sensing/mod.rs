@@ -16,7 +16,7 @@ pub mod threat;
 
 use glam::DVec3;
 
-use crate::collision::bodies::ObstacleRef;
+use crate::collision::bodies::{BodyKey, ObstacleRef};
 use crate::collision::config::CollisionConfig;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
@@ -80,6 +80,17 @@ impl SensingState {
     /// Obstacles with a collider, which one, and their beta at the last frame.
     pub fn colliders(&self) -> impl Iterator<Item = (ObstacleRef, ColliderKind, f64)> + '_ {
         self.active.iter().map(|a| (a.obstacle, a.collider, a.beta))
+    }
+
+    /// The moving bodies it holds a collider for (the tail of its list, sorted by obstacle).
+    pub fn held_bodies(&self) -> impl Iterator<Item = BodyKey> + '_ {
+        let from = self
+            .active
+            .partition_point(|a| matches!(a.obstacle, ObstacleRef::Static(_)));
+        self.active[from..].iter().filter_map(|a| match a.obstacle {
+            ObstacleRef::Dynamic(key) => Some(key),
+            ObstacleRef::Static(_) => None,
+        })
     }
 
     /// Whether the sensing layer holds a collider (a box or a mesh) for `o`.
