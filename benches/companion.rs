@@ -8,6 +8,7 @@
 // criterion is not used: a percentile of single round trips is the goal, not a mean.
 #![allow(missing_docs)]
 
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -24,7 +25,9 @@ fn main() {
         "python3 {} noop",
         root.join("tests/python/companion_planner.py").display()
     );
-    let mut link = Link::start(&command, dir.path(), Duration::from_secs(20)).expect("it starts");
+    let never = AtomicBool::new(false);
+    let timeout = Duration::from_secs(20);
+    let mut link = Link::start(&command, dir.path(), timeout, &never).expect("it starts");
     let mut hello = Vec::new();
     protocol::message(
         &protocol::hello(&protocol::Hello {

@@ -82,6 +82,9 @@ fn session_for(args: &CollisionArgs) -> Result<Session> {
 /// (NMAC's 152 m is always in it; the contact layer's and the feed's reaches often more).
 const MAX_SEPARATION_M: f64 = 1000.0;
 
+/// The largest `--slot-tolerance-m`, metres (`daa::slots` takes no more).
+const MAX_SLOT_TOLERANCE_M: f64 = 1000.0;
+
 /// The largest slots file read, bytes.
 const SLOTS_MAX_BYTES: u64 = 1 << 30;
 
@@ -93,8 +96,12 @@ fn slots_of(args: &CollisionArgs) -> Result<Option<crate::daa::slots::Slots>> {
             None => Ok(None),
         };
     };
+    let tolerance_m = args
+        .slot_tolerance_m
+        .map(|m| savsim_core::bounds::positive("--slot-tolerance-m", m, MAX_SLOT_TOLERANCE_M))
+        .transpose()?
+        .unwrap_or(1.0);
     let text = crate::files::read_text(path, SLOTS_MAX_BYTES).map_err(|e| Error::file(path, e))?;
-    let tolerance_m = args.slot_tolerance_m.unwrap_or(1.0);
     crate::daa::slots::Slots::parse(&text, tolerance_m)
         .map(Some)
         .map_err(|e| Error::Usage(format!("--slots {}: {e}", path.display())))

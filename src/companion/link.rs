@@ -8,6 +8,7 @@ use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::Path;
 use std::process::{Child, Command as Process, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::protocol::{self, Command, ReplyError};
@@ -34,6 +35,12 @@ pub enum CompanionError {
         waited_s: f64,
         /// Its last lines.
         log: String,
+    },
+    /// A signal stopped the run while savsim waited for it to connect.
+    #[error("companion {command:?}: stopped while waiting for it to connect")]
+    Stopped {
+        /// The command.
+        command: String,
     },
     /// It exited or closed the link.
     #[error("companion {command:?}: closed the link ({why}){log}")]
@@ -92,8 +99,13 @@ impl Link {
     /// Start `command` (through `sh -c`, from savsim's working folder, its output to
     /// `dir/companion.log`) and wait for it to connect; each answer is then awaited at most
     /// `timeout`. A planner that exits or does not connect within [`CONNECT_WITHIN`] is ended
-    /// and its error says so.
-    pub fn start(command: &str, dir: &Path, timeout: Duration) -> Result<Link, CompanionError> {
+    /// and its error says so; so is one still connecting when `stop` is raised (a signal).
+    pub fn start(
+        command: &str,
+        dir: &Path,
+        timeout: Duration,
+        stop: &AtomicBool,
+    ) -> Result<Link, CompanionError> {
         let start_err = |why: String| CompanionError::Start {
             command: command.to_string(),
             why,
@@ -158,6 +170,12 @@ impl Link {
                     }
                     if began.elapsed() > CONNECT_WITHIN {
                         return Err(failed(&mut child, None));
+                    }
+                    if stop.load(Ordering::Relaxed) {
+                        failed(&mut child, None);
+                        return Err(CompanionError::Stopped {
+                            command: command.to_string(),
+                        });
                     }
                     std::thread::sleep(Duration::from_millis(5));
                 }

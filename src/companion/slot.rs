@@ -8,6 +8,7 @@
 
 use std::collections::VecDeque;
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -148,21 +149,16 @@ impl std::fmt::Debug for Slot {
 
 impl Slot {
     /// Start `config`'s planner for vehicle `target` (its output in `dir`) and greet it with
-    /// the vehicle's `devices`; the lockstep loop asks it and waits.
+    /// the vehicle's `devices`; the lockstep loop asks it and waits. Raising `stop` (a signal)
+    /// ends the wait for it to connect.
     pub fn start(
         config: &CompanionConfig,
-        target: SenderId,
-        px4: bool,
-        dir: &Path,
+        (target, px4): (SenderId, bool),
+        (dir, stop): (&Path, &AtomicBool),
         devices: &[String],
     ) -> Result<Slot, CompanionError> {
-        let link = greeted(
-            config,
-            (target, px4),
-            devices,
-            protocol::Clock::Lockstep,
-            dir,
-        )?;
+        let clock = protocol::Clock::Lockstep;
+        let link = greeted(config, (target, px4), devices, clock, (dir, stop))?;
         let intent = Intent::default();
         Ok(Slot::new(Asker::Waits(link), config, target, px4, intent))
     }
@@ -172,11 +168,12 @@ impl Slot {
     pub fn start_beside(
         config: &CompanionConfig,
         (target, px4): (SenderId, bool),
-        dir: &Path,
+        (dir, stop): (&Path, &AtomicBool),
         devices: &[String],
         intent: Intent,
     ) -> Result<Slot, CompanionError> {
-        let link = greeted(config, (target, px4), devices, protocol::Clock::Wall, dir)?;
+        let clock = protocol::Clock::Wall;
+        let link = greeted(config, (target, px4), devices, clock, (dir, stop))?;
         let beside = Beside::start(link)?;
         Ok(Slot::new(
             Asker::Beside(beside),
@@ -360,9 +357,9 @@ fn greeted(
     (target, px4): (SenderId, bool),
     devices: &[String],
     clock: protocol::Clock,
-    dir: &Path,
+    (dir, stop): (&Path, &AtomicBool),
 ) -> Result<Link, CompanionError> {
-    let mut link = Link::start(&config.command, dir, config.timeout)?;
+    let mut link = Link::start(&config.command, dir, config.timeout, stop)?;
     let hello = protocol::hello(&protocol::Hello {
         system_id: target.system_id,
         px4,

@@ -4,6 +4,8 @@
 //! are handed over, a frame goes at each instant the planner is free for, and the commands it
 //! answered go on the route the vehicle was last heard on once their time has come.
 
+use std::sync::atomic::AtomicBool;
+
 use std::path::PathBuf;
 
 use crate::companion::protocol::State;
@@ -49,7 +51,11 @@ pub(super) struct LiveCompanion {
 impl LiveCompanion {
     /// Start `options`' planner, greeted with `session`'s devices; `session` keeps what they
     /// make for it.
-    pub(super) fn start(options: &CompanionOptions, session: &mut Session) -> Result<Self> {
+    pub(super) fn start(
+        options: &CompanionOptions,
+        session: &mut Session,
+        stop: &AtomicBool,
+    ) -> Result<Self> {
         session.keep_companion_inputs();
         let target = SenderId {
             system_id: options.target_system_id,
@@ -58,7 +64,7 @@ impl LiveCompanion {
         let slot = Slot::start_beside(
             &options.config,
             (target, options.px4),
-            &options.dir,
+            (&options.dir, stop),
             &session.sensor_names(),
             options.intent.clone(),
         )

@@ -210,6 +210,7 @@ pub fn run_links(
         thread.companion = Some(companion::LiveCompanion::start(
             companion,
             &mut thread.session,
+            &shutdown,
         )?);
     }
     let (network, chunks) = Network::start(runtime, links, options.queue_len);

@@ -21,6 +21,14 @@ pub enum PhysicsError {
 }
 
 /// A preset's frame, or one read from a TOML file.
+///
+/// ```
+/// use savsim::lockstep::physics::frame_named;
+/// assert!(frame_named("iris").is_ok());
+/// // A file that cannot be read is named in the error.
+/// let e = frame_named("/nonexistent/quad.toml").unwrap_err().to_string();
+/// assert!(e.contains("/nonexistent/quad.toml"), "{e}");
+/// ```
 pub fn frame_named(name: &str) -> Result<Frame, PhysicsError> {
     if let Some(frame) = preset(name) {
         return Ok(frame);
@@ -32,7 +40,7 @@ pub fn frame_named(name: &str) -> Result<Frame, PhysicsError> {
         )));
     }
     let text = crate::files::read_text(std::path::Path::new(name), 1 << 20)
-        .map_err(|e| PhysicsError::Frame(e.to_string()))?;
+        .map_err(|e| PhysicsError::Frame(format!("{name}: {e}")))?;
     Frame::from_toml(&text).map_err(|e| PhysicsError::Frame(format!("{name}: {e}")))
 }
 

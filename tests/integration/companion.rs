@@ -4,6 +4,7 @@
 //! garbage, floods or sends NaN is an error naming it, within its deadline, and its process
 //! is gone afterwards.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -83,7 +84,7 @@ fn frame_bytes(seq: u64, captures: &[Arc<Capture>]) -> Vec<u8> {
 
 fn started(behaviour: &str, timeout: Duration) -> (Link, tempfile::TempDir) {
     let dir = tempfile::tempdir().unwrap();
-    let mut link = Link::start(&planner(behaviour), dir.path(), timeout).unwrap();
+    let mut link = Link::start(&planner(behaviour), dir.path(), timeout, &GO).unwrap();
     let mut hello = Vec::new();
     protocol::message(
         &protocol::hello(&protocol::Hello {
@@ -137,7 +138,8 @@ fn a_slot_sends_the_commands_as_the_companion_its_latency_later() {
         system_id: 1,
         component_id: 1,
     };
-    let mut slot = Slot::start(&config, vehicle, false, dir.path(), &["cam".into()]).unwrap();
+    let at = (dir.path(), &GO);
+    let mut slot = Slot::start(&config, (vehicle, false), at, &["cam".into()]).unwrap();
     slot.collect(&[image()], &[]);
     let mut sent = Vec::new();
     // 1 s of a 2.5 ms clock: frames at 0, 100, ... 900 ms.
@@ -217,11 +219,49 @@ fn a_planner_that_fails_is_an_error_naming_it_and_nothing_hangs() {
     }
     // A planner that exits before it connects.
     let dir = tempfile::tempdir().unwrap();
-    let e = Link::start("echo leaving; exit 7", dir.path(), Duration::from_secs(1)).unwrap_err();
+    let e = Link::start(
+        "echo leaving; exit 7",
+        dir.path(),
+        Duration::from_secs(1),
+        &GO,
+    )
+    .unwrap_err();
     assert!(
         e.to_string().contains("exit status: 7") && e.to_string().contains("leaving"),
         "{e}"
     );
+}
+
+/// Never raised: the tests' runs are not stopped by a signal.
+static GO: AtomicBool = AtomicBool::new(false);
+
+/// A planner that never connects holds the run no longer than the signal that stops it (not
+/// the 30 s it is given to connect), and it is ended with the wait.
+#[test]
+fn a_signal_ends_the_wait_for_a_planner_that_never_connects() {
+    let dir = tempfile::tempdir().unwrap();
+    let pid_file = dir.path().join("pid");
+    let command = format!("echo $$ > {}; exec sleep 60", pid_file.display());
+    let stop = Arc::new(AtomicBool::new(false));
+    let raise = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(300));
+            stop.store(true, Ordering::Relaxed);
+        })
+    };
+    let began = Instant::now();
+    let e = Link::start(&command, dir.path(), Duration::from_secs(1), &stop).unwrap_err();
+    raise.join().unwrap();
+    assert!(matches!(e, CompanionError::Stopped { .. }), "{e}");
+    assert!(
+        began.elapsed() < Duration::from_secs(3),
+        "{:?}",
+        began.elapsed()
+    );
+    let pid = std::fs::read_to_string(&pid_file).unwrap();
+    let alive = std::path::Path::new(&format!("/proc/{}", pid.trim())).exists();
+    assert!(!alive, "the planner {} still runs", pid.trim());
 }
 
 #[test]
@@ -229,7 +269,7 @@ fn a_hanging_planner_is_ended_with_its_link() {
     let dir = tempfile::tempdir().unwrap();
     let pid_file = dir.path().join("pid");
     let command = format!("echo $$ > {}; exec {}", pid_file.display(), planner("hang"));
-    let mut link = Link::start(&command, dir.path(), Duration::from_millis(300)).unwrap();
+    let mut link = Link::start(&command, dir.path(), Duration::from_millis(300), &GO).unwrap();
     let mut hello = Vec::new();
     protocol::message(
         &protocol::hello(&protocol::Hello {

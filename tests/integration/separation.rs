@@ -267,6 +267,23 @@ fn bad_slots_are_usage_errors_naming_them() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--slot-tolerance-m needs --slots"));
+    // An absurd tolerance is named by its own flag, before the file is read.
+    for tolerance in ["0", "-1", "nan", "1e300"] {
+        let out = crate::cli::savsim()
+            .args(["replay", "--slots"])
+            .arg(&slots)
+            .arg(format!("--slot-tolerance-m={tolerance}"))
+            .arg("nothing.tlog")
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{tolerance}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains("--slot-tolerance-m"),
+            "{tolerance}: {stderr}"
+        );
+        assert!(!stderr.contains("slots.csv"), "{tolerance}: {stderr}");
+    }
 }
 
 /// A session judging a show as `savsim replay --well-clear none --near-miss-m 0.5

@@ -221,7 +221,8 @@ pub(super) fn fly_lockstep_row(
     }
     if let (Some(config), Some(own)) = (&companion, started.first_mut()) {
         let devices: Vec<String> = session.sensor_names();
-        let slot = Slot::start(config, ids[0], checked.own.px4, &dir, &devices)?;
+        let at = (dir.as_path(), setup.stop.as_ref());
+        let slot = Slot::start(config, (ids[0], checked.own.px4), at, &devices)?;
         own.pilot.companion_intent = Some(slot.intent());
         own.lockstepped.companion = Some(slot);
     }
