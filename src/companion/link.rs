@@ -131,10 +131,13 @@ impl Link {
             .spawn()
             .map_err(|e| start_err(e.to_string()))?;
         let began = Instant::now();
-        let failed = |child: &mut Child, why: Option<String>| {
-            let tail = log_tail(&log);
+        let end = |child: &mut Child| {
             let _ = child.kill();
             let _ = child.wait();
+        };
+        let failed = |child: &mut Child, why: Option<String>| {
+            let tail = log_tail(&log);
+            end(child);
             match why {
                 Some(why) => CompanionError::Closed {
                     command: command.to_string(),
@@ -172,7 +175,7 @@ impl Link {
                         return Err(failed(&mut child, None));
                     }
                     if stop.load(Ordering::Relaxed) {
-                        failed(&mut child, None);
+                        end(&mut child);
                         return Err(CompanionError::Stopped {
                             command: command.to_string(),
                         });

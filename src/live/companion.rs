@@ -4,9 +4,8 @@
 //! are handed over, a frame goes at each instant the planner is free for, and the commands it
 //! answered go on the route the vehicle was last heard on once their time has come.
 
-use std::sync::atomic::AtomicBool;
-
 use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
 
 use crate::companion::protocol::State;
 use crate::companion::slot::{CompanionConfig, CompanionCounts, Intent, Slot};
