@@ -228,7 +228,7 @@ pub struct CollisionArgs {
     #[arg(long)]
     pub summary_json: Option<PathBuf>,
     /// Most pairs each of the summary's lists of pairs holds (the closest; 0: every pair).
-    #[arg(long, default_value_t = crate::session::summary::LISTED_PAIRS_MAX)]
+    #[arg(long, default_value_t = crate::session::summary::LISTED_PAIRS_MAX, allow_negative_numbers = true)]
     pub summary_pairs: usize,
     /// Length of the six rays, metres.
     #[arg(long, default_value_t = 300.0)]

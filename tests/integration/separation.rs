@@ -489,3 +489,17 @@ fn a_summary_lists_the_closest_pairs_and_counts_them_all() {
         1560
     );
 }
+
+/// An absurd `--summary-pairs` is a usage error naming the flag.
+#[test]
+fn absurd_summary_pairs_are_usage_errors_naming_the_flag() {
+    for value in ["-1", "nan", "1.5", "99999999999999999999999", ""] {
+        let out = crate::cli::savsim()
+            .args(["replay", "--summary-pairs", value, "nothing.tlog"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{value}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("--summary-pairs"), "{value}: {stderr}");
+    }
+}
