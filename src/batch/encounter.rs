@@ -13,7 +13,7 @@ use crate::codec::stats::IngestStats;
 use crate::codec::Ingestor;
 use crate::collision::bodies::waypoint_pose;
 use crate::collision::digest::EventDigest;
-use crate::daa::approach::Approaches;
+use crate::daa::approach::{Approaches, Passing};
 use crate::geo::LocalTangentPlane;
 use crate::logs::tlog::TlogReader;
 use crate::pipeline::{DynamicBody, MovingBodies, Pipeline, VehicleKey};
@@ -160,7 +160,7 @@ pub fn fly(
             },
             previous.as_ref(),
             &current,
-            bodies.as_slice(),
+            bodies.as_slice().iter().map(Passing::from),
             &mut well_clear_changes,
         );
         let started = Instant::now();

@@ -1,14 +1,15 @@
 //! A run: decoded messages in, world state and collision ticks through, events and a summary
 //! out. Synchronous; replay drives it directly, live from its own named thread.
 //!
-//! One collision tick is `tick`; the bodies a tick watches, `traffic`; what it shows whoever
-//! watches it (an `observe::Observer`: the viewer), `observed`; the summary a run writes,
-//! `summary`.
+//! One collision tick is `tick`; the bodies a tick watches, `traffic`, within the reaches of
+//! `watch`; what it shows whoever watches it (an `observe::Observer`: the viewer), `observed`;
+//! the summary a run writes, `summary`.
 
 mod observed;
 pub mod summary;
 mod tick;
 mod traffic;
+mod watch;
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -80,8 +81,8 @@ pub struct Session {
     /// The most pairs each of the summary's lists holds (`None`: every pair).
     summary_pairs: Option<usize>,
     dynamic: MovingBodies,
-    /// Whether each of `dynamic`'s bodies is within the approach reach (session::traffic).
-    approached: Vec<bool>,
+    /// The bodies within the approach reach, by their positions (session::traffic).
+    approached: Vec<traffic::Approached>,
     /// The largest model radius in the scene (the watch range's margin), metres.
     max_model_radius_m: f64,
     /// Scratch: the well-clear changes of the tick.
@@ -163,7 +164,7 @@ impl Session {
                     .map_err(|e| Error::file(p, e))
             })
             .transpose()?;
-        let max_model_radius_m = scene.as_deref().map_or(0.0, traffic::max_model_radius_m);
+        let max_model_radius_m = scene.as_deref().map_or(0.0, watch::max_model_radius_m);
         Ok(Self {
             ingestor: Ingestor::default(),
             world: WorldStore::new(origin, WorldConfig::default()),

@@ -5,14 +5,14 @@
 
 use std::time::Instant;
 
-use super::{traffic, Session};
+use super::{traffic, watch, Session};
 use crate::collision::events::{Event, EventKind};
 use crate::daa::approach::{Approaches, WellClearChange};
 use crate::daa::episodes::Change;
 use crate::daa::slots::SlotChange;
 use crate::error::Result;
 use crate::feed::FrameInput;
-use crate::pipeline::{TickReport, VehicleKey};
+use crate::pipeline::{Mode, TickReport, VehicleKey};
 use crate::scene::Scene;
 use crate::world::SenderId;
 use crate::world::TrackSample;
@@ -81,22 +81,24 @@ impl Session {
         let Some(pipeline) = &self.pipeline else {
             return;
         };
-        let watch = traffic::Watch {
+        let watch = watch::Watch {
             collision: *pipeline.config(),
             volume: self.approaches.volume(),
             separation_m: self.approaches.separation().map(|s| s.minimum_m),
-            feed: self
-                .feed
-                .as_ref()
-                .map(|f| traffic::Watch::feed_of(&f.config)),
+            feed: self.feed.as_ref().map(|f| watch::Watch::feed_of(&f.config)),
             max_model_radius_m: self.max_model_radius_m,
+            pose_all: self.poses_all(pipeline.config().mode),
         };
+        let sensing = pipeline.senses_at(tick.key, tick.current.t_s) || self.draws_traffic();
         let interval = traffic::Interval {
             own: tick.sender,
             previous: tick.previous.as_ref(),
             current: &tick.current,
             flight_start_t_s: tick.flight_start_t_s,
-            sensing: pipeline.senses_at(tick.key, tick.current.t_s) || self.draws_traffic(),
+            sensing,
+            sensing_region: sensing
+                .then(|| pipeline.sensing_region(tick.key, &tick.current))
+                .flatten(),
             held: pipeline
                 .vehicle(tick.key.vehicle, tick.key.component_id)
                 .map(|v| &v.sensing),
@@ -114,16 +116,23 @@ impl Session {
         self.observer.is_some()
     }
 
+    /// Whether every body a tick takes is given to the pipeline whole: in a mode that counts
+    /// every collider (`box`, `mesh`) or is the reference, when the viewer draws them and when
+    /// the feed reads them.
+    fn poses_all(&self, mode: Mode) -> bool {
+        let own_reach = matches!(mode, Mode::Exact | Mode::Paper | Mode::None);
+        !own_reach || self.draws_traffic() || self.feed.is_some()
+    }
+
     /// Closest approaches and well clear against the moving bodies within the approach reach;
     /// each change of well clear an event.
     fn judge_well_clear(&mut self, tick: &TickInput) {
         let (sender, current) = (tick.sender, &tick.current);
-        let approached = self.dynamic.as_slice().iter().zip(&self.approached);
         self.approaches.observe(
             sender,
             tick.previous.as_ref(),
             current,
-            approached.filter_map(|(body, &near)| near.then_some(body)),
+            self.approached.iter().map(|a| a.passing(&self.dynamic)),
             &mut self.well_clear_changes,
         );
         for c in &self.well_clear_changes {

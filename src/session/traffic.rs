@@ -1,121 +1,34 @@
 //! The moving bodies of one vehicle's tick: the scene's scripted tracks, and the other
-//! vehicles and traffic within the range the tick can need, found through the world's index
-//! (no scan of every track).
+//! vehicles and traffic within the range the tick can need (session::watch), found through the
+//! world's index (no scan of every track).
 //!
-//! The range a body is taken within (its *watch range*, from the vehicle's interval to the
-//! body's, both as boxes) is the largest of what any stage of the tick can use. Two reaches
-//! make it up. The *approach reach*: the contact layer's near-miss band, NMAC, the well-clear
-//! volume's DTHR + TTHR x closing speed, the separation minimum, and the feed's ADS-B radius,
-//! COLLISION horizon and sensor range; closest approaches, well clear and separation are
-//! judged within it. The *sensing reach*, only at ticks with a sensing frame: its region and
-//! look-ahead, and where a mesh is made (`mesh_within_m`). Both grow by the models' radii. At
-//! a sensing tick the bodies the vehicle's sensing layer holds a collider for are taken too,
-//! wherever they are: it turns a far mesh back into a box (`box_beyond_m`, 800 m) and drops
-//! what leaves its region, and it does so only for a body it is given (the reach itself held
-//! `box_beyond_m` before: with the defaults and two bodies at 8 m/s, 849 m instead of 509 m).
-//! A body beyond a tick's range and not held can change nothing the tick computes, so leaving
-//! it out changes no answer: with `--sensor-hz` below the vehicles' position rate, most ticks take only the
-//! bodies within the approach reach (a drone-show block: some 150 of its 1000 vehicles).
+//! A body is taken within the approach reach, and at a tick with a sensing frame within the
+//! sensing neighbourhood, or when its box (within its model's sphere, grown by its speed over
+//! the frame's lead) reaches the frame's region, or when the vehicle's sensing layer holds a
+//! collider for it, wherever it is (the layer turns a far mesh back into a box, `box_beyond_m`,
+//! and drops what leaves its region, only for a body it is given). A body beyond all of these
+//! can change nothing the tick computes, so leaving it out changes no answer.
+//!
+//! Closest approaches, NMAC, well clear and separation judge reference points: a body within
+//! the approach reach is given to them by its positions alone ([`Approached`]). Its whole
+//! state at both ends of the interval (the attitude's interpolation, its box) is made only for
+//! a body the pipeline can use: within the contact reach, reaching the frame's region, or held;
+//! and for every body taken when the run counts every collider or is the reference (`box`,
+//! `mesh`, `reference`), is drawn by the viewer or feeds the autopilot ([`Watch::pose_all`]).
+//! With `--sensor-hz` below the vehicles' position rate, most ticks of a dense fleet pose only
+//! the few bodies within the contact reach.
 
 use std::sync::Arc;
 
 use glam::DVec3;
 use savsim_core::collision::sensing::SensingState;
 
-use crate::collision::bodies::radius_m;
-use crate::daa::well_clear::{Volume, FT_M};
-use crate::feed::FeedConfig;
-use crate::pipeline::{
-    BodyKey, BodyPose, BodySource, CollisionConfig, DynamicBody, MovingBodies, ObstacleRef,
-};
+use super::watch::{model_radius_m, Watch};
+use crate::daa::approach::Passing;
+use crate::pipeline::{BodyKey, BodyPose, BodySource, DynamicBody, MovingBodies};
 use crate::scene::{Aabb64, DynamicSource, Kind, Scene};
 use crate::world::SenderId;
 use crate::world::{Track, TrackSample, WorldStore, PREDICT_MAX_S};
-
-/// NMAC's horizontal threshold (500 ft), metres: the widest NMAC reaches.
-const NMAC_M: f64 = 500.0 * FT_M;
-
-/// What decides how far a vehicle's tick looks for moving bodies.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Watch {
-    /// The pipeline's settings.
-    pub collision: CollisionConfig,
-    /// The well-clear volume judged, if any.
-    pub volume: Option<Volume>,
-    /// The separation minimum judged, if any, metres.
-    pub separation_m: Option<f64>,
-    /// The feed's ADS-B radius, COLLISION reach and horizon, and sensor range, when on.
-    pub feed: Option<(f64, f64, f64, f64)>,
-    /// The largest radius of any model a moving body or vehicle can have, metres.
-    pub max_model_radius_m: f64,
-}
-
-/// The largest radius of any model a moving body or a vehicle can have in `scene`, metres.
-pub(crate) fn max_model_radius_m(scene: &Scene) -> f64 {
-    let models = scene
-        .vehicle_models
-        .iter()
-        .map(|(_, g)| *g)
-        .chain(scene.kind_models.iter().map(|(_, g)| *g))
-        .chain(scene.dynamic.iter().map(|d| d.geometry_index))
-        .chain([0]);
-    models.map(|g| model_radius_m(scene, g)).fold(0.0, f64::max)
-}
-
-impl Watch {
-    /// The feed's part of the watch: its ADS-B radius, COLLISION reach and horizon, and
-    /// sensor range.
-    pub(crate) fn feed_of(feed: &FeedConfig) -> (f64, f64, f64, f64) {
-        (
-            feed.adsb_radius_m,
-            feed.collision_horizontal_m,
-            feed.collision_horizon_s,
-            feed.range.max_m,
-        )
-    }
-
-    /// How far apart (box to box) a vehicle at `own_mps` and a body at `body_mps` can be and
-    /// still matter to closest approaches, NMAC, well clear, contacts or the feed, metres, not
-    /// counting their models' size.
-    fn approach_range_m(&self, own_mps: f64, body_mps: f64) -> f64 {
-        let c = &self.collision;
-        let closing_mps = own_mps + body_mps;
-        let contact = c.near_miss_m + closing_mps * c.look_ahead_s;
-        let well_clear = self
-            .volume
-            .map_or(0.0, |v| v.dthr_m + v.tthr_s * closing_mps);
-        let feed = self.feed.map_or(0.0, |(adsb, h, horizon, sensor)| {
-            adsb.max(h + horizon * closing_mps).max(sensor)
-        });
-        // The boxes cover the interval's motion: within the minimum of them is all that can
-        // come under it.
-        let separation = self.separation_m.unwrap_or(0.0);
-        contact
-            .max(well_clear)
-            .max(feed)
-            .max(separation)
-            .max(NMAC_M)
-            + 1.0
-    }
-
-    /// As [`Self::approach_range_m`], at a tick with a sensing frame: also its region and
-    /// look-ahead and the collider swaps' reach.
-    fn sensing_range_m(&self, own_mps: f64, body_mps: f64) -> f64 {
-        let c = &self.collision;
-        let sensed = 1.5 * c.ray_length_m.max(own_mps * c.look_ahead_s) + 10.0;
-        let swaps = sensed.max(c.mesh_within_m) + (own_mps + body_mps) * c.look_ahead_s;
-        (swaps + 1.0).max(self.approach_range_m(own_mps, body_mps))
-    }
-
-    /// The tick's range: with or without its sensing frame.
-    fn range_m(&self, sensing: bool, own_mps: f64, body_mps: f64) -> f64 {
-        if sensing {
-            self.sensing_range_m(own_mps, body_mps)
-        } else {
-            self.approach_range_m(own_mps, body_mps)
-        }
-    }
-}
 
 /// One vehicle's interval, as the tick sees it.
 pub(crate) struct Interval<'a> {
@@ -126,6 +39,9 @@ pub(crate) struct Interval<'a> {
     pub flight_start_t_s: f64,
     /// Whether the tick runs a sensing frame (`Pipeline::senses_at`).
     pub sensing: bool,
+    /// Where the sensing frame desires moving bodies, and their lead into it, seconds
+    /// (`Pipeline::sensing_region`), at a tick with a frame in a mode with a sensing layer.
+    pub sensing_region: Option<(Aabb64, f64)>,
     /// The vehicle's sensing state before the tick, if it has one: the bodies it holds a
     /// collider for are taken at a sensing tick wherever they are.
     pub held: Option<&'a SensingState>,
@@ -138,10 +54,10 @@ impl Interval<'_> {
     }
 }
 
-/// The moving obstacles seen by vehicle `interval.own` over its interval, into `out`, in the
-/// order of their keys (the scene's tracks, then the vehicles, then the traffic, as
-/// [`BodyKey`] orders them); `approached[i]` says whether `out`'s body `i` is within the
-/// approach reach (the scene's tracks always are). Ids are shared (`Arc<str>`).
+/// The moving obstacles seen by vehicle `interval.own` over its interval: those the pipeline
+/// can use into `out`, those within the approach reach into `approached` (the scene's tracks
+/// are in both), each in the order of their keys (the scene's tracks, then the vehicles, then
+/// the traffic, as [`BodyKey`] orders them). Ids are shared (`Arc<str>`).
 pub(crate) fn fill_dynamic(
     into: Filling<'_>,
     scene: &Scene,
@@ -153,7 +69,7 @@ pub(crate) fn fill_dynamic(
     out.clear();
     approached.clear();
     let claims = fill_scripted(out, scene, world, interval);
-    approached.resize(out.len(), true);
+    approached.extend((0..out.len()).map(Approached::Posed));
     let nearby = Filling {
         out: &mut *out,
         approached,
@@ -165,13 +81,48 @@ pub(crate) fn fill_dynamic(
     );
 }
 
-/// Where a tick's moving bodies go: the bodies, and beside each whether it is within the
-/// approach reach.
+/// Where a tick's moving bodies go: those the pipeline uses, and those within the approach
+/// reach.
 pub(crate) struct Filling<'a> {
-    /// The bodies.
+    /// The bodies the pipeline uses, with their whole state.
     pub out: &'a mut MovingBodies,
-    /// Whether `out`'s body `i` is within the approach reach.
-    pub approached: &'a mut Vec<bool>,
+    /// The bodies within the approach reach, by their positions.
+    pub approached: &'a mut Vec<Approached>,
+}
+
+/// A body within a tick's approach reach: one the pipeline has too (its index in the tick's
+/// bodies), or who it is and its positions at both ends of the interval.
+#[derive(Debug, Clone)]
+pub(crate) enum Approached {
+    /// Body `i` of the pipeline's.
+    Posed(usize),
+    /// A body by its positions only.
+    Placed {
+        source: BodySource,
+        id: Arc<str>,
+        previous_enu_m: DVec3,
+        current_enu_m: DVec3,
+    },
+}
+
+impl Approached {
+    /// It as closest approaches and well clear take it (`posed`: the pipeline's bodies).
+    pub(crate) fn passing<'a>(&'a self, posed: &'a MovingBodies) -> Passing<'a> {
+        match self {
+            Self::Posed(i) => Passing::from(&posed.as_slice()[*i]),
+            Self::Placed {
+                source,
+                id,
+                previous_enu_m,
+                current_enu_m,
+            } => Passing {
+                source: *source,
+                id,
+                previous_enu_m: *previous_enu_m,
+                current_enu_m: *current_enu_m,
+            },
+        }
+    }
 }
 
 /// The vehicles and aircraft the scene's tracks stand for (they are not traffic twice).
@@ -235,9 +186,9 @@ fn fill_scripted(
     claims
 }
 
-/// The other vehicles and the ADS-B traffic within the watch range of the interval, into
-/// `out` (and whether each is within the approach reach, into `approached`), in the order of
-/// their keys (the order the world visits them in).
+/// The other vehicles and the ADS-B traffic within the watch range of the interval: into
+/// `out` those the pipeline uses, into `approached` those within the approach reach, in the
+/// order of their keys (the order the world visits them in).
 fn fill_nearby(
     into: Filling<'_>,
     scene: &Scene,
@@ -259,10 +210,16 @@ fn fill_nearby(
         + watch.max_model_radius_m;
     let held = interval.held.filter(|_| sensing);
     let mut region = own_box.inflated(reach_m);
+    let frame = interval.sensing_region.filter(|_| sensing);
+    if let Some((r, lead_s)) = frame {
+        let grown = r.inflated(watch.max_model_radius_m + world.max_speed_mps() * lead_s + 1.0);
+        region = region.including(grown.min).including(grown.max);
+    }
     if let Some(state) = held {
         region = held_positions(world, state).fold(region, |r, p| r.including(p));
     }
-    let holds = |key: BodyKey| held.is_some_and(|s| s.holds(ObstacleRef::Dynamic(key)));
+    // The held keys, walked beside the tracks (both in key order).
+    let mut held_keys = held.map(|s| s.held_bodies().peekable());
     world.tracks_near(&region, times.0, times.1, |track| {
         let Some((who, history)) = identity_of(scene, track, interval.own, claims) else {
             return;
@@ -277,21 +234,63 @@ fn fill_nearby(
         };
         let body_mps = now_mps.length();
         let body_box = Aabb64::new(before_m, before_m).including(now_m);
-        let radii_m = own_radius_m + model_radius_m(scene, who.geometry_index);
+        let body_radius_m = model_radius_m(scene, who.geometry_index);
+        let radii_m = own_radius_m + body_radius_m;
         let apart_m = own_box.distance_to_box(&body_box);
         let near = apart_m <= watch.approach_range_m(own_mps, body_mps) + radii_m;
-        let taken = near
-            || (sensing
-                && (apart_m <= watch.sensing_range_m(own_mps, body_mps) + radii_m
-                    || holds(who.key)));
-        if !taken {
+        // What the sensing frame uses: a body it holds, or whose box (within its model's
+        // sphere) grown by its lead reaches the frame's region.
+        let framed = frame.is_some_and(|(r, lead_s)| {
+            let half_m = body_radius_m + body_mps * lead_s + 1.0;
+            Aabb64::around(now_m, DVec3::splat(half_m)).intersects(&r)
+        });
+        let mut held_here = || is_next_held(&mut held_keys, who.key);
+        let within = near
+            || framed
+            || (sensing && apart_m <= watch.sensing_range_m(own_mps, body_mps) + radii_m);
+        if !within && !held_here() {
             return;
         }
-        if let Some(body) = predicted(history, who, times) {
-            out.push(body);
-            approached.push(near);
+        let moved_m = now_m.distance(before_m);
+        let posed = watch.pose_all
+            || framed
+            || apart_m <= watch.contact_range_m(own_mps, body_mps, moved_m) + radii_m
+            || held_here();
+        // Its whole state only where the pipeline uses it (the same `None` as the positions'
+        // when the track has no sample).
+        let body = if posed {
+            let Some(body) = predicted(history, who, times) else {
+                return;
+            };
+            Some(body)
+        } else {
+            None
+        };
+        if near {
+            approached.push(match body {
+                Some(_) => Approached::Posed(out.len()),
+                None => Approached::Placed {
+                    source: who.key.source,
+                    id: who.id.clone(),
+                    previous_enu_m: before_m,
+                    current_enu_m: now_m,
+                },
+            });
         }
+        out.extend(body);
     });
+}
+
+/// Whether `key` is among `held` (sorted keys, asked in key order: a cursor walks them).
+fn is_next_held(
+    held: &mut Option<std::iter::Peekable<impl Iterator<Item = BodyKey>>>,
+    key: BodyKey,
+) -> bool {
+    let Some(keys) = held else {
+        return false;
+    };
+    while keys.next_if(|k| *k < key).is_some() {}
+    keys.peek() == Some(&key)
 }
 
 /// The newest positions of the other vehicles and aircraft `state` holds a collider for.
@@ -366,12 +365,8 @@ fn identity_of<'t>(
     }
 }
 
-/// The radius of geometry `index` (0 when the scene has none such), metres.
-fn model_radius_m(scene: &Scene, index: usize) -> f64 {
-    scene.geometries.get(index).map_or(0.0, |g| radius_m(g))
-}
-
 /// Who a moving body is.
+#[derive(Clone, Copy)]
 struct Identity<'a> {
     key: BodyKey,
     id: &'a Arc<str>,

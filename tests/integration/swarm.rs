@@ -1,6 +1,8 @@
 //! A dense block of vehicles: a tick without a sensing frame takes only the bodies within its
-//! approach reach (session::traffic), and gives the answers a tick that takes every body of the
-//! watch range gives (a recorded run takes them all: the viewer draws them).
+//! approach reach (session::traffic), and makes the whole state (the attitude, the box) only
+//! of those the pipeline can use, the rest by their positions; it gives the answers a tick that
+//! takes every body of the watch range, whole, gives (a recorded run takes them all: the
+//! viewer draws them). In `exact` (the sensor's region) and in `paper` (the octree node's).
 
 use glam::DVec3;
 use savsim::geo::{Geodetic, LocalTangentPlane};
@@ -74,9 +76,14 @@ fn block_tlog() -> Vec<u8> {
 }
 
 /// The events and the summary's closest approaches (every pair listed) and collision figures
-/// of a replay of `tlog` at `--sensor-hz 2`, recorded or not.
-fn replay(dir: &std::path::Path, tlog: &std::path::Path, recorded: bool) -> (String, String) {
-    let name = if recorded { "recorded" } else { "plain" };
+/// of a replay of `tlog` in `mode` at `--sensor-hz 2`, recorded or not.
+fn replay(
+    dir: &std::path::Path,
+    tlog: &std::path::Path,
+    mode: &str,
+    recorded: bool,
+) -> (String, String) {
+    let name = format!("{mode}-{}", if recorded { "recorded" } else { "plain" });
     let (events, summary) = (
         dir.join(format!("{name}.jsonl")),
         dir.join(format!("{name}.json")),
@@ -85,6 +92,7 @@ fn replay(dir: &std::path::Path, tlog: &std::path::Path, recorded: bool) -> (Str
     c.arg("replay")
         .arg(tlog)
         .args(["--scene", "scenes/city.toml", "--well-clear", "none"])
+        .args(["--mode", mode])
         .args([
             "--sensor-hz",
             "2",
@@ -97,8 +105,10 @@ fn replay(dir: &std::path::Path, tlog: &std::path::Path, recorded: bool) -> (Str
         .arg("--summary-json")
         .arg(&summary);
     if recorded {
-        c.arg("--rerun")
-            .arg(format!("save={}", dir.join("run.rrd").display()));
+        c.arg("--rerun").arg(format!(
+            "save={}",
+            dir.join(format!("{name}.rrd")).display()
+        ));
     }
     assert_ran(&c.output().unwrap());
     let s: serde_json::Value =
@@ -134,8 +144,16 @@ fn a_dense_block_judged_within_the_approach_reach_gives_the_whole_ranges_answers
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("block.tlog");
     std::fs::write(&tlog, block_tlog()).unwrap();
-    let (plain_events, plain) = replay(dir.path(), &tlog, false);
-    let (recorded_events, recorded) = replay(dir.path(), &tlog, true);
+    for mode in ["exact", "paper"] {
+        judged_within_reach(dir.path(), &tlog, mode);
+    }
+}
+
+/// The block's replay in `mode`, plain and recorded: the same answers.
+#[cfg(feature = "viz")]
+fn judged_within_reach(dir: &std::path::Path, tlog: &std::path::Path, mode: &str) {
+    let (plain_events, plain) = replay(dir, tlog, mode, false);
+    let (recorded_events, recorded) = replay(dir, tlog, mode, true);
     // The block meets: collisions, and vehicles within NMAC of each other.
     let collisions = plain_events.matches("\"kind\":\"collision\"").count();
     assert!(collisions > 0, "no collision in {plain_events:.2000}");
@@ -154,12 +172,12 @@ fn a_dense_block_judged_within_the_approach_reach_gives_the_whole_ranges_answers
     assert!(!tracks.is_empty());
     assert!(
         plain_events == recorded_events,
-        "events differ {}",
+        "{mode}: events differ {}",
         first_difference(&plain_events, &recorded_events)
     );
     assert!(
         plain == recorded,
-        "figures differ {}",
+        "{mode}: figures differ {}",
         first_difference(&plain, &recorded)
     );
 }

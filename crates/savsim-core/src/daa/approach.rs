@@ -28,6 +28,31 @@ pub const NMAC_HORIZONTAL_M: f64 = 152.4;
 /// NMAC vertical threshold: 100 ft, metres.
 pub const NMAC_VERTICAL_M: f64 = 30.48;
 
+/// A moving body as closest approaches and well clear see it: who it is and its positions at
+/// both ends of the interval (no attitude: they judge reference points).
+#[derive(Debug, Clone, Copy)]
+pub struct Passing<'a> {
+    /// Where it comes from (the pair's key).
+    pub source: BodySource,
+    /// Its id.
+    pub id: &'a Arc<str>,
+    /// Its reference point at the interval's start, scene ENU metres.
+    pub previous_enu_m: DVec3,
+    /// Its reference point at the interval's end, scene ENU metres.
+    pub current_enu_m: DVec3,
+}
+
+impl<'a> From<&'a DynamicBody> for Passing<'a> {
+    fn from(body: &'a DynamicBody) -> Self {
+        Self {
+            source: body.key.source,
+            id: &body.id,
+            previous_enu_m: body.previous.position_enu_m,
+            current_enu_m: body.current.position_enu_m,
+        }
+    }
+}
+
 /// The closest approach of two tracks over some time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Approach {
@@ -187,16 +212,16 @@ impl Approaches {
     }
 
     /// Fold in one tick of vehicle `own` (from its `previous` sample, if any, to `current`)
-    /// against every moving body of that interval, as the pipeline sees them; the losses and
-    /// regains of well clear within it, in `changes` (cleared first). Allocates only the first
-    /// time a pair is seen. Fastest with `bodies` in the order of their keys, as a session's
-    /// tick has them; any order gives the same answer.
+    /// against every moving body of that interval (their positions: [`Passing`]); the losses
+    /// and regains of well clear within it, in `changes` (cleared first). Allocates only the
+    /// first time a pair is seen. Fastest with `bodies` in the order of their keys, as a
+    /// session's tick has them; any order gives the same answer.
     pub fn observe<'b>(
         &mut self,
         own: SenderId,
         previous: Option<&TrackSample>,
         current: &TrackSample,
-        bodies: impl IntoIterator<Item = &'b DynamicBody>,
+        bodies: impl IntoIterator<Item = Passing<'b>>,
         changes: &mut Vec<WellClearChange>,
     ) {
         changes.clear();
@@ -205,11 +230,11 @@ impl Approaches {
         let mut hint = 0;
         for body in bodies {
             let (rel0, rel1) = (
-                body.previous.position_enu_m - before.position_enu_m,
-                body.current.position_enu_m - current.position_enu_m,
+                body.previous_enu_m - before.position_enu_m,
+                body.current_enu_m - current.position_enu_m,
             );
             let a = Approach::over(before.t_s, current.t_s, rel0, rel1);
-            let source = body.key.source;
+            let source = body.source;
             let at = match slot(sources, hint, source) {
                 Ok(at) => {
                     pairs[at].approach = pairs[at].approach.merge(a);
@@ -233,7 +258,7 @@ impl Approaches {
             let mut note = |change, separation| {
                 changes.push(WellClearChange {
                     body: body.id.clone(),
-                    source: body.key.source,
+                    source: body.source,
                     change,
                     separation,
                 });
@@ -411,7 +436,7 @@ mod tests {
                     },
                     Some(&a),
                     &b,
-                    &bodies,
+                    bodies.iter().map(Passing::from),
                     &mut changes,
                 );
                 changes.sort_by_key(|c| c.source);

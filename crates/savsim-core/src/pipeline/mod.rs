@@ -25,7 +25,7 @@ use crate::collision::episodes::{sweepable_from, Episodes};
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
 use crate::collision::sensing::octree::Octree;
-use crate::collision::sensing::{Rules, Sensing};
+use crate::collision::sensing::{self, Rules, Sensing};
 use crate::collision::view::World;
 use crate::reference::{Interval, Reference};
 use crate::scene::{Aabb64, Scene};
@@ -245,6 +245,26 @@ impl Pipeline {
             }
             _ => true,
         }
+    }
+
+    /// Where `vehicle`'s sensing frame at `current` desires moving bodies: its region, scene ENU
+    /// metres, and how far ahead a body's speed carries it into the region, seconds (`None` in
+    /// a mode without a sensing layer). A body whose box at its pose, grown by its speed over
+    /// that lead, misses the region, and that the vehicle holds no collider for, changes
+    /// nothing the frame does.
+    pub fn sensing_region(
+        &self,
+        vehicle: VehicleKey,
+        current: &TrackSample,
+    ) -> Option<(Aabb64, f64)> {
+        let rules = sensing_rules(self.config.mode)?;
+        let fresh = SensingState::default();
+        let state = match self.vehicles.get(&(vehicle.vehicle, vehicle.component_id)) {
+            Some(v) if v.generation == vehicle.generation => &v.sensing,
+            _ => &fresh,
+        };
+        let look = sensing::look(&self.octree, &self.config, rules, state, current);
+        Some((look.region, sensing::moving_lead_s(&self.config, rules)))
     }
 
     /// The collision state of `vehicle` (component 1 when only a number is known), if it ever

@@ -20,7 +20,7 @@ use crate::collision::bodies::{BodyKey, ObstacleRef};
 use crate::collision::config::CollisionConfig;
 use crate::collision::events::{Event, EventKind};
 use crate::collision::meshes::MeshCache;
-use crate::collision::sensing::octree::NodeId;
+use crate::collision::sensing::octree::{NodeId, Octree};
 use crate::collision::view::{view, World};
 use crate::collision::ColliderKind;
 use crate::scene::Aabb64;
@@ -198,14 +198,11 @@ impl Sensing {
             current,
             ..
         } = *f;
-        let node = world.octree.leaf_at(current.position_enu_m);
-        let required = required_region(f, node);
-        // Static obstacles are queried with a margin and the answer reused while the required
-        // region stays inside it (and the node is the same). Moving ones are re-checked.
-        let reuse_static = state.node == node
-            && state
-                .queried
-                .is_some_and(|q| q.contains(required.min) && q.contains(required.max));
+        let Look {
+            node,
+            region,
+            reuse_static,
+        } = look(world.octree, f.cfg, rules, state, current);
         let any_dynamic = !world.dynamic.is_empty()
             || state
                 .active
@@ -214,14 +211,6 @@ impl Sensing {
         if reuse_static && !any_dynamic {
             return;
         }
-        let region = match state.queried {
-            Some(q) if reuse_static => q,
-            _ if rules == Rules::Sensor => {
-                let margin = (0.25 * (required.max.x - required.min.x)).max(10.0);
-                required.inflated(margin)
-            }
-            _ => required,
-        };
         state.queried = Some(region);
         self.desired.clear();
         // With the static answer reused, only the moving bodies (the tail of the sorted active
@@ -261,11 +250,7 @@ impl Sensing {
     /// statics in `desired`, sorted by key rank (the order of their `ObstacleRef`s).
     fn desire_moving(&mut self, f: &Frame<'_>, region: &Aabb64) {
         let (scene, dynamic) = (f.world.scene, f.world.dynamic);
-        let lead_s = if f.rules == Rules::Sensor {
-            f.cfg.look_ahead_s
-        } else {
-            0.0
-        };
+        let lead_s = moving_lead_s(f.cfg, f.rules);
         let numbers = &mut self.numbers;
         numbers.clear();
         f.world.moving_near(region, lead_s, |i, d| {
@@ -323,18 +308,72 @@ impl Sensing {
 /// The region whose obstacles must have colliders: the paper's node (a 2 m box where there is
 /// none), or for the sensor the rays' reach or the look-ahead at the vehicle's speed, whichever
 /// is longer, around the vehicle.
-fn required_region(f: &Frame<'_>, node: Option<NodeId>) -> Aabb64 {
-    let (cfg, current) = (f.cfg, f.current);
+fn required_region(
+    (octree, cfg): (&Octree, &CollisionConfig),
+    rules: Rules,
+    current: &TrackSample,
+    node: Option<NodeId>,
+) -> Aabb64 {
     let position = current.position_enu_m;
-    match f.rules {
+    match rules {
         Rules::Sensor => {
             let speed = current.velocity_enu_mps.length();
             let reach = cfg.ray_length_m.max(speed * cfg.look_ahead_s);
             Aabb64::around(position, DVec3::splat(reach))
         }
         Rules::Paper => node.map_or(Aabb64::around(position, DVec3::ONE), |n| {
-            f.world.octree.node_aabb(n)
+            octree.node_aabb(n)
         }),
+    }
+}
+
+/// Where a frame looks: the octree leaf the vehicle is in, the region its obstacles are
+/// desired in, and whether the static obstacles' last answer is reused.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Look {
+    pub node: Option<NodeId>,
+    pub region: Aabb64,
+    pub reuse_static: bool,
+}
+
+/// Where a frame at `current` under `rules` looks, after `state`'s last frame. Static
+/// obstacles are queried with a margin and the answer reused while the required region stays
+/// inside it (and the node is the same); the moving ones are checked against the same region.
+pub(crate) fn look(
+    octree: &Octree,
+    cfg: &CollisionConfig,
+    rules: Rules,
+    state: &SensingState,
+    current: &TrackSample,
+) -> Look {
+    let node = octree.leaf_at(current.position_enu_m);
+    let required = required_region((octree, cfg), rules, current, node);
+    let reuse_static = state.node == node
+        && state
+            .queried
+            .is_some_and(|q| q.contains(required.min) && q.contains(required.max));
+    let region = match state.queried {
+        Some(q) if reuse_static => q,
+        _ if rules == Rules::Sensor => {
+            let margin = (0.25 * (required.max.x - required.min.x)).max(10.0);
+            required.inflated(margin)
+        }
+        _ => required,
+    };
+    Look {
+        node,
+        region,
+        reuse_static,
+    }
+}
+
+/// How far ahead a moving body's speed carries it into a frame's region under `rules`,
+/// seconds: the look-ahead for the sensor, none in the paper.
+pub(crate) fn moving_lead_s(cfg: &CollisionConfig, rules: Rules) -> f64 {
+    if rules == Rules::Sensor {
+        cfg.look_ahead_s
+    } else {
+        0.0
     }
 }
 
