@@ -93,11 +93,6 @@ impl SensingState {
         })
     }
 
-    /// Whether the sensing layer holds a collider (a box or a mesh) for `o`.
-    pub fn holds(&self, o: ObstacleRef) -> bool {
-        self.active.binary_search_by_key(&o, |a| a.obstacle).is_ok()
-    }
-
     /// The collider the sensing layer holds for `o` (the active list is sorted by obstacle).
     pub(crate) fn collider_of(&self, o: ObstacleRef) -> Option<ColliderKind> {
         self.active
