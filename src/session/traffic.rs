@@ -225,7 +225,7 @@ fn fill_nearby(
             return;
         };
         // Whether it is near from its positions alone: the whole state (the attitude's
-        // interpolation) is made only for a body taken.
+        // interpolation) is made only for a body posed.
         let Some(((before_m, _), (now_m, now_mps))) = history
             .predict_motion(times.0, PREDICT_MAX_S)
             .zip(history.predict_motion(times.1, PREDICT_MAX_S))
