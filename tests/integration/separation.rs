@@ -99,14 +99,19 @@ fn without_a_minimum_nothing_is_judged() {
 /// A minimum that is not a positive distance of at most 1000 m is a usage error naming it.
 #[test]
 fn a_bad_minimum_is_a_usage_error_naming_it() {
-    for bad in ["0", "-3", "nan", "inf", "1e9", "three"] {
+    replay_refuses_naming("--separation-m", &["0", "-3", "nan", "inf", "1e9", "three"]);
+}
+
+/// `savsim replay FLAG VALUE` is a usage error naming `flag` for each of `values`.
+fn replay_refuses_naming(flag: &str, values: &[&str]) {
+    for value in values {
         let out = crate::cli::savsim()
-            .args(["replay", "--separation-m", bad, "nothing.tlog"])
+            .args(["replay", flag, value, "nothing.tlog"])
             .output()
             .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{bad}");
+        assert_eq!(out.status.code(), Some(2), "{value}");
         let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains("--separation-m"), "{bad}: {stderr}");
+        assert!(stderr.contains(flag), "{value}: {stderr}");
     }
 }
 
@@ -493,13 +498,8 @@ fn a_summary_lists_the_closest_pairs_and_counts_them_all() {
 /// An absurd `--summary-pairs` is a usage error naming the flag.
 #[test]
 fn absurd_summary_pairs_are_usage_errors_naming_the_flag() {
-    for value in ["-1", "nan", "1.5", "99999999999999999999999", ""] {
-        let out = crate::cli::savsim()
-            .args(["replay", "--summary-pairs", value, "nothing.tlog"])
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{value}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains("--summary-pairs"), "{value}: {stderr}");
-    }
+    replay_refuses_naming(
+        "--summary-pairs",
+        &["-1", "nan", "1.5", "99999999999999999999999", ""],
+    );
 }
